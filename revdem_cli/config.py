@@ -1,0 +1,294 @@
+"""Scenario files (TOML or YAML) as validated pydantic models.
+
+Everything is SI. Loading goes through `load_scenario`, which turns every problem into an
+`InputError` naming the file and the field path, e.g. ``collision.toml: particles[1].radius:
+must be greater than 0``.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from revdem_cli.errors import InputError
+
+Vector3 = Annotated[
+    tuple[float, float, float], Field(description="three components (x, y, z)")
+]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class Material(_Model):
+    """An elastic material; Young's modulus follows as E = 2G(1 + nu)."""
+
+    density: float = Field(gt=0, description="mass density, kg/m^3")
+    shear_modulus: float = Field(gt=0, description="shear modulus G, Pa")
+    poisson_ratio: float = Field(gt=-1, lt=0.5, description="Poisson's ratio nu, -")
+
+
+class ContactLaw(_Model):
+    """Normal contact law between spheres (Hanley 2020 Eq 6)."""
+
+    model: Literal["hertz", "linear"] = Field(
+        description="'hertz': F = 4/3 E* sqrt(R*) d^1.5 from the materials; 'linear': F = kn d"
+    )
+    kn: float | None = Field(
+        default=None, gt=0, description="normal spring stiffness for the linear law, N/m"
+    )
+
+    @model_validator(mode="after")
+    def _kn_matches_model(self) -> ContactLaw:
+        if self.model == "linear" and self.kn is None:
+            raise ValueError("the linear contact law needs kn (N/m)")
+        if self.model == "hertz" and self.kn is not None:
+            raise ValueError("kn belongs to the linear law; the Hertz law takes its stiffness "
+                             "from the materials")
+        return self
+
+
+class Particle(_Model):
+    """One sphere given explicitly."""
+
+    material: str = Field(description="name of a material in [materials]")
+    radius: float = Field(gt=0, description="radius, m")
+    position: Vector3 = Field(description="centre position, m")
+    velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="velocity, m/s")
+    angular_velocity: Vector3 = Field(
+        default=(0.0, 0.0, 0.0), description="angular velocity, rad/s"
+    )
+
+
+class Integrator(_Model):
+    """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
+
+    dt: float = Field(gt=0, description="time step, s")
+    arithmetic: Literal["float"] = Field(
+        default="float", description="number representation of the state: 'float' (float64)"
+    )
+
+
+class Neighbours(_Model):
+    """Verlet pair list built from cell lists."""
+
+    skin: float | None = Field(
+        default=None,
+        gt=0,
+        description="extra search distance beyond contact, m; default: 10 % of the largest radius",
+    )
+
+
+class Stage(_Model):
+    """A named stretch of the run with its own step count and output intervals."""
+
+    name: str = Field(min_length=1, description="stage name, used in output and progress")
+    steps: int = Field(gt=0, description="number of time steps")
+    output_every: int = Field(
+        default=100, gt=0, description="write a trajectory frame every this many steps"
+    )
+    observables_every: int | None = Field(
+        default=None,
+        gt=0,
+        description="record observables every this many steps; default: output_every",
+    )
+    reverse: bool = Field(
+        default=False,
+        description="save the end of this stage as the restart and run it backwards in time",
+    )
+
+    @property
+    def observable_interval(self) -> int:
+        return self.observables_every or self.output_every
+
+
+class Reversal(_Model):
+    """Tolerances that decide whether a reversed run reproduced the forward one."""
+
+    position_tolerance_rel: float = Field(
+        default=1e-10, gt=0, description="largest position error divided by the smallest diameter"
+    )
+    velocity_tolerance: float = Field(default=1e-9, gt=0, description="largest velocity error, m/s")
+    angular_velocity_tolerance: float = Field(
+        default=1e-6, gt=0, description="largest angular velocity error, rad/s"
+    )
+
+
+class Output(_Model):
+    """What is written besides the trajectories."""
+
+    figures: list[Literal["speed"]] = Field(
+        default_factory=list,
+        description="figures written beside the trajectories: 'speed' = |v| of each particle "
+        "against time, forward and reversed overlaid",
+    )
+
+
+class Scenario(_Model):
+    """A complete revdem experiment."""
+
+    name: str = Field(
+        pattern=r"^[A-Za-z0-9_.-]+$", description="run name, used for output file names"
+    )
+    description: str = Field(default="", description="free text")
+    materials: dict[str, Material] = Field(min_length=1, description="materials by name")
+    contact: ContactLaw = Field(description="contact law between particles")
+    particles: list[Particle] = Field(min_length=1, description="explicit list of spheres")
+    gravity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="gravitational acceleration, m/s^2")
+    integrator: Integrator
+    neighbours: Neighbours = Field(default_factory=Neighbours)
+    stages: list[Stage] = Field(min_length=1, description="stages run in order")
+    reversal: Reversal = Field(default_factory=Reversal)
+    output: Output = Field(default_factory=Output)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Scenario:
+        for i, particle in enumerate(self.particles):
+            if particle.material not in self.materials:
+                raise _FieldError(
+                    f"particles[{i}].material",
+                    f"unknown material '{particle.material}' (known: {', '.join(self.materials)})",
+                )
+        names = [stage.name for stage in self.stages]
+        for i, name in enumerate(names):
+            if names.index(name) != i:
+                raise _FieldError(f"stages[{i}].name", f"stage name '{name}' is used twice")
+        reversed_stages = [i for i, stage in enumerate(self.stages) if stage.reverse]
+        if len(reversed_stages) > 1:
+            raise _FieldError(
+                f"stages[{reversed_stages[1]}].reverse", "only one stage can be reversed"
+            )
+        if reversed_stages and reversed_stages[0] != len(self.stages) - 1:
+            raise _FieldError(
+                f"stages[{reversed_stages[0]}].reverse", "the reversed stage must be the last stage"
+            )
+        self._check_overlaps()
+        return self
+
+    def _check_overlaps(self) -> None:
+        ps = self.particles
+        for i in range(len(ps)):
+            for j in range(i + 1, len(ps)):
+                gap = math.dist(ps[i].position, ps[j].position) - ps[i].radius - ps[j].radius
+                if gap < -1e-3 * min(ps[i].radius, ps[j].radius):
+                    raise _FieldError(
+                        f"particles[{j}].position",
+                        f"particle {j} overlaps particle {i} by {-gap:.3g} m",
+                    )
+
+    @property
+    def reversed_stage(self) -> Stage | None:
+        return next((stage for stage in self.stages if stage.reverse), None)
+
+
+class _FieldError(ValueError):
+    """A consistency error located at a field path inside the scenario."""
+
+    def __init__(self, path: str, message: str):
+        super().__init__(f"{path}: {message}")
+
+
+def _field_path(location: tuple) -> str:
+    path = ""
+    for part in location:
+        if isinstance(part, int):
+            path += f"[{part}]"
+        else:
+            path += f".{part}" if path else str(part)
+    return path
+
+
+def _describe(error: ValidationError) -> str:
+    first = error.errors()[0]
+    message = first["msg"].removeprefix("Value error, ")
+    path = _field_path(first["loc"])
+    if first["type"] == "missing":
+        message = "missing required field"
+    elif first["type"] == "extra_forbidden":
+        message = "unknown field"
+    text = f"{path}: {message}" if path else message
+    more = len(error.errors()) - 1
+    return text + (f" (and {more} more problem{'s' * (more > 1)})" if more else "")
+
+
+def parse_text(text: str, suffix: str, origin: str) -> dict:
+    """Parse scenario text as TOML or YAML, chosen by the file suffix."""
+    if suffix in (".yaml", ".yml"):
+        import yaml
+
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            where = f" at line {mark.line + 1}" if mark else ""
+            raise InputError(f"{origin}: not valid YAML{where}") from None
+    elif suffix == ".toml":
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"{origin}: not valid TOML: {exc}") from None
+    else:
+        raise InputError(f"{origin}: unknown scenario format '{suffix}' (use .toml, .yaml or .yml)")
+    if not isinstance(data, dict):
+        raise InputError(f"{origin}: a scenario must be a table of fields")
+    return data
+
+
+def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
+    """Apply ``key.sub=value`` overrides; values are read as TOML values, else as strings."""
+    for item in overrides:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise InputError(f"--set {item}: expected key=value")
+        try:
+            value = tomllib.loads(f"v = {raw}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw
+        node = data
+        parts = key.split(".")
+        for part in parts[:-1]:
+            node = _child(node, part, key)
+        last = parts[-1]
+        if isinstance(node, list):
+            node[_index(node, last, key)] = value
+        else:
+            node[last] = value
+    return data
+
+
+def _child(node, part: str, key: str):
+    if isinstance(node, list):
+        return node[_index(node, part, key)]
+    if not isinstance(node, dict):
+        raise InputError(f"--set {key}: '{part}' is not inside a table")
+    return node.setdefault(part, {})
+
+
+def _index(node: list, part: str, key: str) -> int:
+    if not part.isdigit() or int(part) >= len(node):
+        raise InputError(f"--set {key}: '{part}' is not an index of a list of {len(node)}")
+    return int(part)
+
+
+def scenario_from_text(text: str, suffix: str, origin: str, overrides: list[str] = ()) -> Scenario:
+    data = apply_overrides(parse_text(text, suffix, origin), list(overrides), origin)
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise InputError(f"{origin}: {_describe(exc)}") from None
+
+
+def load_scenario(path: str | Path, overrides: list[str] = ()) -> tuple[Scenario, str]:
+    """Read and validate a scenario file; returns the scenario and its text (kept in outputs)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
+        raise InputError(f"{path}: cannot read scenario file ({reason})") from None
+    return scenario_from_text(text, path.suffix.lower(), str(path), overrides), text

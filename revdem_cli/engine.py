@@ -1,0 +1,232 @@
+"""Runs scenarios: stages forward, the reversed stage backwards, outputs and comparison.
+
+This is the one place that orchestrates. The whole stepping loop of a stage is compiled
+(`kernels.integrate.advance`); Python is touched once per output frame to write it.
+Frames are written at the same step numbers in both directions.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from revdem_cli.compare import compare_trajectories
+from revdem_cli.config import Scenario, Stage
+from revdem_cli.errors import InputError
+from revdem_cli.io.h5md import TrajectoryWriter
+from revdem_cli.io.restart import Restart, read_restart, write_restart
+from revdem_cli.kernels import observables
+from revdem_cli.kernels.arrays import ContactLaw
+from revdem_cli.kernels.integrate import OK, advance
+from revdem_cli.state import State, contact_law, default_skin, initial_state
+
+Progress = Callable[[str, int, int], None]
+"""Called as progress(label, steps done, steps in total) once per output frame."""
+
+
+@dataclass(frozen=True)
+class Model:
+    """The constant parts of a run, derived once from the scenario."""
+
+    scenario: Scenario
+    law: ContactLaw
+    gravity: np.ndarray
+    skin: float
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> Model:
+        return cls(scenario, contact_law(scenario), np.array(scenario.gravity, dtype=np.float64),
+                   default_skin(scenario))
+
+
+@dataclass(frozen=True)
+class StageClock:
+    """Step and time bounds of a stage; time = first_time + (step - first_step) dt."""
+
+    stage: Stage
+    first_step: int
+    first_time: float
+    dt: float
+
+    @property
+    def last_step(self) -> int:
+        return self.first_step + self.stage.steps
+
+    def time(self, step) -> np.ndarray | float:
+        return self.first_time + (np.asarray(step) - self.first_step) * self.dt
+
+    def frame_steps(self) -> list[int]:
+        """Steps with a trajectory frame: every output_every from the start, and the end."""
+        steps = list(range(self.first_step, self.last_step, self.stage.output_every))
+        return steps + [self.last_step]
+
+
+def stage_clocks(scenario: Scenario) -> list[StageClock]:
+    clocks, step, time = [], 0, 0.0
+    for stage in scenario.stages:
+        clocks.append(StageClock(stage, step, time, scenario.integrator.dt))
+        step += stage.steps
+        time += stage.steps * scenario.integrator.dt
+    return clocks
+
+
+def run_stage(
+    state: State,
+    model: Model,
+    clock: StageClock,
+    direction: int,
+    writer: TrajectoryWriter,
+    progress: Progress | None = None,
+    stop_step: int | None = None,
+) -> None:
+    """Advance `state` through one stage (direction +1) or back through it (direction -1)."""
+    frames = clock.frame_steps()
+    if direction < 0:
+        frames = frames[::-1]
+    if stop_step is not None:
+        frames = [s for s in frames if (s - stop_step) * direction <= 0]
+        if frames[-1] != stop_step:
+            frames.append(stop_step)
+    if frames[0] != state.step:
+        raise ValueError(f"stage {clock.stage.name} starts at step {frames[0]}, state is at "
+                         f"{state.step}")
+    every = clock.stage.observable_interval
+    buffer = np.zeros((clock.stage.output_every // every + 2, 1 + len(observables.NAMES)))
+    stage_bounds = np.array([clock.first_step, clock.last_step], dtype=np.int64)
+    _observe_now(state, model, clock, writer, buffer)
+    label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
+    total = abs(frames[-1] - frames[0])
+    for target in frames[1:]:
+        while state.step != target:
+            status, state.step, rows = advance(
+                state.particles, state.pairs, model.law, model.gravity, model.skin, clock.dt,
+                direction, state.step, target, stage_bounds, every, buffer,
+            )
+            _write_observables(writer, clock, buffer[:rows])
+            if status != OK:
+                state.grow_pairs()
+        writer.frame(state.step, float(clock.time(state.step)), state.particles)
+        if progress is not None:
+            progress(label, abs(state.step - frames[0]), total)
+
+
+def _observe_now(state, model, clock, writer, buffer) -> None:
+    """Write the frame and observables of the state as it is (the start of a stage)."""
+    from revdem_cli.kernels.observables import observe
+
+    writer.frame(state.step, float(clock.time(state.step)), state.particles)
+    if writer.observable_clock["step"].shape[0] and \
+            writer.observable_clock["step"][-1] == state.step:
+        return
+    buffer[0, 0] = state.step
+    observe(state.particles, state.pairs, model.gravity, buffer[0])
+    _write_observables(writer, clock, buffer[:1])
+
+
+def _write_observables(writer: TrajectoryWriter, clock: StageClock, rows: np.ndarray) -> None:
+    steps = rows[:, 0].astype(np.int64)
+    writer.observables(steps, clock.time(steps), rows[:, 1:])
+
+
+@dataclass
+class Outputs:
+    forward: Path | None = None
+    restart: Path | None = None
+    reverse: Path | None = None
+    comparison: Path | None = None
+    figures: tuple[Path, ...] = ()
+    verdict: dict | None = None
+
+
+def _paths(out_dir: Path, name: str) -> dict[str, Path]:
+    return {kind: out_dir / f"{name}.{kind}.{ext}" for kind, ext in
+            (("forward", "h5"), ("restart", "h5"), ("reverse", "h5"), ("compare", "json"))}
+
+
+def _writer(path: Path, state: State, scenario: Scenario, text: str, direction: str,
+            source: str = "") -> TrajectoryWriter:
+    return TrajectoryWriter(
+        path, state.particles.radius, state.particles.mass, observables.NAMES,
+        {
+            "direction": direction,
+            "dt": scenario.integrator.dt,
+            "arithmetic": scenario.integrator.arithmetic,
+            "scenario": text,
+            "scenario_json": scenario.model_dump_json(),
+            "source_restart": source,
+        },
+    )
+
+
+def run_scenario(
+    scenario: Scenario,
+    text: str,
+    suffix: str,
+    out_dir: Path,
+    reverse: bool = True,
+    progress: Progress | None = None,
+) -> Outputs:
+    """Run every stage forward, save the restart, then reverse the marked stage if asked."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = _paths(out_dir, scenario.name)
+    model = Model.of(scenario)
+    state = initial_state(scenario, model.law, model.gravity, model.skin)
+    clocks = stage_clocks(scenario)
+    with _writer(paths["forward"], state, scenario, text, "forward") as writer:
+        for clock in clocks:
+            run_stage(state, model, clock, +1, writer, progress)
+    write_restart(paths["restart"], Restart(
+        state, scenario.model_dump_json(), text, suffix, clocks[-1].stage.name,
+        str(paths["forward"].resolve()),
+    ))
+    outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
+    if reverse and scenario.reversed_stage is not None:
+        reversed_outputs = reverse_run(paths["restart"], out_dir, progress=progress)
+        reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
+        return reversed_outputs
+    outputs.figures = _figures(scenario, paths["forward"], None, out_dir)
+    return outputs
+
+
+def reverse_run(
+    restart_path: Path,
+    out_dir: Path | None = None,
+    steps: int | None = None,
+    progress: Progress | None = None,
+) -> Outputs:
+    """Run the stage that ended at a restart backwards, then compare with the forward run."""
+    restart = read_restart(restart_path)
+    scenario = Scenario.model_validate_json(restart.scenario_json)
+    out_dir = Path(out_dir) if out_dir is not None else Path(restart_path).parent
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = _paths(out_dir, scenario.name)
+    clock = next(c for c in stage_clocks(scenario) if c.stage.name == restart.stage)
+    if steps is not None and not 0 < steps <= clock.stage.steps:
+        raise InputError(f"--steps {steps}: must be between 1 and the stage's "
+                         f"{clock.stage.steps} steps")
+    stop = clock.first_step if steps is None else restart.state.step - steps
+    model = Model.of(scenario)
+    state = restart.state
+    with _writer(paths["reverse"], state, scenario, restart.scenario_text, "reverse",
+                 str(Path(restart_path).resolve())) as writer:
+        run_stage(state, model, clock, -1, writer, progress, stop_step=stop)
+    outputs = Outputs(reverse=paths["reverse"])
+    forward = Path(restart.trajectory)
+    if forward.exists():
+        verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
+        paths["compare"].write_text(json.dumps(verdict, indent=2) + "\n")
+        outputs.comparison, outputs.verdict = paths["compare"], verdict
+        outputs.figures = _figures(scenario, forward, paths["reverse"], out_dir)
+    return outputs
+
+
+def _figures(scenario: Scenario, forward: Path, reverse: Path | None,
+             out_dir: Path) -> tuple[Path, ...]:
+    from revdem_cli.report.figures import FIGURES
+
+    return tuple(FIGURES[kind](forward, reverse, out_dir / f"{scenario.name}.{kind}.png")
+                 for kind in scenario.output.figures)

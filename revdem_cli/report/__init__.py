@@ -1,0 +1,1 @@
+"""Figures and paper-versus-revdem tables."""
