@@ -2,26 +2,35 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer.core import TyperGroup
 
 from revdem_cli import __version__
 from revdem_cli.errors import InputError
+from revdem_cli.timestep.command import dt as _dt
+
+
+class _Commands(TyperGroup):
+    """Turns bad input anywhere in a command into one line on stderr and exit status 2."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except InputError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(2) from None
+
 
 app = typer.Typer(
+    cls=_Commands,
     name="revdem",
-    help="DEM of spheres forward and in reversed time, and critical time steps of convex particles.",
+    help="DEM of spheres forward and in reversed time; critical time steps of convex particles.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
 )
-
-
-def _fail(message: str) -> None:
-    typer.echo(f"error: {message}", err=True)
-    raise typer.Exit(2)
 
 
 def _version(value: bool) -> None:
@@ -39,12 +48,134 @@ def _root(
     """revdem: reversible DEM experiments and critical time steps."""
 
 
+def _progress(quiet: bool):
+    """A rich progress display, or None when quiet or not on a terminal."""
+    if quiet:
+        return None
+    from revdem_cli.report.progress import RunProgress
+
+    return RunProgress()
+
+
+@app.command()
+def run(
+    scenario: Annotated[Path, typer.Argument(help="Scenario file (.toml, .yaml or .yml).")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("out"),
+    overrides: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Override a scenario field, e.g. --set integrator.dt=5e-8."),
+    ] = None,
+    no_reverse: Annotated[
+        bool, typer.Option("--no-reverse", help="Run forward only, even if a stage is reversed.")
+    ] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
+) -> None:
+    """Run a scenario forward; if a stage is marked reverse, run it backwards and compare.
+
+    Example: revdem run configs/collision.toml --out out
+    """
+    from revdem_cli.config import load_scenario
+    from revdem_cli.engine import run_scenario
+    from revdem_cli.report.summary import print_summary
+
+    spec, text = load_scenario(scenario, overrides or [])
+    with _progress(quiet) or _nothing() as progress:
+        outputs = run_scenario(spec, text, scenario.suffix.lower(), out, not no_reverse, progress)
+    print_summary(outputs)
+
+
+@app.command()
+def reverse(
+    restart: Annotated[Path, typer.Argument(help="Restart file written by `revdem run`.")],
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Output directory (default: beside the restart).")
+    ] = None,
+    steps: Annotated[
+        int | None, typer.Option("--steps", help="Reverse only this many steps.")
+    ] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
+) -> None:
+    """Run the stage that ended at RESTART backwards and compare with its forward trajectory.
+
+    Example: revdem reverse out/collision.restart.h5
+    """
+    from revdem_cli.engine import reverse_run
+    from revdem_cli.report.summary import print_summary
+
+    with _progress(quiet) or _nothing() as progress:
+        outputs = reverse_run(restart, out, steps, progress)
+    print_summary(outputs)
+
+
+@app.command()
+def compare(
+    first: Annotated[Path, typer.Argument(help="Trajectory, e.g. out/collision.forward.h5.")],
+    second: Annotated[Path, typer.Argument(help="Trajectory, e.g. out/collision.reverse.h5.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print the comparison as JSON.")] = False,
+) -> None:
+    """Compare two trajectories frame by frame at their common steps.
+
+    Example: revdem compare out/collision.forward.h5 out/collision.reverse.h5 --json
+    """
+    import json
+
+    from revdem_cli.compare import compare_trajectories
+    from revdem_cli.report.summary import print_comparison
+
+    verdict = compare_trajectories(first, second)
+    if as_json:
+        typer.echo(json.dumps(verdict, indent=2))
+    else:
+        print_comparison(verdict)
+
+
+@app.command()
+def validate(
+    scenario: Annotated[Path, typer.Argument(help="Scenario file (.toml, .yaml or .yml).")],
+    overrides: Annotated[
+        list[str] | None, typer.Option("--set", help="Override a scenario field.")
+    ] = None,
+) -> None:
+    """Check a scenario file without running it.
+
+    Example: revdem validate configs/collision.toml
+    """
+    from revdem_cli.config import load_scenario
+
+    spec, _ = load_scenario(scenario, overrides or [])
+    steps = sum(stage.steps for stage in spec.stages)
+    typer.echo(
+        f"{scenario}: valid: {len(spec.particles)} particles, {len(spec.stages)} "
+        f"stage(s), {steps} steps"
+    )
+
+
+@app.command()
+def schema() -> None:
+    """Print the JSON schema of scenario files (every field with its unit).
+
+    Example: revdem schema > scenario.schema.json
+    """
+    import json
+
+    from revdem_cli.config import Scenario
+
+    typer.echo(json.dumps(Scenario.model_json_schema(), indent=2))
+
+
+app.command("dt")(_dt)
+
+
+class _nothing:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
+
+
 def main() -> None:
-    try:
-        app()
-    except InputError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        sys.exit(2)
+    app()
 
 
 if __name__ == "__main__":

@@ -51,8 +51,14 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
                 errors.append(_max_norm(va, vb))
             rows.append((int(common[k]), errors[0] / diameter, errors[0], errors[1], errors[2]))
     table = np.array([r[1:] for r in rows])
-    limits = np.array([tolerance.position_tolerance_rel, np.inf, tolerance.velocity_tolerance,
-                       tolerance.angular_velocity_tolerance])
+    limits = np.array(
+        [
+            tolerance.position_tolerance_rel,
+            np.inf,
+            tolerance.velocity_tolerance,
+            tolerance.angular_velocity_tolerance,
+        ]
+    )
     exceeded = (table > limits).any(axis=1)
     first_divergence = int(rows[int(np.argmax(exceeded))][0]) if exceeded.any() else None
     return {

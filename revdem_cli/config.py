@@ -16,9 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from revdem_cli.errors import InputError
 
-Vector3 = Annotated[
-    tuple[float, float, float], Field(description="three components (x, y, z)")
-]
+Vector3 = Annotated[tuple[float, float, float], Field(description="three components (x, y, z)")]
 
 
 class _Model(BaseModel):
@@ -48,8 +46,9 @@ class ContactLaw(_Model):
         if self.model == "linear" and self.kn is None:
             raise ValueError("the linear contact law needs kn (N/m)")
         if self.model == "hertz" and self.kn is not None:
-            raise ValueError("kn belongs to the linear law; the Hertz law takes its stiffness "
-                             "from the materials")
+            raise ValueError(
+                "kn belongs to the linear law; the Hertz law takes its stiffness from the materials"
+            )
         return self
 
 
@@ -139,7 +138,9 @@ class Scenario(_Model):
     materials: dict[str, Material] = Field(min_length=1, description="materials by name")
     contact: ContactLaw = Field(description="contact law between particles")
     particles: list[Particle] = Field(min_length=1, description="explicit list of spheres")
-    gravity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="gravitational acceleration, m/s^2")
+    gravity: Vector3 = Field(
+        default=(0.0, 0.0, 0.0), description="gravitational acceleration, m/s^2"
+    )
     integrator: Integrator
     neighbours: Neighbours = Field(default_factory=Neighbours)
     stages: list[Stage] = Field(min_length=1, description="stages run in order")

@@ -24,8 +24,8 @@ from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.integrate import OK, advance
 from revdem_cli.state import State, contact_law, default_skin, initial_state
 
-Progress = Callable[[str, int, int], None]
-"""Called as progress(label, steps done, steps in total) once per output frame."""
+Progress = Callable[[str, int, int, int], None]
+"""Called as progress(label, steps done, steps in total, particles) once per output frame."""
 
 
 @dataclass(frozen=True)
@@ -39,8 +39,12 @@ class Model:
 
     @classmethod
     def of(cls, scenario: Scenario) -> Model:
-        return cls(scenario, contact_law(scenario), np.array(scenario.gravity, dtype=np.float64),
-                   default_skin(scenario))
+        return cls(
+            scenario,
+            contact_law(scenario),
+            np.array(scenario.gravity, dtype=np.float64),
+            default_skin(scenario),
+        )
 
 
 @dataclass(frozen=True)
@@ -92,8 +96,9 @@ def run_stage(
         if frames[-1] != stop_step:
             frames.append(stop_step)
     if frames[0] != state.step:
-        raise ValueError(f"stage {clock.stage.name} starts at step {frames[0]}, state is at "
-                         f"{state.step}")
+        raise ValueError(
+            f"stage {clock.stage.name} starts at step {frames[0]}, state is at {state.step}"
+        )
     every = clock.stage.observable_interval
     buffer = np.zeros((clock.stage.output_every // every + 2, 1 + len(observables.NAMES)))
     stage_bounds = np.array([clock.first_step, clock.last_step], dtype=np.int64)
@@ -103,15 +108,25 @@ def run_stage(
     for target in frames[1:]:
         while state.step != target:
             status, state.step, rows = advance(
-                state.particles, state.pairs, model.law, model.gravity, model.skin, clock.dt,
-                direction, state.step, target, stage_bounds, every, buffer,
+                state.particles,
+                state.pairs,
+                model.law,
+                model.gravity,
+                model.skin,
+                clock.dt,
+                direction,
+                state.step,
+                target,
+                stage_bounds,
+                every,
+                buffer,
             )
             _write_observables(writer, clock, buffer[:rows])
             if status != OK:
                 state.grow_pairs()
         writer.frame(state.step, float(clock.time(state.step)), state.particles)
         if progress is not None:
-            progress(label, abs(state.step - frames[0]), total)
+            progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
 
 
 def _observe_now(state, model, clock, writer, buffer) -> None:
@@ -119,8 +134,10 @@ def _observe_now(state, model, clock, writer, buffer) -> None:
     from revdem_cli.kernels.observables import observe
 
     writer.frame(state.step, float(clock.time(state.step)), state.particles)
-    if writer.observable_clock["step"].shape[0] and \
-            writer.observable_clock["step"][-1] == state.step:
+    if (
+        writer.observable_clock["step"].shape[0]
+        and writer.observable_clock["step"][-1] == state.step
+    ):
         return
     buffer[0, 0] = state.step
     observe(state.particles, state.pairs, model.gravity, buffer[0])
@@ -143,14 +160,25 @@ class Outputs:
 
 
 def _paths(out_dir: Path, name: str) -> dict[str, Path]:
-    return {kind: out_dir / f"{name}.{kind}.{ext}" for kind, ext in
-            (("forward", "h5"), ("restart", "h5"), ("reverse", "h5"), ("compare", "json"))}
+    return {
+        kind: out_dir / f"{name}.{kind}.{ext}"
+        for kind, ext in (
+            ("forward", "h5"),
+            ("restart", "h5"),
+            ("reverse", "h5"),
+            ("compare", "json"),
+        )
+    }
 
 
-def _writer(path: Path, state: State, scenario: Scenario, text: str, direction: str,
-            source: str = "") -> TrajectoryWriter:
+def _writer(
+    path: Path, state: State, scenario: Scenario, text: str, direction: str, source: str = ""
+) -> TrajectoryWriter:
     return TrajectoryWriter(
-        path, state.particles.radius, state.particles.mass, observables.NAMES,
+        path,
+        state.particles.radius,
+        state.particles.mass,
+        observables.NAMES,
         {
             "direction": direction,
             "dt": scenario.integrator.dt,
@@ -179,10 +207,17 @@ def run_scenario(
     with _writer(paths["forward"], state, scenario, text, "forward") as writer:
         for clock in clocks:
             run_stage(state, model, clock, +1, writer, progress)
-    write_restart(paths["restart"], Restart(
-        state, scenario.model_dump_json(), text, suffix, clocks[-1].stage.name,
-        str(paths["forward"].resolve()),
-    ))
+    write_restart(
+        paths["restart"],
+        Restart(
+            state,
+            scenario.model_dump_json(),
+            text,
+            suffix,
+            clocks[-1].stage.name,
+            str(paths["forward"].resolve()),
+        ),
+    )
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
     if reverse and scenario.reversed_stage is not None:
         reversed_outputs = reverse_run(paths["restart"], out_dir, progress=progress)
@@ -206,13 +241,20 @@ def reverse_run(
     paths = _paths(out_dir, scenario.name)
     clock = next(c for c in stage_clocks(scenario) if c.stage.name == restart.stage)
     if steps is not None and not 0 < steps <= clock.stage.steps:
-        raise InputError(f"--steps {steps}: must be between 1 and the stage's "
-                         f"{clock.stage.steps} steps")
+        raise InputError(
+            f"--steps {steps}: must be between 1 and the stage's {clock.stage.steps} steps"
+        )
     stop = clock.first_step if steps is None else restart.state.step - steps
     model = Model.of(scenario)
     state = restart.state
-    with _writer(paths["reverse"], state, scenario, restart.scenario_text, "reverse",
-                 str(Path(restart_path).resolve())) as writer:
+    with _writer(
+        paths["reverse"],
+        state,
+        scenario,
+        restart.scenario_text,
+        "reverse",
+        str(Path(restart_path).resolve()),
+    ) as writer:
         run_stage(state, model, clock, -1, writer, progress, stop_step=stop)
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(restart.trajectory)
@@ -224,9 +266,12 @@ def reverse_run(
     return outputs
 
 
-def _figures(scenario: Scenario, forward: Path, reverse: Path | None,
-             out_dir: Path) -> tuple[Path, ...]:
+def _figures(
+    scenario: Scenario, forward: Path, reverse: Path | None, out_dir: Path
+) -> tuple[Path, ...]:
     from revdem_cli.report.figures import FIGURES
 
-    return tuple(FIGURES[kind](forward, reverse, out_dir / f"{scenario.name}.{kind}.png")
-                 for kind in scenario.output.figures)
+    return tuple(
+        FIGURES[kind](forward, reverse, out_dir / f"{scenario.name}.{kind}.png")
+        for kind in scenario.output.figures
+    )

@@ -25,8 +25,13 @@ FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
 
 def _series(group: h5py.Group, name: str, shape: tuple, dtype=np.float64) -> h5py.Group:
     g = group.create_group(name)
-    g.create_dataset("value", shape=(0, *shape), maxshape=(None, *shape), dtype=dtype,
-                     chunks=(max(1, 4096 // max(1, int(np.prod(shape)))), *shape))
+    g.create_dataset(
+        "value",
+        shape=(0, *shape),
+        maxshape=(None, *shape),
+        dtype=dtype,
+        chunks=(max(1, 4096 // max(1, int(np.prod(shape)))), *shape),
+    )
     return g
 
 

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
-import numpy as np
 
 from revdem_cli.errors import InputError
 from revdem_cli.io import SCHEMA_VERSION

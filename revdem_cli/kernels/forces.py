@@ -61,6 +61,7 @@ def gather_forces(mass, gravity, pair_i, force, start, slots, f):
 @jit
 def compute_forces(p, pairs, law, gravity):
     """Forces at the current positions (Hanley 2020 Eq 4-6 forward, Eq 19 reversed)."""
-    pair_forces(p.x, p.radius, p.material, law, pairs.i, pairs.j, pairs.count[0], pairs.force,
-                pairs.energy)
+    pair_forces(
+        p.x, p.radius, p.material, law, pairs.i, pairs.j, pairs.count[0], pairs.force, pairs.energy
+    )
     gather_forces(p.mass, gravity, pairs.i, pairs.force, pairs.start, pairs.slots, p.f)

@@ -60,8 +60,9 @@ def rebuild_pairs(p, pairs, skin):
     if needed > pairs.i.shape[0]:
         return False
     old = pairs.count[0]
-    carry_history(pairs.i, pairs.j, pairs.history, old, pairs.new_i, pairs.new_j,
-                  pairs.new_history, needed)
+    carry_history(
+        pairs.i, pairs.j, pairs.history, old, pairs.new_i, pairs.new_j, pairs.new_history, needed
+    )
     pairs.i[:needed] = pairs.new_i[:needed]
     pairs.j[:needed] = pairs.new_j[:needed]
     pairs.history[:needed] = pairs.new_history[:needed]

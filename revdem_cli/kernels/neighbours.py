@@ -132,7 +132,7 @@ def index_by_particle(pair_i, pair_j, n_pairs, start, slots):
 @jit
 def largest_reach(x, x_built, v, f, inv_mass, dt, direction):
     """Largest distance a particle can be from its position at the last build after the next
-    drift: |x - x_built| + dt |v + direction dt/2 f/m| (the half-step velocity, Hanley 2020 Eq 1)."""
+    drift: |x - x_built| + dt |v + direction dt/2 f/m| (half-step velocity, Hanley 2020 Eq 1)."""
     worst = 0.0
     for p in range(x.shape[0]):
         moved = 0.0

@@ -26,13 +26,25 @@ def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     time, speed = _speeds(forward)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for q in range(min(speed.shape[1], len(colours))):
-        ax.plot(time * 1e3, speed[:, q], color=colours[q], lw=2.5, alpha=0.5,
-                label=f"particle {q} forward")
+        ax.plot(
+            time * 1e3,
+            speed[:, q],
+            color=colours[q],
+            lw=2.5,
+            alpha=0.5,
+            label=f"particle {q} forward",
+        )
     if reverse is not None:
         time, speed = _speeds(reverse)
         for q in range(min(speed.shape[1], len(colours))):
-            ax.plot(time * 1e3, speed[:, q], color=colours[q], ls="--", lw=1.2,
-                    label=f"particle {q} reversed")
+            ax.plot(
+                time * 1e3,
+                speed[:, q],
+                color=colours[q],
+                ls="--",
+                lw=1.2,
+                label=f"particle {q} reversed",
+            )
     ax.set_xlabel("time (ms)")
     ax.set_ylabel("|v| (m/s)")
     ax.legend(fontsize=8)

@@ -1,0 +1,72 @@
+"""One-screen summaries printed at the end of a command."""
+
+from __future__ import annotations
+
+from rich.console import Console
+from rich.table import Table
+
+
+def comparison_table(verdict: dict) -> Table:
+    """The forward-versus-reversed comparison as a table."""
+    tol = verdict["tolerance"]
+    table = Table(title="forward vs reversed", title_justify="left")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    table.add_column("tolerance", justify="right")
+    table.add_row("frames compared", str(verdict["frames_compared"]), "")
+    table.add_row(
+        "max position error / smallest diameter",
+        f"{verdict['max_position_error_rel']:.3e}",
+        f"{tol['position_tolerance_rel']:.0e}",
+    )
+    table.add_row("max position error (m)", f"{verdict['max_position_error']:.3e}", "")
+    table.add_row(
+        "max velocity error (m/s)",
+        f"{verdict['max_velocity_error']:.3e}",
+        f"{tol['velocity_tolerance']:.0e}",
+    )
+    table.add_row(
+        "max angular velocity error (rad/s)",
+        f"{verdict['max_angular_velocity_error']:.3e}",
+        f"{tol['angular_velocity_tolerance']:.0e}",
+    )
+    first = verdict["first_divergence_step"]
+    table.add_row("first divergence step", "none" if first is None else str(first), "")
+    table.add_row("bitwise identical", "yes" if verdict["bitwise_identical"] else "no", "")
+    return table
+
+
+def verdict_line(verdict: dict) -> str:
+    if verdict["reversible"]:
+        return (
+            "[bold green]reversible[/]: the reversed run retraces the forward run within tolerance"
+        )
+    return f"[bold red]not reversible[/]: the runs part at step {verdict['first_divergence_step']}"
+
+
+def print_comparison(verdict: dict) -> None:
+    console = Console()
+    console.print(comparison_table(verdict))
+    console.print(verdict_line(verdict))
+
+
+def print_summary(outputs) -> None:
+    console = Console()
+    if outputs.verdict is not None:
+        console.print(comparison_table(outputs.verdict))
+    written = [
+        ("forward trajectory", outputs.forward),
+        ("restart", outputs.restart),
+        ("reversed trajectory", outputs.reverse),
+        ("comparison", outputs.comparison),
+    ]
+    written += [("figure", path) for path in outputs.figures]
+    for label, path in written:
+        if path is not None:
+            console.print(f"  {label:<20} {path}")
+    if outputs.verdict is not None:
+        console.print(verdict_line(outputs.verdict))
+    elif outputs.reverse is not None:
+        console.print(
+            "[yellow]no comparison[/]: the forward trajectory named in the restart is not there"
+        )

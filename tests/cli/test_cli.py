@@ -1,0 +1,124 @@
+"""The command line as a user meets it: exit codes, one-line errors, files written."""
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+from tests.conftest import CONFIGS
+
+runner = CliRunner()
+
+GOOD = (CONFIGS / "collision.toml").read_text().replace("steps = 15000", "steps = 3000")
+
+
+def invoke(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+@pytest.fixture
+def scenario(tmp_path):
+    def write(text=GOOD, suffix=".toml"):
+        path = tmp_path / f"case{suffix}"
+        path.write_text(text)
+        return path
+
+    return write
+
+
+def assert_one_line_error(result, *fragments):
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    assert "Traceback" not in result.output
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "fragments"),
+    [
+        ("[integrator]", "[integrator]\ncolour = 'red'", ["integrator.colour: unknown field"]),
+        ("radius = 0.005", "radius = -0.005", ["particles[0].radius", "greater than 0"]),
+        (
+            'material = "sphere"',
+            'material = "granite"',
+            ["particles[0].material", "unknown material 'granite'"],
+        ),
+        ("dt = 1.0e-7", 'dt = "fast"', ["integrator.dt", "valid number"]),
+        ("[materials.sphere]", "[materials.glass]", ["particles[0].material"]),
+    ],
+)
+def test_bad_scenario_fields_exit_2_naming_the_field(scenario, tmp_path, old, new, fragments):
+    path = scenario(GOOD.replace(old, new, 1))
+    result = invoke("run", path, "--out", tmp_path / "out")
+    assert_one_line_error(result, str(path), *fragments)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_file_that_is_not_toml_exits_2(scenario):
+    path = scenario("this is [not toml\n")
+    assert_one_line_error(invoke("validate", path), str(path), "not valid TOML")
+
+
+def test_a_file_that_is_not_yaml_exits_2(scenario):
+    path = scenario("name: [unclosed\n", ".yaml")
+    assert_one_line_error(invoke("validate", path), str(path), "not valid YAML")
+
+
+def test_an_unknown_format_and_a_missing_file_exit_2(scenario, tmp_path):
+    assert_one_line_error(invoke("validate", scenario(GOOD, ".ini")), "unknown scenario format")
+    assert_one_line_error(invoke("run", tmp_path / "none.toml"), "cannot read scenario file")
+
+
+def test_a_bad_override_exits_2(scenario):
+    result = invoke("validate", scenario(), "--set", "integrator.dt=0")
+    assert_one_line_error(result, "integrator.dt", "greater than 0")
+
+
+def test_run_writes_all_outputs_and_prints_the_comparison(scenario, tmp_path):
+    out = tmp_path / "out"
+    result = invoke("run", scenario(), "--out", out, "--quiet")
+    assert result.exit_code == 0, result.output
+    assert "forward vs reversed" in result.output and "reversible" in result.output
+    for name in ("forward.h5", "restart.h5", "reverse.h5", "compare.json", "speed.png"):
+        assert (out / f"collision.{name}").stat().st_size > 0
+    verdict = json.loads((out / "collision.compare.json").read_text())
+    assert verdict["reversible"] and verdict["max_position_error_rel"] <= 1e-10
+
+    again = invoke(
+        "reverse",
+        out / "collision.restart.h5",
+        "--out",
+        tmp_path / "again",
+        "-q",
+        "--steps",
+        "1000",
+    )
+    assert again.exit_code == 0, again.output
+    partial = json.loads((tmp_path / "again" / "collision.compare.json").read_text())
+    assert partial["frames_compared"] == 21  # steps 3000 down to 2000, every 50
+
+    compared = invoke(
+        "compare", out / "collision.forward.h5", out / "collision.reverse.h5", "--json"
+    )
+    assert compared.exit_code == 0
+    assert json.loads(compared.output)["frames_compared"] == 61
+
+
+def test_reverse_of_a_file_that_is_not_a_restart_exits_2(tmp_path):
+    path = tmp_path / "x.h5"
+    path.write_bytes(b"nothing")
+    assert_one_line_error(invoke("reverse", path), "not a readable HDF5 file")
+
+
+def test_schema_describes_fields_with_units():
+    result = invoke("schema")
+    schema = json.loads(result.output)
+    dt = schema["$defs"]["Integrator"]["properties"]["dt"]
+    assert dt["description"] == "time step, s"
+
+
+def test_version():
+    assert invoke("--version").output.startswith("revdem ")

@@ -1,0 +1,50 @@
+"""Shared fixtures: scenarios built in code and the collision run once per session."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from revdem_cli.config import Scenario, load_scenario
+from revdem_cli.engine import run_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIGS = ROOT / "configs"
+
+
+def two_spheres(**changes) -> Scenario:
+    """A small two-sphere scenario (the paper's collision materials); fields can be replaced."""
+    data = {
+        "name": "pair",
+        "materials": {"sphere": {"density": 1000.0, "shear_modulus": 2e6, "poisson_ratio": 0.2}},
+        "contact": {"model": "hertz"},
+        "particles": [
+            {"material": "sphere", "radius": 0.005, "position": [0, 0, 0], "velocity": [0.5, 0, 0]},
+            {
+                "material": "sphere",
+                "radius": 0.005,
+                "position": [0.0101, 0, 0],
+                "velocity": [-0.5, 0, 0],
+            },
+        ],
+        "integrator": {"dt": 1e-7},
+        "stages": [
+            {
+                "name": "collide",
+                "steps": 6000,
+                "output_every": 100,
+                "observables_every": 1,
+                "reverse": True,
+            }
+        ],
+    }
+    data.update(changes)
+    return Scenario.model_validate(data)
+
+
+@pytest.fixture(scope="session")
+def collision_run(tmp_path_factory):
+    """configs/collision.toml run forward and reversed, as `revdem run` does."""
+    scenario, text = load_scenario(CONFIGS / "collision.toml")
+    return run_scenario(scenario, text, ".toml", tmp_path_factory.mktemp("collision"))

@@ -1,0 +1,99 @@
+"""Two-sphere collisions: conservation laws, analytic limits and reversal (Hanley 2020 §3.2.1)."""
+
+import json
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from revdem_cli.engine import run_scenario
+from tests.conftest import two_spheres
+
+
+def forward(scenario, tmp_path):
+    return run_scenario(scenario, "", ".toml", tmp_path, reverse=False).forward
+
+
+def observable(path, name):
+    with h5py.File(path) as f:
+        return f[f"observables/{name}/step"][:], f[f"observables/{name}/value"][:]
+
+
+def velocities(path):
+    with h5py.File(path) as f:
+        return f["particles/all/velocity/value"][:], f["particles/all/mass"][:]
+
+
+def test_collision_reverses_to_round_off(collision_run):
+    verdict = json.loads(collision_run.comparison.read_text())
+    assert verdict["frames_compared"] == 301
+    assert verdict["max_position_error_rel"] <= 1e-10
+    assert verdict["max_velocity_error"] <= 1e-9
+    assert verdict["reversible"] and verdict["first_divergence_step"] is None
+    with h5py.File(collision_run.forward) as f, h5py.File(collision_run.reverse) as r:
+        steps = f["particles/all/position/step"][:]
+        np.testing.assert_array_equal(steps, r["particles/all/position/step"][:][::-1])
+        assert r["parameters/revdem"].attrs["direction"] == "reverse"
+
+
+def test_collision_transfers_momentum_as_in_figure_1(collision_run):
+    v, _ = velocities(collision_run.forward)
+    speed = np.linalg.norm(v, axis=2)
+    assert speed[0] == pytest.approx([math.hypot(0.9, 0.1), 0.1])
+    assert speed[-1, 0] < 0.15 and speed[-1, 1] > 0.85  # most of A's momentum goes to B
+
+
+def test_energy_is_conserved_through_a_hertz_collision(tmp_path):
+    path = forward(two_spheres(), tmp_path)
+    _, total = observable(path, "total_energy")
+    _, elastic = observable(path, "elastic_energy")
+    assert elastic.max() > 0.1 * total[0]  # the spheres really collide
+    assert np.ptp(total) / total[0] < 1e-6
+
+
+def test_momentum_is_conserved_to_round_off(collision_run):
+    v, mass = velocities(collision_run.forward)
+    momentum = (v * mass[None, :, None]).sum(axis=1)
+    assert np.abs(momentum - momentum[0]).max() < 1e-15
+
+
+@pytest.mark.parametrize("contact", [{"model": "hertz"}, {"model": "linear", "kn": 5e3}])
+def test_head_on_collision_of_equal_spheres_exchanges_normal_velocities(tmp_path, contact):
+    scenario = two_spheres(contact=contact)
+    data = scenario.model_dump()
+    data["particles"][0]["velocity"] = (0.3, 0.0, 0.0)
+    data["particles"][1]["velocity"] = (-0.1, 0.0, 0.0)
+    data["stages"][0]["steps"] = 20000
+    path = forward(type(scenario).model_validate(data), tmp_path)
+    v, _ = velocities(path)
+    np.testing.assert_allclose(v[-1], [[-0.1, 0.0, 0.0], [0.3, 0.0, 0.0]], rtol=0, atol=1e-6)
+
+
+def test_linear_contact_lasts_half_a_period_of_the_reduced_mass(tmp_path):
+    kn = 5e3
+    stage = {"name": "collide", "steps": 12000, "output_every": 1000, "observables_every": 1}
+    path = forward(two_spheres(contact={"model": "linear", "kn": kn}, stages=[stage]), tmp_path)
+    steps, elastic = observable(path, "elastic_energy")
+    in_contact = steps[elastic > 0]
+    duration = (in_contact[-1] - in_contact[0] + 1) * 1e-7
+    mass = 4 / 3 * math.pi * 0.005**3 * 1000
+    assert duration == pytest.approx(math.pi * math.sqrt(mass / 2 / kn), abs=2e-7)
+    _, total = observable(path, "total_energy")
+    assert np.ptp(total) / total[0] < 1e-6
+
+
+def test_a_perturbed_reversal_is_caught(tmp_path):
+    from revdem_cli.engine import reverse_run
+    from revdem_cli.io.restart import read_restart, write_restart
+
+    outputs = run_scenario(two_spheres(), "", ".toml", tmp_path, reverse=False)
+    restart = read_restart(outputs.restart)
+    restart.state.particles.v[0, 1] += 1e-6
+    write_restart(outputs.restart, restart)
+    verdict = reverse_run(outputs.restart, tmp_path / "rev").verdict
+    assert not verdict["reversible"] and not verdict["bitwise_identical"]
+    assert verdict["first_divergence_step"] == 6000  # already at the restart frame
+    assert verdict["max_velocity_error"] == pytest.approx(
+        1e-6, rel=0.05
+    )  # grows a little on the way back

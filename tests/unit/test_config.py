@@ -1,0 +1,76 @@
+import pytest
+
+from revdem_cli.config import load_scenario, scenario_from_text
+from revdem_cli.errors import InputError
+from tests.conftest import CONFIGS
+
+YAML = """
+name: yaml-pair
+materials:
+  sphere: {density: 1000.0, shear_modulus: 2.0e6, poisson_ratio: 0.2}
+contact: {model: linear, kn: 1.0e4}
+particles:
+  - {material: sphere, radius: 0.005, position: [0, 0, 0]}
+  - {material: sphere, radius: 0.005, position: [0.0101, 0, 0], velocity: [-1, 0, 0]}
+integrator: {dt: 1.0e-6}
+stages:
+  - {name: go, steps: 10}
+"""
+
+
+def test_collision_file_is_the_papers_case():
+    scenario, _ = load_scenario(CONFIGS / "collision.toml")
+    a, b = scenario.particles
+    assert (a.radius, b.radius) == (0.005, 0.005)
+    assert a.velocity == (0.9, 0.1, 0.0) and b.velocity == (0.0, 0.0, 0.1)
+    assert b.position == (0.0101, 0.0, 0.0)
+    assert scenario.integrator.dt == 1e-7
+    assert scenario.reversed_stage.steps == 15000
+
+
+def test_yaml_scenario_is_read_like_toml():
+    scenario = scenario_from_text(YAML, ".yaml", "pair.yaml")
+    assert scenario.contact.model == "linear" and scenario.contact.kn == 1e4
+    assert scenario.particles[1].velocity == (-1.0, 0.0, 0.0)
+
+
+def test_overrides_reach_nested_fields_and_list_items():
+    scenario = scenario_from_text(
+        YAML, ".yaml", "pair.yaml", ["integrator.dt=2e-6", "particles.1.radius=0.004"]
+    )
+    assert scenario.integrator.dt == 2e-6
+    assert scenario.particles[1].radius == 0.004
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ("integrator.dt=-1.0", "integrator.dt: Input should be greater than 0"),
+        ("particles.0.radius=0", "particles[0].radius: Input should be greater than 0"),
+        ("particles.0.material='steel'", "particles[0].material: unknown material 'steel'"),
+        ("contact.kn=nan", "contact.kn"),
+        ("integrator.dt='fast'", "integrator.dt: Input should be a valid number"),
+        ("stages.0.colour='red'", "stages[0].colour: unknown field"),
+        ("particles.1.position=[0.005, 0, 0]", "particles[1].position: particle 1 overlaps"),
+    ],
+)
+def test_bad_fields_are_named_by_path(change, message):
+    with pytest.raises(InputError) as error:
+        scenario_from_text(YAML, ".yaml", "pair.yaml", [change])
+    assert str(error.value).startswith("pair.yaml: ")
+    assert message in str(error.value)
+    assert "\n" not in str(error.value)
+
+
+def test_linear_law_requires_kn():
+    with pytest.raises(InputError, match="contact: .*needs kn"):
+        scenario_from_text(YAML.replace("kn: 1.0e4", ""), ".yaml", "pair.yaml")
+
+
+def test_only_the_last_stage_can_be_reversed():
+    text = YAML.replace(
+        "- {name: go, steps: 10}",
+        "- {name: go, steps: 10, reverse: true}\n  - {name: settle, steps: 5}",
+    )
+    with pytest.raises(InputError, match=r"stages\[0\]\.reverse: the reversed stage must be"):
+        scenario_from_text(text, ".yaml", "pair.yaml")
