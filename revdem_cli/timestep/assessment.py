@@ -1,0 +1,205 @@
+"""All criteria for one particle pair, set beside the integrator's own limits, and the Δt to use."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+from revdem_cli.timestep import criteria, verify
+from revdem_cli.timestep.criteria import Contact
+from revdem_cli.timestep.shapes import Body
+
+AGREEMENT_RTOL = 1e-3  # the integration resolves a stability limit to a few 1e-4
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One time step: `dt` in s, None where the criterion does not apply, inf for no limit."""
+
+    key: str
+    label: str
+    source: str
+    dt: float | None
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """Criteria (formulas), checks (the integrators' limits) and the recommended Δt.
+
+    `reference` is the stability limit every translation criterion is compared with: the
+    smallest integrated limit when checks ran, the velocity-Verlet formula otherwise.
+    """
+
+    bodies: tuple[Body, Body]
+    contact: Contact
+    damping_number: float
+    omega_max: float | None
+    inverse_mass: float
+    criteria: tuple[Estimate, ...]
+    checks: tuple[Estimate, ...]
+    reference: Estimate
+    recommended: float
+    findings: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        """Plain JSON-ready data; infinite time steps become None."""
+
+        def estimates(items):
+            return {
+                e.key: {"label": e.label, "source": e.source, "dt": _finite(e.dt)} for e in items
+            }
+
+        return {
+            "particles": [asdict(body) for body in self.bodies],
+            "contact": asdict(self.contact) | {"damping_number": self.damping_number},
+            "omega_max": self.omega_max,
+            "a_max": self.inverse_mass,
+            "criteria": estimates(self.criteria),
+            "checks": estimates(self.checks),
+            "reference": self.reference.key,
+            "recommended_dt": _finite(self.recommended),
+            "findings": list(self.findings),
+        }
+
+
+def _finite(value: float | None) -> float | None:
+    return None if value is None or math.isinf(value) else value
+
+
+def ratio_to(reference: Estimate, estimate: Estimate) -> float | None:
+    """A translation estimate over the reference limit; None where there is nothing to compare."""
+    if estimate.dt is None or estimate.key == "rotation" or not reference.dt:
+        return None
+    return estimate.dt / reference.dt
+
+
+def _translation(formula, contact: Contact, inverse_mass: float) -> float | None:
+    """A per-direction criterion, taken in its more restrictive direction."""
+    return criteria.smallest(formula(k, c, inverse_mass) for k, c in contact.directions)
+
+
+def _criteria(body1, body2, contact, inverse_mass, omega_max) -> tuple[Estimate, ...]:
+    damped = contact.cn > 0.0 or contact.cs > 0.0
+    items = (
+        Estimate(
+            "amplification",
+            "amplification matrix",
+            "Peng 2020 Eq 46" if damped else "Peng 2020 Eq 48",
+            _translation(criteria.dt_amplification, contact, inverse_mass),
+        ),
+        Estimate(
+            "belytschko",
+            "Belytschko, 2/ω",
+            "Peng 2020 Eq 34" if damped else "Peng 2020 Eq 35",
+            _translation(criteria.dt_belytschko, contact, inverse_mass),
+        ),
+        Estimate(
+            "collision",
+            "collision time (Silbert)",
+            "Peng 2020 Eq 36",
+            criteria.dt_collision(contact.kn, contact.cn, min(body1.mass, body2.mass)),
+        ),
+        Estimate(
+            "velocity_verlet",
+            "velocity-Verlet limit",
+            "Eq 30, velocity Verlet",
+            _translation(criteria.dt_velocity_verlet, contact, inverse_mass),
+        ),
+    )
+    if omega_max is None:
+        return items
+    rotation = criteria.dt_rotation(omega_max, criteria.b_max(body1), criteria.b_max(body2))
+    return items + (
+        Estimate("rotation", f"rotation, ω_max = {omega_max:g} rad/s", "Peng 2020 Eq 56", rotation),
+    )
+
+
+def _checks(body1, body2, contact) -> tuple[Estimate, ...]:
+    integrated = tuple(
+        Estimate(
+            f"{key}_integrated",
+            f"{label} limit, integrated",
+            "Eq 30",
+            verifier(body1, body2, contact),
+        )
+        for key, (label, verifier) in verify.ENGINE_VERIFIERS.items()
+    )
+    return integrated + (
+        Estimate(
+            "eq40_real_eigenvalue",
+            "Euler scheme, real λ = -1",
+            "Peng 2020 Eq 40, 44",
+            verify.eq40_real_eigenvalue_limit(body1, body2, contact),
+        ),
+        Estimate(
+            "eq40_all_eigenvalues",
+            "Euler scheme, all |λ| ≤ 1",
+            "Peng 2020 Eq 40",
+            verify.eq40_limit(body1, body2, contact),
+        ),
+    )
+
+
+def _findings(items, checks, reference) -> tuple[str, ...]:
+    """Plain sentences on every criterion that disagrees with the reference limit."""
+    lines = []
+    for estimate in items:
+        ratio = ratio_to(reference, estimate)
+        if ratio is None or abs(ratio - 1.0) <= AGREEMENT_RTOL:
+            continue
+        verdict = "unsafe" if ratio > 1.0 else "stable but conservative"
+        lines.append(
+            f"{estimate.source} ({estimate.label}) is {ratio:.3g} × the reference, "
+            f"{reference.label}: {verdict}."
+        )
+    euler = {c.key: c.dt for c in checks}
+    if "eq40_all_eigenvalues" in euler:
+        stable_up_to = (
+            "at no Δt"
+            if euler["eq40_all_eigenvalues"] == 0.0
+            else f"only up to {euler['eq40_all_eigenvalues']:.4e} s"
+        )
+        lines.append(
+            f"The Euler scheme of Eq 40 is stable {stable_up_to}: its complex eigenvalues leave "
+            f"the unit circle before its real eigenvalue reaches -1 at "
+            f"{euler['eq40_real_eigenvalue']:.4e} s, the Δt of Eq 46."
+        )
+    return tuple(lines)
+
+
+def assess(
+    body1: Body,
+    body2: Body,
+    kn: float,
+    ks: float,
+    damping_number: float = 0.0,
+    omega_max: float | None = None,
+    check: bool = False,
+) -> Assessment:
+    """Every criterion for the pair; with `check`, the integrators' own limits beside them.
+
+    Damping follows the paper's number N: c_n = c_s = N √(k_n / A_max). The recommended Δt
+    is the smallest of the velocity-Verlet limit, the integrated limits (with `check`) and
+    the rotation-dominant Δt (with omega_max).
+    """
+    inverse_mass = criteria.a_max(body1, body2)
+    damping = criteria.damping_from_number(damping_number, kn, inverse_mass)
+    contact = Contact(kn=kn, ks=ks, cn=damping, cs=damping)
+    items = _criteria(body1, body2, contact, inverse_mass, omega_max)
+    checks = _checks(body1, body2, contact) if check else ()
+    formula = next(e for e in items if e.key == "velocity_verlet")
+    integrated = checks[: len(verify.ENGINE_VERIFIERS)]
+    reference = min(integrated, key=lambda e: e.dt) if integrated else formula
+    limits = [formula, *integrated, *(e for e in items if e.key == "rotation")]
+    return Assessment(
+        bodies=(body1, body2),
+        contact=contact,
+        damping_number=damping_number,
+        omega_max=omega_max,
+        inverse_mass=inverse_mass,
+        criteria=items,
+        checks=checks,
+        reference=reference,
+        recommended=min(e.dt for e in limits),
+        findings=_findings(items, checks, reference),
+    )

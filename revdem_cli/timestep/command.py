@@ -1,0 +1,292 @@
+"""`revdem dt`: critical time steps of two convex, centrally symmetric particles in contact."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+from dataclasses import astuple, dataclass, replace
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from revdem_cli.errors import InputError
+
+SHAPES = ("sphere", "ellipsoid", "superquadric", "polyhedron")
+SWEEPABLE = ("kn", "ks", "density", "damping", "omega-max")
+
+
+@dataclass(frozen=True)
+class _Particle:
+    """The options that describe one particle, as given."""
+
+    shape: str | None
+    radius: float | None
+    semi_axes: tuple[float, float, float] | None
+    exponents: tuple[float, float] | None
+    vertices: Path | None
+    density: float | None
+
+    def or_else(self, first: _Particle) -> _Particle:
+        """These options, with every one not given taken from `first`."""
+        return _Particle(
+            *(a if a is not None else b for a, b in zip(astuple(self), astuple(first), strict=True))
+        )
+
+
+def _positive(option: str, value: float | None) -> float:
+    if value is None:
+        raise InputError(f"{option} is required")
+    if not (math.isfinite(value) and value > 0.0):
+        raise InputError(f"{option} must be a positive number, got {value:g}")
+    return value
+
+
+def _body(particle: _Particle, prefix: str):
+    """The Body the options describe; InputError names the option at fault."""
+    from revdem_cli.timestep import shapes
+
+    def option(name: str) -> str:
+        return f"--{prefix}{name}"
+
+    if particle.shape not in SHAPES:
+        given = "is required" if particle.shape is None else f"got {particle.shape!r}"
+        raise InputError(f"{option('shape')} must be one of {', '.join(SHAPES)}; {given}")
+    density = _positive(option("density"), particle.density)
+    if particle.shape == "sphere":
+        return shapes.sphere(_positive(option("radius"), particle.radius), density)
+    if particle.shape == "polyhedron":
+        if particle.vertices is None:
+            raise InputError(f"{option('vertices')} is required for a polyhedron")
+        vertices = shapes.read_vertices(particle.vertices)
+        return shapes.polyhedron(vertices, density, source=f"vertex file {particle.vertices}")
+    if particle.semi_axes is None:
+        raise InputError(f"{option('semi-axes')} is required for a {particle.shape}")
+    a, b, c = (_positive(option("semi-axes"), value) for value in particle.semi_axes)
+    if particle.shape == "ellipsoid":
+        return shapes.ellipsoid(a, b, c, density)
+    if particle.exponents is None:
+        raise InputError(f"{option('exponents')} is required for a superquadric")
+    if not all(0.0 < e <= 2.0 for e in particle.exponents):
+        raise InputError(f"{option('exponents')} must lie in (0, 2] for a convex superquadric")
+    return shapes.superquadric(a, b, c, *particle.exponents, density)
+
+
+@dataclass(frozen=True)
+class _Case:
+    """Everything one assessment needs, as given on the command line."""
+
+    first: _Particle
+    other: _Particle
+    kn: float | None
+    ks: float | None
+    damping: float
+    omega_max: float | None
+
+    def with_value(self, name: str, value: float) -> _Case:
+        """This case with one sweepable option set to `value`."""
+        if name == "density":
+            return replace(self, first=replace(self.first, density=value))
+        return replace(self, **{name.replace("-", "_"): value})
+
+    def assess(self, check: bool):
+        from revdem_cli.timestep.assessment import assess
+
+        kn = _positive("--kn", self.kn)
+        ks = _positive("--ks", self.ks if self.ks is not None else kn)
+        if not (math.isfinite(self.damping) and self.damping >= 0.0):
+            raise InputError(f"--damping must be zero or positive, got {self.damping:g}")
+        if self.omega_max is not None:
+            _positive("--omega-max", self.omega_max)
+        first = _body(self.first, "")
+        other = _body(self.other.or_else(self.first), "other-")
+        return assess(first, other, kn, ks, self.damping, self.omega_max, check)
+
+
+def _sweep_values(spec: str) -> tuple[str, list[float]]:
+    """`name=start:stop:count` as the name and `count` evenly spaced values."""
+    import numpy as np
+
+    name, _, span = spec.partition("=")
+    if name not in SWEEPABLE:
+        raise InputError(f"--sweep {spec!r}: the parameter must be one of {', '.join(SWEEPABLE)}")
+    try:
+        start, stop, count = span.split(":")
+        values = np.linspace(float(start), float(stop), int(count))
+    except ValueError:
+        raise InputError(f"--sweep {spec!r}: expected {name}=START:STOP:COUNT") from None
+    if values.size < 1:
+        raise InputError(f"--sweep {spec!r}: COUNT must be at least 1")
+    return name, values.tolist()
+
+
+def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
+    import csv
+
+    name, values = _sweep_values(spec)
+    rows = []
+    for value in values:
+        assessment = case.with_value(name, value).assess(check)
+        estimates = assessment.criteria + assessment.checks
+        row = {
+            name: value,
+            "a_max": assessment.inverse_mass,
+            "recommended_dt": assessment.recommended,
+        }
+        rows.append(row | {f"dt_{e.key}": e.dt for e in estimates})
+    with open(out, "w", newline="") if out else contextlib.nullcontext(sys.stdout) as stream:
+        writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    if out:
+        typer.echo(f"wrote {len(rows)} rows to {out}")
+
+
+def _seconds(dt: float | None) -> str:
+    if dt is None:
+        return "n/a (overdamped)"
+    if math.isinf(dt):
+        return "∞"
+    return "never stable" if dt == 0.0 else f"{dt:.4e}"
+
+
+def _print_table(assessment) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from revdem_cli.timestep.assessment import ratio_to
+    from revdem_cli.timestep.criteria import b_max, critical_damping
+
+    bodies = assessment.bodies
+    particles = Table(title="Particles, in their principal frames")
+    for heading in ("", "particle 1", "particle 2", "unit"):
+        particles.add_column(heading)
+    rows = [
+        ("shape", [b.shape for b in bodies], ""),
+        ("volume", [f"{b.volume:.6g}" for b in bodies], "m³"),
+        ("mass", [f"{b.mass:.6g}" for b in bodies], "kg"),
+        ("principal moments", [" ".join(f"{i:.4g}" for i in b.moments) for b in bodies], "kg m²"),
+        ("half-lengths a b c", [" ".join(f"{h:.4g}" for h in b.half_lengths) for b in bodies], "m"),
+        ("B_max (Eq 54)", [f"{b_max(b):.4g}" for b in bodies], ""),
+    ]
+    for quantity, values, unit in rows:
+        particles.add_row(quantity, *values, unit)
+
+    contact, reference = assessment.contact, assessment.reference
+    steps = Table(title="Critical time steps", caption=f"ratio: Δt ÷ {reference.label}")
+    for heading in ("criterion", "source", "Δt (s)", "ratio"):
+        steps.add_column(heading, no_wrap=heading != "source")
+    for estimate in assessment.criteria + assessment.checks:
+        ratio = ratio_to(reference, estimate)
+        shown = "" if ratio is None else f"{ratio:.4g}"
+        steps.add_row(estimate.label, estimate.source, _seconds(estimate.dt), shown)
+    steps.add_section()
+    steps.add_row(
+        "[bold]recommended[/bold]", "", f"[bold]{_seconds(assessment.recommended)}[/bold]"
+    )
+
+    console = Console()
+    console.print(particles)
+    console.print(
+        f"A_max = {assessment.inverse_mass:.4e} 1/kg "
+        f"= {assessment.inverse_mass * bodies[0].mass:.4g} / m₁ (Peng 2020 Eq 26); "
+        f"k_n = {contact.kn:.4g} N/m, k_s = {contact.ks:.4g} N/m; "
+        f"N = {assessment.damping_number:g}: c_n = c_s = {contact.cn:.4g} N s/m "
+        f"(critical {critical_damping(contact.kn, assessment.inverse_mass):.4g}, Eq 37)",
+        highlight=False,
+    )
+    console.print(steps)
+    for finding in assessment.findings:
+        console.print(f"• {finding}", highlight=False)
+
+
+def dt(
+    shape: Annotated[
+        str | None, typer.Option(help="sphere, ellipsoid, superquadric or polyhedron.")
+    ] = None,
+    radius: Annotated[float | None, typer.Option(help="Sphere radius (m).")] = None,
+    semi_axes: Annotated[
+        tuple[float, float, float] | None,
+        typer.Option(help="Semi-axes a b c of an ellipsoid or superquadric (m)."),
+    ] = None,
+    exponents: Annotated[
+        tuple[float, float] | None,
+        typer.Option(help="Superquadric exponents ε1 ε2 in (0, 2]; 1 1 is the ellipsoid."),
+    ] = None,
+    vertices: Annotated[
+        Path | None, typer.Option(help="Polyhedron vertex file: JSON, or one 'x y z' a line.")
+    ] = None,
+    density: Annotated[float | None, typer.Option(help="Particle density (kg/m³).")] = None,
+    other_shape: Annotated[str | None, typer.Option(help="Shape of the second particle.")] = None,
+    other_radius: Annotated[float | None, typer.Option()] = None,
+    other_semi_axes: Annotated[tuple[float, float, float] | None, typer.Option()] = None,
+    other_exponents: Annotated[tuple[float, float] | None, typer.Option()] = None,
+    other_vertices: Annotated[Path | None, typer.Option()] = None,
+    other_density: Annotated[float | None, typer.Option()] = None,
+    kn: Annotated[float | None, typer.Option(help="Normal contact stiffness k_n (N/m).")] = None,
+    ks: Annotated[
+        float | None, typer.Option(help="Shear contact stiffness k_s (N/m); default k_n.")
+    ] = None,
+    damping: Annotated[
+        float, typer.Option(help="Damping number N: c_n = c_s = N √(k_n/A_max).")
+    ] = 0.0,
+    omega_max: Annotated[
+        float | None, typer.Option(help="Largest angular speed (rad/s), for the rotation Δt.")
+    ] = None,
+    verify: Annotated[
+        bool, typer.Option("--verify", help="Find the integrators' own stability limits.")
+    ] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    sweep: Annotated[
+        str | None,
+        typer.Option(
+            help="Sweep one of kn, ks, density, damping, omega-max: NAME=START:STOP:COUNT."
+        ),
+    ] = None,
+    out: Annotated[Path | None, typer.Option(help="CSV file of a sweep (default stdout).")] = None,
+    figures: Annotated[
+        Path | None, typer.Option(help="Write Peng 2020 Figures 3-6 (PNG and CSV) to this folder.")
+    ] = None,
+) -> None:
+    """Critical time step of two convex, centrally symmetric particles in one contact.
+
+    Criteria of Peng, Burns & Hanley (2020), set beside the stability limit of the
+    velocity-Verlet integrator; --verify finds that limit by integrating. The second
+    particle takes every --other-* option not given from the first.
+
+    Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
+    """
+    if figures is not None:
+        from revdem_cli.timestep.figures import write_figures
+
+        for path in write_figures(figures):
+            typer.echo(f"wrote {path}")
+        return
+    case = _Case(
+        first=_Particle(shape, radius, semi_axes, exponents, vertices, density),
+        other=_Particle(
+            other_shape,
+            other_radius,
+            other_semi_axes,
+            other_exponents,
+            other_vertices,
+            other_density,
+        ),
+        kn=kn,
+        ks=ks,
+        damping=damping,
+        omega_max=omega_max,
+    )
+    if sweep is not None:
+        if as_json:
+            raise InputError("--sweep writes CSV; leave out --json")
+        _write_sweep(case, sweep, verify, out)
+        return
+    assessment = case.assess(verify)
+    if as_json:
+        import json
+
+        typer.echo(json.dumps(assessment.to_dict(), indent=2))
+    else:
+        _print_table(assessment)

@@ -1,0 +1,116 @@
+"""Critical time steps of two convex, centrally symmetric particles in one contact.
+
+Peng, Burns & Hanley (2020), doi:10.1002/nme.6568. SI units; `inverse_mass` is the
+paper's A_max (1/kg), `k` a contact stiffness (N/m), `c` a viscous damping coefficient
+(N s/m). A criterion that does not apply (an overdamped contact for the criteria built on a
+natural frequency) returns None.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from revdem_cli.timestep.shapes import Body
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Linear spring-dashpot contact F_j = -k_j x_j - c_j ẋ_j (Peng 2020 Eq 29)."""
+
+    kn: float
+    ks: float
+    cn: float = 0.0
+    cs: float = 0.0
+
+    @property
+    def directions(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(stiffness, damping) of the normal and the shear direction."""
+        return (self.kn, self.cn), (self.ks, self.cs)
+
+
+def a_max(body1: Body, body2: Body) -> float:
+    """Largest comprehensive inverse inertia coefficient of the contact, A_max (1/kg).
+
+    The paper pairs the long half-length a with the smallest principal moment I_xx
+    (assumption 3); pairing the largest half-length with the smallest moment keeps the
+    bound for shapes where that assumption fails. Two equal spheres give 7/m.
+    """
+    # Peng 2020 Eq 26
+    return sum(b.half_lengths[0] ** 2 / b.moments[0] + 1.0 / b.mass for b in (body1, body2))
+
+
+def damping_from_number(number: float, kn: float, inverse_mass: float) -> float:
+    """Damping coefficient c_n = c_s for the paper's dimensionless damping number N."""
+    return number * math.sqrt(kn / inverse_mass)  # Peng 2020 Section 6.2
+
+
+def critical_damping(k: float, inverse_mass: float) -> float:
+    """Damping coefficient that separates under- from overdamped contact."""
+    return 2.0 * math.sqrt(k / inverse_mass)  # Peng 2020 Eq 37
+
+
+def dt_amplification(k: float, c: float, inverse_mass: float) -> float:
+    """Translation-dominant Δt from the real eigenvalue of the Euler amplification matrix."""
+    ka, ca = k * inverse_mass, c * inverse_mass
+    return (math.sqrt(4.0 * ka + ca**2) + ca) / ka  # Peng 2020 Eq 46 (c = 0: Eq 47, 48)
+
+
+def dt_belytschko(k: float, c: float, inverse_mass: float) -> float | None:
+    """Translation-dominant Δt = 2/ω from the damped natural frequency; underdamped only."""
+    ka, ca = k * inverse_mass, c * inverse_mass
+    discriminant = 4.0 * ka - ca**2
+    if discriminant <= 0.0:
+        return None
+    return 4.0 / math.sqrt(discriminant)  # Peng 2020 Eq 34 (c = 0: Eq 35)
+
+
+def dt_collision(kn: float, cn: float, mass: float) -> float | None:
+    """Duration of a damped two-sphere collision (Silbert et al. 2001); underdamped only."""
+    discriminant = 2.0 * kn / mass - cn**2 / (4.0 * mass**2)
+    if discriminant <= 0.0:
+        return None
+    return math.pi / math.sqrt(discriminant)  # Peng 2020 Eq 36
+
+
+def dt_velocity_verlet(k: float, c: float, inverse_mass: float) -> float:
+    """Stability limit of velocity Verlet on Eq 30, damping force from the half-step velocity.
+
+    The one-step map of (x, Δt·v_half) has trace 2 - kAΔt² - cAΔt and determinant 1 - cAΔt;
+    both eigenvalues stay in the unit circle while kAΔt² + 2cAΔt < 4. This is the damped
+    central-difference limit of Belytschko (1983), Δt = 2/ω (√(1 + ξ²) - ξ): Eq 46 with the
+    sign of the damping term reversed. Undamped it equals Eq 47.
+    """
+    ka, ca = k * inverse_mass, c * inverse_mass
+    return (math.sqrt(4.0 * ka + ca**2) - ca) / ka  # Peng 2020 Eq 30 integrated by velocity Verlet
+
+
+def b_max(body: Body) -> float:
+    """Largest gyroscopic coefficient of a particle's principal moments."""
+    i1, i2, i3 = body.moments
+    return max(abs(i1 - i2) / i3, abs(i1 - i3) / i2, abs(i2 - i3) / i1)  # Peng 2020 Eq 54
+
+
+def dt_rotation(omega_max: float, b1: float, b2: float) -> float:
+    """Rotation-dominant Δt for angular speeds up to omega_max (rad/s); ∞ for spheres.
+
+    b1 = b2 = B_max, the largest of a mixed system, gives Eq 57: Δt = 1/(ω_max B_max).
+    """
+    gyroscopic = omega_max * (b1 + b2)
+    return 2.0 / gyroscopic if gyroscopic > 0.0 else math.inf  # Peng 2020 Eq 56
+
+
+def smallest(values) -> float | None:
+    """Smallest of per-direction time steps; None if any direction has none."""
+    values = list(values)
+    return None if any(v is None for v in values) else min(values)
+
+
+def sphere_normalised(beta: float) -> dict[str, float | None]:
+    """Δt √(k/m) of two equal spheres (A_max = 7/m) against β = c/√(mk), with m = k = 1."""
+    return {
+        "belytschko": dt_belytschko(1.0, beta, 7.0),  # Peng 2020 Eq 58
+        "collision": dt_collision(1.0, beta, 1.0),  # Peng 2020 Eq 59
+        "amplification": dt_amplification(1.0, beta, 7.0),  # Peng 2020 Eq 60
+        "velocity_verlet": dt_velocity_verlet(1.0, beta, 7.0),
+    }

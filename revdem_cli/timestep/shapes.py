@@ -1,0 +1,176 @@
+"""Convex, centrally symmetric particles: volume, mass, principal moments, bounding box.
+
+Every shape is reduced to a `Body`: what the critical time step criteria of Peng, Burns &
+Hanley (2020) need to know about a particle. Lengths in m, density in kg/m³.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from revdem_cli.errors import InputError
+
+# Relative tolerance (times the particle diameter) of the polyhedron checks.
+GEOMETRY_RTOL = 1e-6
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid particle in its principal frame.
+
+    `moments` are the principal moments of inertia in ascending order (kg m²);
+    `half_lengths` are the half-lengths of the bounding box in the principal frame in
+    descending order, the paper's a ≥ b ≥ c (m).
+    """
+
+    shape: str
+    volume: float
+    mass: float
+    moments: tuple[float, float, float]
+    half_lengths: tuple[float, float, float]
+
+
+def _body(shape, volume, density, second_moments, half_lengths) -> Body:
+    """A Body from its volume and the principal second moments of volume ∫x², ∫y², ∫z²."""
+    jx, jy, jz = second_moments
+    moments = (density * (jy + jz), density * (jx + jz), density * (jx + jy))
+    return Body(
+        shape=shape,
+        volume=float(volume),
+        mass=float(density * volume),
+        moments=tuple(sorted(float(i) for i in moments)),
+        half_lengths=tuple(sorted((float(h) for h in half_lengths), reverse=True)),
+    )
+
+
+def ellipsoid(a: float, b: float, c: float, density: float) -> Body:
+    """Solid ellipsoid with semi-axes a, b, c."""
+    volume = 4.0 / 3.0 * math.pi * a * b * c
+    second_moments = (volume * a**2 / 5.0, volume * b**2 / 5.0, volume * c**2 / 5.0)
+    return _body("ellipsoid", volume, density, second_moments, (a, b, c))
+
+
+def sphere(radius: float, density: float) -> Body:
+    """Solid sphere (I = 2/5 m r²)."""
+    return replace(ellipsoid(radius, radius, radius, density), shape="sphere")
+
+
+def _superquadric_octant_integral(p: float, q: float, r: float, eps1: float, eps2: float):
+    """∫ X^(p-1) Y^(q-1) Z^(r-1) dV over the positive octant of the unit superquadric.
+
+    Two nested Dirichlet integrals (Prudnikov, Brychkov & Marichev 1986, 3.2.2.2): the
+    superellipse (X^s + Y^s)^(1/s) ≤ ρ in the plane, then ρ^t + Z^t ≤ 1, s = 2/ε2, t = 2/ε1.
+    """
+    s, t = 2.0 / eps2, 2.0 / eps1
+    planar = math.gamma(p / s) * math.gamma(q / s) / (s**2 * math.gamma((p + q) / s + 1.0))
+    axial = math.gamma((p + q) / t) * math.gamma(r / t) / (t**2 * math.gamma((p + q + r) / t + 1.0))
+    return (p + q) * planar * axial
+
+
+def superquadric(a: float, b: float, c: float, eps1: float, eps2: float, density: float) -> Body:
+    """Solid superquadric (Barr 1981) ((|x/a|^(2/ε2) + |y/b|^(2/ε2))^(ε2/ε1) + |z/c|^(2/ε1) ≤ 1.
+
+    ε1 = ε2 = 1 is the ellipsoid, ε → 0 the box, ε1 = ε2 = 2 the octahedron; convex for
+    0 < ε ≤ 2. The blockiness exponents n of DEM codes are n = 2/ε.
+    """
+    octant = 8.0 * a * b * c
+    volume = octant * _superquadric_octant_integral(1, 1, 1, eps1, eps2)
+    second_moments = (
+        octant * a**2 * _superquadric_octant_integral(3, 1, 1, eps1, eps2),
+        octant * b**2 * _superquadric_octant_integral(1, 3, 1, eps1, eps2),
+        octant * c**2 * _superquadric_octant_integral(1, 1, 3, eps1, eps2),
+    )
+    return _body("superquadric", volume, density, second_moments, (a, b, c))
+
+
+def _tetrahedra_moments(tetrahedra: np.ndarray) -> tuple[float, np.ndarray]:
+    """Volume and second-moment tensor ∫ x xᵀ dV of tetrahedra with one vertex at the origin.
+
+    `tetrahedra` has shape (n, 3, 3): the three other vertices of each tetrahedron.
+    For a tetrahedron with vertices v0..v3: ∫ x xᵀ dV = V/20 (Σ vᵢvᵢᵀ + (Σ vᵢ)(Σ vᵢ)ᵀ).
+    """
+    volumes = np.abs(np.linalg.det(tetrahedra)) / 6.0
+    vertex_sum = tetrahedra.sum(axis=1)
+    outer = np.einsum("nki,nkj->nij", tetrahedra, tetrahedra)
+    outer += np.einsum("ni,nj->nij", vertex_sum, vertex_sum)
+    return float(volumes.sum()), np.einsum("n,nij->ij", volumes / 20.0, outer)
+
+
+def polyhedron(vertices: np.ndarray, density: float, source: str) -> Body:
+    """Solid convex, centrally symmetric polyhedron: the convex hull of `vertices`.
+
+    The hull is decomposed into tetrahedra that share its centre. `source` names the
+    vertices in error messages (the vertex file). Refuses vertex sets that do not span a
+    volume, that have a vertex strictly inside the hull of the others (not convex), or
+    whose hull vertices have no mirror image through the centre (not centrally symmetric).
+    """
+    from scipy.spatial import ConvexHull, QhullError, cKDTree
+
+    points = np.asarray(vertices, dtype=float)
+    try:
+        hull = ConvexHull(points)
+    except QhullError:
+        raise InputError(
+            f"{source}: the vertices span no volume (need 4 or more points not in one plane)"
+        ) from None
+    corners = points[hull.vertices]
+    tolerance = GEOMETRY_RTOL * np.ptp(corners, axis=0).max()
+
+    depth = (points @ hull.equations[:, :3].T + hull.equations[:, 3]).max(axis=1)
+    inside = np.flatnonzero(depth < -tolerance)
+    if inside.size:
+        raise InputError(
+            f"{source}: vertex {inside[0] + 1} lies inside the hull of the others; "
+            "the polyhedron is not convex"
+        )
+
+    centre = corners.mean(axis=0)
+    mismatch, _ = cKDTree(corners).query(2.0 * centre - corners)
+    asymmetric = np.flatnonzero(mismatch > tolerance)
+    if asymmetric.size:
+        raise InputError(
+            f"{source}: vertex {hull.vertices[asymmetric[0]] + 1} has no mirror image through "
+            f"the centre {np.round(centre, 12).tolist()}; the polyhedron is not centrally symmetric"
+        )
+
+    volume, second_moment = _tetrahedra_moments(points[hull.simplices] - centre)
+    principal, axes = np.linalg.eigh(second_moment)
+    half_lengths = np.abs((corners - centre) @ axes).max(axis=0)
+    return _body("polyhedron", volume, density, principal, half_lengths)
+
+
+def _vertex_rows(text: str, path: Path) -> list:
+    """Rows of a vertex file: JSON ([[x, y, z], ...] or {"vertices": [...]}) or plain text."""
+    if path.suffix.lower() == ".json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InputError(
+                f"vertex file {path}: not valid JSON ({exc.msg}, line {exc.lineno})"
+            ) from None
+        return data["vertices"] if isinstance(data, dict) and "vertices" in data else data
+    lines = (line.split("#", 1)[0].replace(",", " ").split() for line in text.splitlines())
+    return [fields for fields in lines if fields]
+
+
+def read_vertices(path: Path) -> np.ndarray:
+    """Vertices (n, 3) from a JSON or plain-text file (one `x y z` a line, # comments)."""
+    try:
+        text = Path(path).read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"vertex file {path}: cannot read it ({exc})") from None
+    rows = _vertex_rows(text, Path(path))
+    try:
+        vertices = np.array(rows, dtype=float)
+    except (TypeError, ValueError):
+        vertices = None
+    if vertices is None or vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise InputError(f"vertex file {path}: expected three numbers x y z for every vertex")
+    if not np.isfinite(vertices).all():
+        raise InputError(f"vertex file {path}: vertex coordinates must be finite numbers")
+    return vertices
