@@ -1,0 +1,190 @@
+"""`revdem dt` as a user meets it: the table, JSON, sweeps, and one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+
+import pytest
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+
+runner = CliRunner()
+ELLIPSOID = ("--shape", "ellipsoid", "--semi-axes", 3, 2, 1, "--density", 1000, "--kn", 1e10)
+CUBE = "\n".join(f"{x} {y} {z}" for x in (-1, 1) for y in (-1, 1) for z in (-1, 1))
+
+
+def invoke(*args):
+    return runner.invoke(app, ["dt", *(str(a) for a in args)])
+
+
+def as_json(*args) -> dict:
+    result = invoke(*args, "--json")
+    assert result.exit_code == 0, result.output
+    return json.loads(result.output)
+
+
+def assert_one_line_error(result, *fragments):
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    assert lines[0].startswith("error: ")
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
+def test_ellipsoid_example_prints_mass_a_max_and_time_step(paper):
+    result = invoke(*ELLIPSOID)
+    assert result.exit_code == 0, result.output
+    case = paper["ellipsoid_pair"]
+    assert f"{case['mass_over_pi'] * math.pi:.6g}" in result.output
+    assert f"= {case['a_max_times_mass']:.4g} / m₁" in result.output
+    assert f"{case['dt_undamped']:.3e}"[:4] in result.output
+    dt = as_json(*ELLIPSOID)["recommended_dt"]
+    assert f"{dt:.4e}" in result.output
+
+
+def test_ellipsoid_example_as_json(paper):
+    case = paper["ellipsoid_pair"]
+    data = as_json(*ELLIPSOID)
+    mass = data["particles"][0]["mass"]
+    assert mass == pytest.approx(case["mass_over_pi"] * math.pi)
+    assert data["a_max"] * mass == pytest.approx(case["a_max_times_mass"])
+    for key in ("amplification", "belytschko", "velocity_verlet"):
+        assert data["criteria"][key]["dt"] == pytest.approx(
+            case["dt_undamped"], rel=case["dt_rtol"]
+        )
+    assert data["recommended_dt"] == pytest.approx(case["dt_undamped"], rel=case["dt_rtol"])
+    [finding] = data["findings"]
+    assert finding.startswith("Peng 2020 Eq 36") and finding.endswith("unsafe.")
+
+
+def test_damped_verification_recommends_the_integrated_limit():
+    data = as_json(*ELLIPSOID, "--damping", 2, "--verify")
+    integrated = data["checks"]["velocity_verlet_integrated"]["dt"]
+    formula = data["criteria"]["velocity_verlet"]["dt"]
+    assert integrated == pytest.approx(formula, rel=1e-3)
+    assert data["recommended_dt"] == min(integrated, formula)
+    assert data["criteria"]["amplification"]["dt"] > 5.0 * integrated
+    assert data["checks"]["eq40_real_eigenvalue"]["dt"] == pytest.approx(
+        data["criteria"]["amplification"]["dt"], rel=1e-5
+    )
+    assert any(f.startswith("Peng 2020 Eq 46") and f.endswith("unsafe.") for f in data["findings"])
+
+
+def test_sphere_pair_recommends_eq49(paper):
+    data = as_json("--shape", "sphere", "--radius", 0.01, "--density", 2500, "--kn", 1e6)
+    mass = data["particles"][0]["mass"]
+    expected = paper["sphere"]["eq49_alpha"] * math.sqrt(mass / 1e6)
+    assert data["recommended_dt"] == pytest.approx(expected)
+
+
+def test_superquadric_with_unit_exponents_gives_the_ellipsoid_numbers():
+    ellipsoid = as_json(*ELLIPSOID)
+    quadric = as_json(*ELLIPSOID, "--shape", "superquadric", "--exponents", 1, 1)
+    assert quadric["a_max"] == pytest.approx(ellipsoid["a_max"], rel=1e-12)
+    assert quadric["recommended_dt"] == pytest.approx(ellipsoid["recommended_dt"], rel=1e-12)
+
+
+def test_cube_polyhedron_matches_the_superquadric_box(tmp_path):
+    vertices = tmp_path / "cube.txt"
+    vertices.write_text(CUBE)
+    common = ("--density", 1000, "--kn", 1e8)
+    cube = as_json("--shape", "polyhedron", "--vertices", vertices, *common)
+    box = as_json(
+        "--shape", "superquadric", "--semi-axes", 1, 1, 1, "--exponents", 1e-4, 1e-4, *common
+    )
+    assert cube["particles"][0]["moments"] == pytest.approx(
+        box["particles"][0]["moments"], rel=1e-3
+    )
+    assert cube["recommended_dt"] == pytest.approx(box["recommended_dt"], rel=1e-3)
+
+
+def test_other_particle_takes_what_it_is_not_given():
+    data = as_json(*ELLIPSOID, "--other-shape", "sphere", "--other-radius", 1, "--omega-max", 1)
+    ellipsoid, sphere = data["particles"]
+    assert sphere["shape"] == "sphere"
+    assert sphere["mass"] == pytest.approx(1000 * 4 / 3 * math.pi)
+    expected = 9 / ellipsoid["moments"][0] + 1 / ellipsoid["mass"] + 1 / sphere["moments"][0]
+    assert data["a_max"] == pytest.approx(expected + 1 / sphere["mass"])
+    # B_max of the ellipsoid is 0.8 and of the sphere 0 (Eq 54): Δt = 2 / (1 × 0.8) (Eq 56)
+    assert data["criteria"]["rotation"]["dt"] == pytest.approx(2.5)
+
+
+def test_rotation_limit_of_a_sphere_pair_is_absent_not_infinite():
+    data = as_json(
+        "--shape", "sphere", "--radius", 1, "--density", 1000, "--kn", 1e8, "--omega-max", 5
+    )
+    assert data["criteria"]["rotation"]["dt"] is None
+    assert data["recommended_dt"] == data["criteria"]["velocity_verlet"]["dt"]
+
+
+def test_stiffness_sweep_writes_csv(tmp_path):
+    out = tmp_path / "sweep.csv"
+    result = invoke(*ELLIPSOID, "--damping", 1, "--sweep", "kn=1e10:1e11:4", "--out", out)
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader(out.open()))
+    assert [float(r["kn"]) for r in rows] == pytest.approx([1e10, 4e10, 7e10, 1e11])
+    steps = [float(r["recommended_dt"]) for r in rows]
+    assert steps == pytest.approx([steps[0] / math.sqrt(float(r["kn"]) / 1e10) for r in rows])
+
+
+def test_density_sweep_goes_to_stdout():
+    result = invoke(*ELLIPSOID, "--sweep", "density=500:2000:3")
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader(io.StringIO(result.output)))
+    masses_ratio = [float(r["density"]) / 500 for r in rows]
+    steps = [float(r["dt_amplification"]) for r in rows]
+    assert steps == pytest.approx([steps[0] * math.sqrt(q) for q in masses_ratio])
+
+
+@pytest.mark.parametrize(
+    "args, fragments",
+    [
+        (("--shape", "cube", "--density", 1, "--kn", 1), ["--shape", "'cube'"]),
+        (("--density", 1, "--kn", 1), ["--shape", "is required"]),
+        (("--shape", "ellipsoid", "--density", 1, "--kn", 1), ["--semi-axes", "required"]),
+        (
+            ("--shape", "sphere", "--radius", 1, "--density", -5, "--kn", 1),
+            ["--density", "positive"],
+        ),
+        (("--shape", "sphere", "--radius", 1, "--density", 5), ["--kn", "required"]),
+        (
+            ("--shape", "ellipsoid", "--semi-axes", 3, 0, 1, "--density", 1, "--kn", 1),
+            ["--semi-axes"],
+        ),
+        ((*ELLIPSOID, "--shape", "superquadric", "--exponents", 3, 1), ["--exponents", "(0, 2]"]),
+        ((*ELLIPSOID, "--other-shape", "sphere"), ["--other-radius", "required"]),
+        ((*ELLIPSOID, "--damping", -1), ["--damping"]),
+        ((*ELLIPSOID, "--omega-max", 0), ["--omega-max"]),
+        ((*ELLIPSOID, "--sweep", "mass=1:2:3"), ["--sweep", "one of"]),
+        ((*ELLIPSOID, "--sweep", "kn=1:2"), ["--sweep", "START:STOP:COUNT"]),
+        ((*ELLIPSOID, "--sweep", "kn=1:2:3", "--json"), ["--sweep", "--json"]),
+    ],
+)
+def test_bad_options_exit_2_naming_the_option(args, fragments):
+    assert_one_line_error(invoke(*args), *fragments)
+
+
+@pytest.mark.parametrize(
+    "content, fragments",
+    [
+        (CUBE + "\n0.1 0 0\n-0.1 0 0\n", ["vertex 9", "not convex"]),
+        ("1 1 1\n1 -1 -1\n-1 1 -1\n-1 -1 1\n", ["not centrally symmetric"]),
+        ("1 2\n", ["expected three numbers"]),
+    ],
+)
+def test_bad_vertex_files_exit_2_naming_the_file(tmp_path, content, fragments):
+    path = tmp_path / "shape.txt"
+    path.write_text(content)
+    result = invoke("--shape", "polyhedron", "--vertices", path, "--density", 1, "--kn", 1)
+    assert_one_line_error(result, str(path), *fragments)
+
+
+def test_missing_vertex_file_exits_2(tmp_path):
+    path = tmp_path / "absent.json"
+    result = invoke("--shape", "polyhedron", "--vertices", path, "--density", 1, "--kn", 1)
+    assert_one_line_error(result, str(path), "cannot read")
