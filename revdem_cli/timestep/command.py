@@ -135,10 +135,13 @@ def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
             "recommended_dt": assessment.recommended,
         }
         rows.append(row | {f"dt_{e.key}": e.dt for e in estimates})
-    with open(out, "w", newline="") if out else contextlib.nullcontext(sys.stdout) as stream:
-        writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    try:
+        with open(out, "w", newline="") if out else contextlib.nullcontext(sys.stdout) as stream:
+            writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write it ({exc.strerror})") from None
     if out:
         typer.echo(f"wrote {len(rows)} rows to {out}")
 
@@ -219,11 +222,21 @@ def dt(
     ] = None,
     density: Annotated[float | None, typer.Option(help="Particle density (kg/m³).")] = None,
     other_shape: Annotated[str | None, typer.Option(help="Shape of the second particle.")] = None,
-    other_radius: Annotated[float | None, typer.Option()] = None,
-    other_semi_axes: Annotated[tuple[float, float, float] | None, typer.Option()] = None,
-    other_exponents: Annotated[tuple[float, float] | None, typer.Option()] = None,
-    other_vertices: Annotated[Path | None, typer.Option()] = None,
-    other_density: Annotated[float | None, typer.Option()] = None,
+    other_radius: Annotated[
+        float | None, typer.Option(help="As --radius, second particle.")
+    ] = None,
+    other_semi_axes: Annotated[
+        tuple[float, float, float] | None, typer.Option(help="As --semi-axes, second particle.")
+    ] = None,
+    other_exponents: Annotated[
+        tuple[float, float] | None, typer.Option(help="As --exponents, second particle.")
+    ] = None,
+    other_vertices: Annotated[
+        Path | None, typer.Option(help="As --vertices, second particle.")
+    ] = None,
+    other_density: Annotated[
+        float | None, typer.Option(help="As --density, second particle.")
+    ] = None,
     kn: Annotated[float | None, typer.Option(help="Normal contact stiffness k_n (N/m).")] = None,
     ks: Annotated[
         float | None, typer.Option(help="Shear contact stiffness k_s (N/m); default k_n.")
@@ -249,11 +262,11 @@ def dt(
         Path | None, typer.Option(help="Write Peng 2020 Figures 3-6 (PNG and CSV) to this folder.")
     ] = None,
 ) -> None:
-    """Critical time step of two convex, centrally symmetric particles in one contact.
+    """Critical time step of two convex, centrally symmetric particles in contact.
 
-    Criteria of Peng, Burns & Hanley (2020), set beside the stability limit of the
-    velocity-Verlet integrator; --verify finds that limit by integrating. The second
-    particle takes every --other-* option not given from the first.
+    Criteria of Peng, Burns & Hanley (2020) beside the stability limit of the
+    velocity-Verlet integrator; --verify also finds that limit by integrating.
+    The second particle takes every --other-* option not given from the first.
 
     Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
     """
@@ -278,6 +291,8 @@ def dt(
         damping=damping,
         omega_max=omega_max,
     )
+    if out is not None and sweep is None:
+        raise InputError("--out names the CSV file of a --sweep; give --sweep too")
     if sweep is not None:
         if as_json:
             raise InputError("--sweep writes CSV; leave out --json")

@@ -163,6 +163,11 @@ def test_density_sweep_goes_to_stdout():
         ((*ELLIPSOID, "--sweep", "mass=1:2:3"), ["--sweep", "one of"]),
         ((*ELLIPSOID, "--sweep", "kn=1:2"), ["--sweep", "START:STOP:COUNT"]),
         ((*ELLIPSOID, "--sweep", "kn=1:2:3", "--json"), ["--sweep", "--json"]),
+        ((*ELLIPSOID, "--out", "x.csv"), ["--out", "--sweep"]),
+        (
+            (*ELLIPSOID, "--sweep", "kn=1:2:2", "--out", "/no/such/dir/x.csv"),
+            ["--out", "cannot write"],
+        ),
     ],
 )
 def test_bad_options_exit_2_naming_the_option(args, fragments):
