@@ -93,14 +93,14 @@ class _Case:
     def assess(self, check: bool):
         from revdem_cli.timestep.assessment import assess
 
+        first = _body(self.first, "")
+        other = _body(self.other.or_else(self.first), "other-")
         kn = _positive("--kn", self.kn)
         ks = _positive("--ks", self.ks if self.ks is not None else kn)
         if not (math.isfinite(self.damping) and self.damping >= 0.0):
             raise InputError(f"--damping must be zero or positive, got {self.damping:g}")
         if self.omega_max is not None:
             _positive("--omega-max", self.omega_max)
-        first = _body(self.first, "")
-        other = _body(self.other.or_else(self.first), "other-")
         return assess(first, other, kn, ks, self.damping, self.omega_max, check)
 
 

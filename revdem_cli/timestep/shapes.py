@@ -162,8 +162,10 @@ def read_vertices(path: Path) -> np.ndarray:
     """Vertices (n, 3) from a JSON or plain-text file (one `x y z` a line, # comments)."""
     try:
         text = Path(path).read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"vertex file {path}: cannot read it ({exc})") from None
+    except OSError as exc:
+        raise InputError(f"vertex file {path}: cannot read it ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"vertex file {path}: not a text file") from None
     rows = _vertex_rows(text, Path(path))
     try:
         vertices = np.array(rows, dtype=float)

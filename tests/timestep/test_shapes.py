@@ -176,6 +176,10 @@ def test_malformed_vertex_files_are_refused(tmp_path, name, content, message):
         shapes.read_vertices(path)
 
 
-def test_missing_vertex_file_is_refused(tmp_path):
+def test_missing_or_binary_vertex_file_is_refused(tmp_path):
     with pytest.raises(InputError, match="vertex file .*absent.txt: cannot read"):
         shapes.read_vertices(tmp_path / "absent.txt")
+    binary = tmp_path / "shape.bin"
+    binary.write_bytes(b"\xff\xfe\x00\x81")
+    with pytest.raises(InputError, match="vertex file .*shape.bin: not a text file"):
+        shapes.read_vertices(binary)
