@@ -32,23 +32,86 @@ class Material(_Model):
 
 
 class ContactLaw(_Model):
-    """Normal contact law between spheres (Hanley 2020 Eq 6)."""
+    """Contact law between spheres and between spheres and walls (Hanley 2020 Eq 6-10)."""
 
     model: Literal["hertz", "linear"] = Field(
-        description="'hertz': F = 4/3 E* sqrt(R*) d^1.5 from the materials; 'linear': F = kn d"
+        description="normal law: 'hertz', F = 4/3 E* sqrt(R*) d^1.5 from the materials; "
+        "'linear', F = kn d"
     )
     kn: float | None = Field(
         default=None, gt=0, description="normal spring stiffness for the linear law, N/m"
     )
+    tangential: Literal["none", "linear", "mindlin"] = Field(
+        default="none",
+        description="shear force with history: 'linear' with ks, 'mindlin' with "
+        "k_s = 8 G* sqrt(R* d); 'none' for frictionless spheres",
+    )
+    ks: float | None = Field(
+        default=None, gt=0, description="shear spring stiffness for tangential='linear', N/m"
+    )
+    friction: float | None = Field(
+        default=None,
+        ge=0,
+        allow_inf_nan=True,
+        description="Coulomb friction coefficient mu, -; inf for no sliding",
+    )
+    normal_damping: float = Field(
+        default=0.0, ge=0, description="viscous normal damping, fraction of critical, -"
+    )
+    tangential_damping: float = Field(
+        default=0.0, ge=0, description="viscous tangential damping, fraction of critical, -"
+    )
 
     @model_validator(mode="after")
-    def _kn_matches_model(self) -> ContactLaw:
+    def _parameters_match_laws(self) -> ContactLaw:
         if self.model == "linear" and self.kn is None:
             raise ValueError("the linear contact law needs kn (N/m)")
         if self.model == "hertz" and self.kn is not None:
             raise ValueError(
                 "kn belongs to the linear law; the Hertz law takes its stiffness from the materials"
             )
+        if self.tangential == "linear" and self.ks is None:
+            raise ValueError("tangential = 'linear' needs ks (N/m)")
+        if self.tangential != "linear" and self.ks is not None:
+            raise ValueError("ks belongs to tangential = 'linear'")
+        if self.tangential != "none" and self.friction is None:
+            raise ValueError("a tangential law needs friction (mu; inf for no sliding)")
+        if self.friction is not None and math.isnan(self.friction):
+            raise ValueError("friction must be a number or inf")
+        return self
+
+
+class Damping(_Model):
+    """Damping of particle motion (Hanley 2020 §3.1, §5.2)."""
+
+    local: float = Field(default=0.0, ge=0, lt=1, description="local damping gamma_l of Eq 21, -")
+    drag: float = Field(
+        default=1.0,
+        gt=0,
+        le=1,
+        description="drag factor gamma_d of Eq 25 applied to the half-step velocity, -; 1: none",
+    )
+
+
+class Wall(_Model):
+    """An infinite plane, or the inside of an infinite cylinder, moving at a fixed velocity."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_-]+$", description="wall name, used for its force")
+    type: Literal["plane", "cylinder"] = Field(description="'plane' or 'cylinder' (inside)")
+    material: str = Field(description="name of a material in [materials]")
+    point: Vector3 = Field(description="a point on the plane, or on the cylinder axis, m")
+    normal: Vector3 = Field(
+        description="plane: normal pointing into the domain; cylinder: axis direction (-)"
+    )
+    radius: float | None = Field(default=None, gt=0, description="cylinder radius, m")
+    velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="wall velocity, m/s")
+
+    @model_validator(mode="after")
+    def _shape(self) -> Wall:
+        if math.hypot(*self.normal) == 0:
+            raise ValueError("normal must not be zero")
+        if (self.type == "cylinder") != (self.radius is not None):
+            raise ValueError("a cylinder needs a radius, a plane has none")
         return self
 
 
@@ -121,10 +184,11 @@ class Reversal(_Model):
 class Output(_Model):
     """What is written besides the trajectories."""
 
-    figures: list[Literal["speed"]] = Field(
+    figures: list[Literal["speed", "forces", "velocity_z"]] = Field(
         default_factory=list,
-        description="figures written beside the trajectories: 'speed' = |v| of each particle "
-        "against time, forward and reversed overlaid",
+        description="figures written beside the trajectories, forward and reversed overlaid: "
+        "'speed' = |v| of each particle, 'forces' = largest normal and shear contact force, "
+        "'velocity_z' = vertical velocity of each particle, all against time",
     )
 
 
@@ -138,9 +202,11 @@ class Scenario(_Model):
     materials: dict[str, Material] = Field(min_length=1, description="materials by name")
     contact: ContactLaw = Field(description="contact law between particles")
     particles: list[Particle] = Field(min_length=1, description="explicit list of spheres")
+    walls: list[Wall] = Field(default_factory=list, description="walls")
     gravity: Vector3 = Field(
         default=(0.0, 0.0, 0.0), description="gravitational acceleration, m/s^2"
     )
+    damping: Damping = Field(default_factory=Damping)
     integrator: Integrator
     neighbours: Neighbours = Field(default_factory=Neighbours)
     stages: list[Stage] = Field(min_length=1, description="stages run in order")
@@ -149,12 +215,16 @@ class Scenario(_Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> Scenario:
-        for i, particle in enumerate(self.particles):
-            if particle.material not in self.materials:
-                raise _FieldError(
-                    f"particles[{i}].material",
-                    f"unknown material '{particle.material}' (known: {', '.join(self.materials)})",
-                )
+        for kind, items in (("particles", self.particles), ("walls", self.walls)):
+            for i, item in enumerate(items):
+                if item.material not in self.materials:
+                    raise _FieldError(
+                        f"{kind}[{i}].material",
+                        f"unknown material '{item.material}' (known: {', '.join(self.materials)})",
+                    )
+        for i, wall in enumerate(self.walls):
+            if [w.name for w in self.walls].index(wall.name) != i:
+                raise _FieldError(f"walls[{i}].name", f"wall name '{wall.name}' is used twice")
         names = [stage.name for stage in self.stages]
         for i, name in enumerate(names):
             if names.index(name) != i:

@@ -19,10 +19,18 @@ from revdem_cli.config import Scenario, Stage
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, read_restart, write_restart
-from revdem_cli.kernels import observables
-from revdem_cli.kernels.arrays import ContactLaw
+from revdem_cli.kernels.arrays import ContactLaw, Dynamics
+from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.integrate import OK, advance
-from revdem_cli.state import State, contact_law, default_skin, initial_state
+from revdem_cli.kernels.observables import SCALARS, observe
+from revdem_cli.state import (
+    State,
+    contact_law,
+    default_skin,
+    dynamics,
+    empty_events,
+    initial_state,
+)
 
 Progress = Callable[[str, int, int, int], None]
 """Called as progress(label, steps done, steps in total, particles) once per output frame."""
@@ -34,17 +42,18 @@ class Model:
 
     scenario: Scenario
     law: ContactLaw
-    gravity: np.ndarray
+    dynamics: Dynamics
     skin: float
 
     @classmethod
     def of(cls, scenario: Scenario) -> Model:
-        return cls(
-            scenario,
-            contact_law(scenario),
-            np.array(scenario.gravity, dtype=np.float64),
-            default_skin(scenario),
-        )
+        return cls(scenario, contact_law(scenario), dynamics(scenario), default_skin(scenario))
+
+    def observables(self) -> list[tuple[str, int]]:
+        """Observable names and widths, in the column order of `kernels.observables.observe`."""
+        return [(name, 1) for name in SCALARS] + [
+            (f"wall_force/{wall.name}", 3) for wall in self.scenario.walls
+        ]
 
 
 @dataclass(frozen=True)
@@ -99,10 +108,14 @@ def run_stage(
         raise ValueError(
             f"stage {clock.stage.name} starts at step {frames[0]}, state is at {state.step}"
         )
+    if direction > 0:
+        state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
     every = clock.stage.observable_interval
-    buffer = np.zeros((clock.stage.output_every // every + 2, 1 + len(observables.NAMES)))
-    stage_bounds = np.array([clock.first_step, clock.last_step], dtype=np.int64)
-    _observe_now(state, model, clock, writer, buffer)
+    width = 1 + sum(columns for _, columns in model.observables())
+    buffer = np.zeros((clock.stage.output_every // every + 2, width))
+    run = np.array([clock.dt, model.skin, clock.first_step, clock.last_step, every], dtype=float)
+    events = empty_events()
+    _record_now(state, model, clock, writer, buffer, events)
     label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
     total = abs(frames[-1] - frames[0])
     for target in frames[1:]:
@@ -110,37 +123,30 @@ def run_stage(
             status, state.step, rows = advance(
                 state.particles,
                 state.pairs,
+                state.walls,
                 model.law,
-                model.gravity,
-                model.skin,
-                clock.dt,
-                direction,
+                model.dynamics,
+                events,
+                run,
                 state.step,
                 target,
-                stage_bounds,
-                every,
                 buffer,
             )
             _write_observables(writer, clock, buffer[:rows])
             if status != OK:
                 state.grow_pairs()
-        writer.frame(state.step, float(clock.time(state.step)), state.particles)
+        writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
         if progress is not None:
             progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
 
 
-def _observe_now(state, model, clock, writer, buffer) -> None:
+def _record_now(state, model, clock, writer, buffer, events) -> None:
     """Write the frame and observables of the state as it is (the start of a stage)."""
-    from revdem_cli.kernels.observables import observe
-
-    writer.frame(state.step, float(clock.time(state.step)), state.particles)
-    if (
-        writer.observable_clock["step"].shape[0]
-        and writer.observable_clock["step"][-1] == state.step
-    ):
+    writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
+    if writer.last_observable_step() == state.step:
         return
     buffer[0, 0] = state.step
-    observe(state.particles, state.pairs, model.gravity, buffer[0])
+    observe(state.particles, state.pairs, state.walls, model.dynamics, buffer[0])
     _write_observables(writer, clock, buffer[:1])
 
 
@@ -172,13 +178,15 @@ def _paths(out_dir: Path, name: str) -> dict[str, Path]:
 
 
 def _writer(
-    path: Path, state: State, scenario: Scenario, text: str, direction: str, source: str = ""
+    path: Path, state: State, model: Model, text: str, direction: str, source: str = ""
 ) -> TrajectoryWriter:
+    scenario = model.scenario
     return TrajectoryWriter(
         path,
         state.particles.radius,
         state.particles.mass,
-        observables.NAMES,
+        model.observables(),
+        (len(KINDS), len(COLUMNS)),
         {
             "direction": direction,
             "dt": scenario.integrator.dt,
@@ -186,6 +194,8 @@ def _writer(
             "scenario": text,
             "scenario_json": scenario.model_dump_json(),
             "source_restart": source,
+            "event_kinds": list(KINDS),
+            "event_columns": list(COLUMNS),
         },
     )
 
@@ -202,9 +212,9 @@ def run_scenario(
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = _paths(out_dir, scenario.name)
     model = Model.of(scenario)
-    state = initial_state(scenario, model.law, model.gravity, model.skin)
+    state = initial_state(scenario, model.law, model.dynamics, model.skin)
     clocks = stage_clocks(scenario)
-    with _writer(paths["forward"], state, scenario, text, "forward") as writer:
+    with _writer(paths["forward"], state, model, text, "forward") as writer:
         for clock in clocks:
             run_stage(state, model, clock, +1, writer, progress)
     write_restart(
@@ -250,7 +260,7 @@ def reverse_run(
     with _writer(
         paths["reverse"],
         state,
-        scenario,
+        model,
         restart.scenario_text,
         "reverse",
         str(Path(restart_path).resolve()),

@@ -1,9 +1,11 @@
 """H5MD 1.1 trajectories (readable by MDAnalysis and other H5MD clients).
 
-/h5md                               version [1, 1]; creator revdem
+/h5md                               version [1, 1]; author; creator revdem
 /particles/all/{position,velocity,angular_velocity,force}   step [F], time [F], value [F, N, 3]
 /particles/all/{radius,mass,id}     time-independent [N]
-/observables/<name>                 step, time, value [F]
+/observables/<name>                 step, time, value [F] or [F, 3]
+/observables/events                 value [F, kinds, columns] at each frame: the log of
+                                    information-destroying mechanisms (kernels/events.py)
 /parameters/revdem                  attrs: direction, dt, arithmetic, scenario, source restart
 Frames are flushed as they are written, so an interrupted run keeps what it wrote.
 """
@@ -23,27 +25,20 @@ from revdem_cli.io import SCHEMA_VERSION
 FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
 
 
-def _series(group: h5py.Group, name: str, shape: tuple, dtype=np.float64) -> h5py.Group:
+def _series(group: h5py.Group, name: str, shape: tuple, clock: h5py.Group | None) -> h5py.Group:
+    """A time series `name` with value [F, *shape]; step and time shared with `clock`."""
     g = group.create_group(name)
+    rows = max(1, 4096 // max(1, int(np.prod(shape))))
     g.create_dataset(
-        "value",
-        shape=(0, *shape),
-        maxshape=(None, *shape),
-        dtype=dtype,
-        chunks=(max(1, 4096 // max(1, int(np.prod(shape)))), *shape),
+        "value", shape=(0, *shape), maxshape=(None, *shape), dtype=np.float64, chunks=(rows, *shape)
     )
-    return g
-
-
-def _link_clock(group: h5py.Group, clock: h5py.Group | None) -> h5py.Group:
-    """Give a time series its step and time datasets, shared (hard-linked) with `clock`."""
     if clock is None:
-        group.create_dataset("step", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
-        group.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(1024,))
+        g.create_dataset("step", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
+        g.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(1024,))
     else:
-        group["step"] = clock["step"]
-        group["time"] = clock["time"]
-    return group
+        g["step"] = clock["step"]
+        g["time"] = clock["time"]
+    return g
 
 
 def _append(dataset: h5py.Dataset, values) -> None:
@@ -54,9 +49,20 @@ def _append(dataset: h5py.Dataset, values) -> None:
 
 
 class TrajectoryWriter:
-    """Appends frames and observables to a new H5MD file."""
+    """Appends frames and observables to a new H5MD file.
 
-    def __init__(self, path: Path, radius, mass, observables: tuple[str, ...], parameters: dict):
+    `observables` lists (name, columns): a scalar observable has 1 column, a vector 3.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        radius,
+        mass,
+        observables: list[tuple[str, int]],
+        events_shape: tuple[int, int],
+        parameters: dict,
+    ):
         self.path = Path(path)
         self.file = h5py.File(self.path, "w")
         f = self.file
@@ -73,15 +79,16 @@ class TrajectoryWriter:
         box.attrs["boundary"] = np.array([b"none"] * 3)
         clock = None
         for name in FRAME_FIELDS:
-            clock = _link_clock(_series(everything, name, (n, 3)), clock)
-        self.frame_clock = everything["position"]
+            clock = _series(everything, name, (n, 3), clock)
+        self.frame_clock = clock
         everything.create_dataset("radius", data=radius)
         everything.create_dataset("mass", data=mass)
         everything.create_dataset("id", data=np.arange(n, dtype=np.int64))
+        self.events = _series(f, "observables/events", events_shape, self.frame_clock)["value"]
+        self.observables_layout = observables
         clock = None
-        for name in observables:
-            clock = _link_clock(_series(f, f"observables/{name}", ()), clock)
-        self.observable_names = observables
+        for name, columns in observables:
+            clock = _series(f, f"observables/{name}", () if columns == 1 else (columns,), clock)
         self.observable_clock = clock
         revdem = f.create_group("parameters/revdem")
         revdem.attrs["schema_version"] = SCHEMA_VERSION
@@ -89,7 +96,7 @@ class TrajectoryWriter:
             revdem.attrs[key] = value
         self.last_step: int | None = None
 
-    def frame(self, step: int, time: float, particles) -> None:
+    def frame(self, step: int, time: float, particles, events: np.ndarray) -> None:
         """Append one frame; a frame at the step already written last is skipped."""
         if step == self.last_step:
             return
@@ -101,16 +108,24 @@ class TrajectoryWriter:
             FRAME_FIELDS, (particles.x, particles.v, particles.omega, particles.f), strict=True
         ):
             _append(group[name]["value"], values[None])
+        _append(self.events, events[None])
         self.file.flush()
 
+    def last_observable_step(self) -> int | None:
+        steps = self.observable_clock["step"]
+        return int(steps[-1]) if steps.shape[0] else None
+
     def observables(self, steps, times, values) -> None:
-        """Append rows of observables; values has one column per name."""
+        """Append rows of observables; values has the columns of the layout side by side."""
         if len(steps) == 0:
             return
         _append(self.observable_clock["step"], steps)
         _append(self.observable_clock["time"], times)
-        for k, name in enumerate(self.observable_names):
-            _append(self.file[f"observables/{name}/value"], values[:, k])
+        column = 0
+        for name, columns in self.observables_layout:
+            block = values[:, column] if columns == 1 else values[:, column : column + columns]
+            _append(self.file[f"observables/{name}/value"], block)
+            column += columns
 
     def close(self) -> None:
         self.file.close()

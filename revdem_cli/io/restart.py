@@ -13,11 +13,12 @@ import h5py
 
 from revdem_cli.errors import InputError
 from revdem_cli.io import SCHEMA_VERSION
-from revdem_cli.kernels.arrays import Pairs, Particles
+from revdem_cli.kernels.arrays import Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
 from revdem_cli.state import State, empty_pairs
 
-PAIR_FIELDS = ("i", "j", "history", "force", "energy")
+PAIR_FIELDS = ("i", "j", "history", "force", "torque_i", "torque_j", "normal", "energy")
+"""The per-pair arrays that carry state from one step to the next."""
 
 
 @dataclass
@@ -46,6 +47,8 @@ def write_restart(path: Path, restart: Restart) -> None:
         meta.attrs["trajectory"] = restart.trajectory
         for name in Particles._fields:
             f.create_dataset(f"particles/{name}", data=getattr(s.particles, name))
+        for name in Walls._fields:
+            f.create_dataset(f"walls/{name}", data=getattr(s.walls, name))
         n = int(s.pairs.count[0])
         for name in PAIR_FIELDS:
             f.create_dataset(f"pairs/{name}", data=getattr(s.pairs, name)[:n])
@@ -69,6 +72,7 @@ def read_restart(path: str | Path) -> Restart:
                 f"{path}: restart schema version {version}, this revdem reads {SCHEMA_VERSION}"
             )
         particles = Particles(*(f[f"particles/{name}"][:] for name in Particles._fields))
+        walls = Walls(*(f[f"walls/{name}"][:] for name in Walls._fields))
         n = f["pairs/i"].shape[0]
         pairs: Pairs = empty_pairs(len(particles.x), max(8 * len(particles.x) + 16, n))
         for name in PAIR_FIELDS:
@@ -77,7 +81,7 @@ def read_restart(path: str | Path) -> Restart:
         pairs.count[:] = n
         index_by_particle(pairs.i, pairs.j, n, pairs.start, pairs.slots)
         return Restart(
-            state=State(particles, pairs, step=int(meta.attrs["step"])),
+            state=State(particles, pairs, walls, step=int(meta.attrs["step"])),
             scenario_json=str(meta.attrs["scenario_json"]),
             scenario_text=str(meta.attrs["scenario_text"]),
             scenario_suffix=str(meta.attrs["scenario_suffix"]),

@@ -2,11 +2,31 @@
 
 JIT flags live here, in one place. `fastmath` stays off everywhere: it reorders arithmetic
 and would break the reversibility that is the point of revdem.
+
+Compiled code is cached on disk. numba invalidates a cached function only when its own file
+changes, yet a caller's cache holds the compiled code of the functions it calls from other
+files; so the cache directory is keyed by a hash of every kernel source file, and any change
+to any kernel starts a fresh cache.
 """
 
+import hashlib
+import os
 from functools import partial
+from pathlib import Path
 
 import numba
+
+
+def _cache_dir() -> str:
+    sources = sorted(Path(__file__).parent.glob("*.py"))
+    digest = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()[:16]
+    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "revdem", "numba"
+    )
+    return os.path.join(base, f"{numba.__version__}-{digest}")
+
+
+numba.config.CACHE_DIR = _cache_dir()
 
 jit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy")
 """Serial compiled function."""

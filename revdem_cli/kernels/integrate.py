@@ -1,7 +1,9 @@
 """Velocity-Verlet stepping, forward and reversed, and the compiled loop of a stage."""
 
 from revdem_cli.kernels import jit
-from revdem_cli.kernels.forces import compute_forces
+from revdem_cli.kernels.contact import FORWARD, REVERSE
+from revdem_cli.kernels.events import note_contact_events, note_fixed_points
+from revdem_cli.kernels.forces import compute_forces, unwind_shear_history
 from revdem_cli.kernels.neighbours import (
     build_pairs,
     carry_history,
@@ -9,6 +11,7 @@ from revdem_cli.kernels.neighbours import (
     largest_reach,
 )
 from revdem_cli.kernels.observables import observe
+from revdem_cli.kernels.walls import place_walls
 
 OK = 0
 PAIR_OVERFLOW = 1
@@ -16,7 +19,7 @@ PAIR_OVERFLOW = 1
 
 @jit
 def kick(v, f, inv_m, h):
-    """v += h f / m: a half kick with h = +dt/2 (Hanley 2020 Eq 1, 11) or -dt/2 (Eq 17, 20)."""
+    """v += h f / m: a half kick, h = +dt/2 (Hanley 2020 Eq 1-2, 11-12) or -dt/2 (Eq 17, 20)."""
     for q in range(v.shape[0]):
         for d in range(3):
             v[q, d] += h * f[q, d] * inv_m[q]
@@ -31,21 +34,52 @@ def drift(x, v, h):
 
 
 @jit
-def verlet_step(p, pairs, law, gravity, h):
-    """One velocity-Verlet step of signed length h.
+def scale(v, factor):
+    """v *= factor: drag, factor gamma_d (Hanley 2020 Eq 25), undone with 1/gamma_d (Eq 28)."""
+    for q in range(v.shape[0]):
+        for d in range(3):
+            v[q, d] *= factor
 
-    h = +dt is the forward step (Hanley 2020 Eq 1-3, 4-6, 11-12). For this conservative
-    system the reversed step (Eq 17-20) is its exact algebraic inverse with the same
-    operations and h = -dt: kick back with the stored force, drift back, recompute the force
-    at the earlier positions, kick back again. Each increment has the same magnitude in both
-    directions, so the two differ only by round-off.
+
+@jit
+def forward_step(p, pairs, walls, law, dyn, events, dt, step, wall_time):
+    """One forward step from `step` (Hanley 2020 Eq 1-12, with drag Eq 25-26)."""
+    kick(p.v, p.f, p.inv_mass, 0.5 * dt)
+    kick(p.omega, p.torque, p.inv_inertia, 0.5 * dt)
+    if dyn.drag != 1.0:
+        scale(p.v, dyn.drag)
+        note_fixed_points(p.v, p.v_drift, step + 1, events)
+    drift(p.x, p.v, dt)
+    place_walls(walls, wall_time)
+    compute_forces(p, pairs, walls, law, dyn, FORWARD, dt)
+    note_contact_events(pairs, walls, law, dyn, step + 1, events)
+    kick(p.v, p.f, p.inv_mass, 0.5 * dt)
+    kick(p.omega, p.torque, p.inv_inertia, 0.5 * dt)
+
+
+@jit
+def reverse_step(p, pairs, walls, law, dyn, events, dt, step, wall_time):
+    """One reversed step from `step`: the forward step's operations undone in reverse order.
+
+    Kick back with the stored force (Eq 17, 27); undo the shear increment and spin
+    correction at the later positions (inverse of Eq 10, 9); drift back with the velocity
+    the forward step drifted with (Eq 18); undo drag (Eq 28); forces at the earlier
+    positions, the shear history mapped back onto their contact planes (Eq 19, inverse of
+    Eq 7-8); kick back (Eq 20). Mechanisms that destroy information (Coulomb cap, local and
+    viscous damping, shear force lost at separation) run mirrored and are logged.
     """
-    kick(p.v, p.f, p.inv_mass, 0.5 * h)
-    kick(p.omega, p.torque, p.inv_inertia, 0.5 * h)
-    drift(p.x, p.v, h)
-    compute_forces(p, pairs, law, gravity)
-    kick(p.v, p.f, p.inv_mass, 0.5 * h)
-    kick(p.omega, p.torque, p.inv_inertia, 0.5 * h)
+    kick(p.v, p.f, p.inv_mass, -0.5 * dt)
+    kick(p.omega, p.torque, p.inv_inertia, -0.5 * dt)
+    unwind_shear_history(p, pairs, walls, law, dt)
+    drift(p.x, p.v, -dt)
+    place_walls(walls, wall_time)
+    if dyn.drag != 1.0:
+        note_fixed_points(p.v, p.v_drift, step - 1, events)
+        scale(p.v, 1.0 / dyn.drag)
+    compute_forces(p, pairs, walls, law, dyn, REVERSE, dt)
+    note_contact_events(pairs, walls, law, dyn, step - 1, events)
+    kick(p.v, p.f, p.inv_mass, -0.5 * dt)
+    kick(p.omega, p.torque, p.inv_inertia, -0.5 * dt)
 
 
 @jit
@@ -73,23 +107,31 @@ def rebuild_pairs(p, pairs, skin):
 
 
 @jit
-def advance(p, pairs, law, gravity, skin, dt, direction, step, stop, stage, obs_every, obs):
-    """Run whole steps from `step` to `stop` in `direction` (+1 forward, -1 reversed).
+def advance(p, pairs, walls, law, dyn, events, run, step, stop, obs):
+    """Run whole steps from `step` to `stop` (forward if stop > step, else reversed).
 
-    stage = (first step, last step) of the stage; observables are recorded into the rows of
-    `obs` at every step where (step - first) % obs_every == 0 and at the last step.
-    Returns (status, step reached, rows recorded). Status PAIR_OVERFLOW means the pair list
-    must grow before stepping on; the state is then at a whole step.
+    run = (dt, skin, first step of the stage, last step, observables interval). Observables
+    are recorded into the rows of `obs` at every step where (step - first) % interval == 0
+    and at the last step. Returns (status, step reached, rows recorded); status
+    PAIR_OVERFLOW means the pair list must grow before stepping on (the state is then at a
+    whole step).
     """
+    dt, skin = run[0], run[1]
+    first, last, every = int(run[2]), int(run[3]), int(run[4])
+    direction = 1 if stop > step else -1
     rows = 0
     while step != stop:
         if largest_reach(p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction) > 0.5 * skin:
             if not rebuild_pairs(p, pairs, skin):
                 return PAIR_OVERFLOW, step, rows
-        verlet_step(p, pairs, law, gravity, direction * dt)
+        wall_time = (step + direction - first) * dt
+        if direction > 0:
+            forward_step(p, pairs, walls, law, dyn, events, dt, step, wall_time)
+        else:
+            reverse_step(p, pairs, walls, law, dyn, events, dt, step, wall_time)
         step += direction
-        if (step - stage[0]) % obs_every == 0 or step == stage[1]:
+        if (step - first) % every == 0 or step == last:
             obs[rows, 0] = step
-            observe(p, pairs, gravity, obs[rows])
+            observe(p, pairs, walls, dyn, obs[rows])
             rows += 1
     return OK, step, rows

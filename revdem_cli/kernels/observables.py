@@ -1,27 +1,61 @@
-"""Scalar observables of the whole system, summed in a fixed order."""
+"""Observables of the whole system, summed in a fixed order."""
+
+import math
 
 from revdem_cli.kernels import jit
 
-NAMES = ("kinetic_energy", "elastic_energy", "potential_energy", "total_energy")
-"""Column names of an observables row after its leading step column."""
+SCALARS = (
+    "kinetic_energy",  # translational and rotational, J
+    "elastic_energy",  # normal and tangential springs, J
+    "potential_energy",  # gravitational, -m g.x, J
+    "total_energy",  # J
+    "max_normal_force",  # largest normal force magnitude over all contacts, N
+    "max_shear_force",  # largest shear force magnitude over all contacts, N
+    "coordination_number",  # 2 x particle-particle contacts / particles
+)
+"""Scalar columns of an observables row after its leading step column; then 3 columns (the
+force on it, N) per wall."""
 
 
 @jit
-def observe(p, pairs, gravity, row):
-    """Fill row[1:] with the observables named in NAMES (row[0] holds the step)."""
+def observe(p, pairs, walls, dyn, row):
+    """Fill row[1:] with SCALARS, then each wall's force (row[0] holds the step)."""
+    g = dyn.gravity
     kinetic = 0.0
     potential = 0.0
     for q in range(p.x.shape[0]):
         v2 = p.v[q, 0] ** 2 + p.v[q, 1] ** 2 + p.v[q, 2] ** 2
         w2 = p.omega[q, 0] ** 2 + p.omega[q, 1] ** 2 + p.omega[q, 2] ** 2
         kinetic += 0.5 * p.mass[q] * v2 + 0.5 * p.inertia[q] * w2
-        potential -= p.mass[q] * (
-            gravity[0] * p.x[q, 0] + gravity[1] * p.x[q, 1] + gravity[2] * p.x[q, 2]
-        )
+        potential -= p.mass[q] * (g[0] * p.x[q, 0] + g[1] * p.x[q, 1] + g[2] * p.x[q, 2])
     elastic = 0.0
+    max_normal = 0.0
+    max_shear = 0.0
+    contacts = 0
     for k in range(pairs.count[0]):
-        elastic += pairs.energy[k]
+        if pairs.energy[k] > 0.0:
+            contacts += 1
+            elastic += pairs.energy[k]
+            f2 = pairs.force[k, 0] ** 2 + pairs.force[k, 1] ** 2 + pairs.force[k, 2] ** 2
+            max_normal = max(max_normal, abs(pairs.normal[k]))
+            max_shear = max(max_shear, math.sqrt(max(f2 - pairs.normal[k] ** 2, 0.0)))
+    nwalls = walls.force.shape[1]
+    for b in range(nwalls):
+        row[8 + 3 * b : 11 + 3 * b] = 0.0
+    for q in range(p.x.shape[0]):
+        for b in range(nwalls):
+            if walls.energy[q, b] > 0.0:
+                elastic += walls.energy[q, b]
+                f = walls.force[q, b]
+                f2 = f[0] ** 2 + f[1] ** 2 + f[2] ** 2
+                max_normal = max(max_normal, abs(walls.normal[q, b]))
+                max_shear = max(max_shear, math.sqrt(max(f2 - walls.normal[q, b] ** 2, 0.0)))
+                for d in range(3):
+                    row[8 + 3 * b + d] -= f[d]
     row[1] = kinetic
     row[2] = elastic
     row[3] = potential
     row[4] = kinetic + elastic + potential
+    row[5] = max_normal
+    row[6] = max_shear
+    row[7] = 2.0 * contacts / p.x.shape[0]
