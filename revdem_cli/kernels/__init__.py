@@ -11,6 +11,7 @@ to any kernel starts a fresh cache.
 
 import hashlib
 import os
+import types
 from functools import partial
 from pathlib import Path
 
@@ -33,3 +34,21 @@ jit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy")
 
 pjit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", parallel=True)
 """Compiled function with `numba.prange` loops; each iteration writes only its own slot."""
+
+
+def serial_and_parallel(loop):
+    """A serial and a parallel build of one `prange` loop.
+
+    The parallel build is compiled from a copy with its own name: numba's disk cache is
+    keyed by the function's name, and would otherwise hand one build's code to the other.
+    """
+    twin = types.FunctionType(
+        loop.__code__,
+        loop.__globals__,
+        loop.__name__ + "_parallel",
+        loop.__defaults__,
+        loop.__closure__,
+    )
+    twin.__qualname__ = loop.__qualname__ + "_parallel"
+    twin.__doc__ = loop.__doc__
+    return jit(loop), pjit(twin)

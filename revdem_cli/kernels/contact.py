@@ -117,29 +117,29 @@ def coulomb_cap(shear, limit):
 @jit
 def relative_velocity(n, arm_i, arm_j, v_i, w_i, v_j, w_j):
     """Velocity of j relative to i at the contact point; branch vectors arm_i n and -arm_j n."""
-    vi = axpy(1.0, cross((w_i[0], w_i[1], w_i[2]), scaled(arm_i, n)), (v_i[0], v_i[1], v_i[2]))
-    vj = axpy(1.0, cross((w_j[0], w_j[1], w_j[2]), scaled(-arm_j, n)), (v_j[0], v_j[1], v_j[2]))
-    return axpy(-1.0, vi, vj)
+    at_i = axpy(1.0, cross(w_i, scaled(arm_i, n)), v_i)
+    at_j = axpy(1.0, cross(w_j, scaled(-arm_j, n)), v_j)
+    return axpy(-1.0, at_i, at_j)
 
 
 @jit
 def contact_force(
     law, mode, dt, overlap, n, rstar, mstar, mats, vrel, spin, history, pending, normal_new
 ):
-    """Force on i at one contact in overlap > 0; updates the history in place.
+    """Force on i at one contact in overlap > 0, and the new shear history.
 
     FORWARD: remap the history onto the new contact plane (Eq 7-8), correct for spin (Eq 9),
     add the increment -k_s dU_s with dU_s = -v_t dt, the displacement of i relative to j
     (Eq 10), cap at mu |f_n|. REVERSE: the history is the exact inverse of those steps,
     `unmap(pending)` (see `unwind_shear`), capped the same way. STATIC: the history as is.
-    Returns (force on i, normal force, stored energy, slip amount).
+    Returns (force on i, normal force, stored energy, slip amount, history).
     """
     elastic, stiffness, energy = normal_law(law, overlap, rstar, mats[0], mats[1])
     vn = dot(vrel, n)
     normal = elastic - 2.0 * law.beta_n * math.sqrt(mstar * stiffness) * vn  # viscous, normal
     force = scaled(-normal, n)
     if law.tangential == NO_SHEAR:
-        return force, normal, energy, 0.0
+        return force, normal, energy, 0.0, history
     vt = axpy(-vn, n, vrel)
     ks = shear_stiffness(law, overlap, rstar, mats[0], mats[1])
     if mode == FORWARD:
@@ -148,23 +148,19 @@ def contact_force(
     elif mode == REVERSE:
         shear = unmap(pending, normal_new, n)
     else:
-        shear = (history[0], history[1], history[2])
+        shear = history
     shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
-    history[0], history[1], history[2] = shear
     energy += 0.5 * dot(shear, shear) / ks
     damping = 2.0 * law.beta_t * math.sqrt(mstar * ks)  # viscous, tangential
-    return axpy(1.0, axpy(damping, vt, shear), force), normal, energy, slip
+    return axpy(1.0, axpy(damping, vt, shear), force), normal, energy, slip, shear
 
 
 @jit
-def unwind_shear(law, dt, overlap, n, rstar, mats, vrel, spin, history, pending, normal_new):
-    """Reversed step, at the later positions: undo Eq 10 and Eq 9, keeping the result and the
-    contact normal for `unmap` once the particles have moved back."""
+def unwind_shear(law, dt, overlap, n, rstar, mats, vrel, spin, history):
+    """Reversed step, at the later positions: undo Eq 10 and Eq 9. The result is mapped back
+    onto the earlier contact plane by `unmap` once the particles have moved back."""
     if overlap <= 0.0:
-        pending[:] = 0.0
-        return
+        return (0.0, 0.0, 0.0)
     vt = axpy(-dot(vrel, n), n, vrel)
     ks = shear_stiffness(law, overlap, rstar, mats[0], mats[1])
-    unrotated = axpy(-ks * dt, vt, (history[0], history[1], history[2]))
-    pending[0], pending[1], pending[2] = rotate_about(unrotated, n, -spin * dt)
-    normal_new[0], normal_new[1], normal_new[2] = n
+    return rotate_about(axpy(-ks * dt, vt, history), n, -spin * dt)

@@ -9,10 +9,11 @@ made directly in a loop body over bundles.
 
 import numba
 
-from revdem_cli.kernels import jit, pjit
+from revdem_cli.kernels import jit, serial_and_parallel
 from revdem_cli.kernels.contact import (
     FORWARD,
     NO_SHEAR,
+    axpy,
     contact_force,
     cross,
     dot,
@@ -25,16 +26,9 @@ from revdem_cli.kernels.walls import wall_overlap
 
 ZERO = (0.0, 0.0, 0.0)
 
-
-@jit
-def store(row, vector):
-    row[0], row[1], row[2] = vector
-
-
-@jit
-def add(a, row, s):
-    """a + s row, for a 3-tuple a and an array row."""
-    return (a[0] + s * row[0], a[1] + s * row[1], a[2] + s * row[2])
+PARALLEL_FROM = 256
+"""Systems of at least this many particles step with parallel loops; smaller ones serially,
+without the cost of waking threads. Results are the same either way."""
 
 
 @jit
@@ -43,20 +37,39 @@ def sign(a):
 
 
 @jit
+def row(a, k):
+    """Row k of an (n, 3) array as a 3-tuple."""
+    return (a[k, 0], a[k, 1], a[k, 2])
+
+
+@jit
+def put(a, k, vector):
+    a[k, 0], a[k, 1], a[k, 2] = vector
+
+
+@jit
+def cell(a, q, b):
+    """Entry (q, b) of an (n, m, 3) array as a 3-tuple."""
+    return (a[q, b, 0], a[q, b, 1], a[q, b, 2])
+
+
+@jit
 def pair_contact(k, p, pairs, law, mode, dt):
     """Force and torques of pair slot k at the current positions (Hanley 2020 Eq 4-10)."""
-    x, v, w, radius = p.x, p.v, p.omega, p.radius
+    x, radius = p.x, p.radius
     i = pairs.i[k]
     j = pairs.j[k]
-    d = (x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2])
+    d = axpy(-1.0, row(x, i), row(x, j))
     dist = norm(d)
     overlap = radius[i] + radius[j] - dist
-    history = pairs.history[k]
+    history = row(pairs.history, k)
     if overlap > 0.0:
         n = scaled(1.0 / dist, d)
         arm_i = radius[i] - 0.5 * overlap
         arm_j = radius[j] - 0.5 * overlap
-        f, fn, u, slipped = contact_force(
+        w_i = row(p.omega, i)
+        w_j = row(p.omega, j)
+        f, fn, u, slipped, history = contact_force(
             law,
             mode,
             dt,
@@ -65,27 +78,26 @@ def pair_contact(k, p, pairs, law, mode, dt):
             radius[i] * radius[j] / (radius[i] + radius[j]),
             p.mass[i] * p.mass[j] / (p.mass[i] + p.mass[j]),
             (p.material[i], p.material[j]),
-            relative_velocity(n, arm_i, arm_j, v[i], w[i], v[j], w[j]),
-            0.5 * (dot(w[i], n) + dot(w[j], n)),
+            relative_velocity(n, arm_i, arm_j, row(p.v, i), w_i, row(p.v, j), w_j),
+            0.5 * (dot(w_i, n) + dot(w_j, n)),
             history,
-            pairs.pending[k],
-            pairs.normal_new[k],
+            row(pairs.pending, k),
+            row(pairs.normal_new, k),
         )
-        ti = cross(scaled(arm_i, n), f)  # Hanley 2020 Eq 5
-        tj = cross(scaled(arm_j, n), f)
+        put(pairs.torque_i, k, cross(scaled(arm_i, n), f))  # Hanley 2020 Eq 5
+        put(pairs.torque_j, k, cross(scaled(arm_j, n), f))
         dropped = 0.0
     else:
         f = ZERO
-        ti = ZERO
-        tj = ZERO
         fn = 0.0
         u = 0.0
         slipped = 0.0
-        dropped = norm((history[0], history[1], history[2])) if mode == FORWARD else 0.0
-        history[:] = 0.0
-    store(pairs.force[k], f)
-    store(pairs.torque_i[k], ti)
-    store(pairs.torque_j[k], tj)
+        dropped = norm(history) if mode == FORWARD else 0.0
+        history = ZERO
+        put(pairs.torque_i, k, ZERO)
+        put(pairs.torque_j, k, ZERO)
+    put(pairs.history, k, history)
+    put(pairs.force, k, f)
     pairs.normal[k] = fn
     pairs.energy[k] = u
     pairs.slip[k] = slipped
@@ -94,12 +106,13 @@ def pair_contact(k, p, pairs, law, mode, dt):
 
 @jit
 def wall_contact(q, b, p, walls, law, mode, dt):
-    """Force and torque on particle q from wall b; returns them as (force, torque)."""
-    overlap, n = wall_overlap(walls, b, p.x[q], p.radius[q])
-    history = walls.history[q, b]
+    """Force and torque on particle q from wall b, returned as (force, torque)."""
+    overlap, n = wall_overlap(walls, b, row(p.x, q), p.radius[q])
+    history = cell(walls.history, q, b)
     if overlap > 0.0:
         arm = p.radius[q] - 0.5 * overlap
-        f, fn, u, slipped = contact_force(
+        w_q = row(p.omega, q)
+        f, fn, u, slipped, history = contact_force(
             law,
             mode,
             dt,
@@ -108,11 +121,11 @@ def wall_contact(q, b, p, walls, law, mode, dt):
             p.radius[q],
             p.mass[q],
             (p.material[q], walls.material[b]),
-            relative_velocity(n, arm, 0.0, p.v[q], p.omega[q], walls.velocity[b], ZERO),
-            0.5 * dot(p.omega[q], n),
+            relative_velocity(n, arm, 0.0, row(p.v, q), w_q, row(walls.velocity, b), ZERO),
+            0.5 * dot(w_q, n),
             history,
-            walls.pending[q, b],
-            walls.normal_new[q, b],
+            cell(walls.pending, q, b),
+            cell(walls.normal_new, q, b),
         )
         t = cross(scaled(arm, n), f)
         dropped = 0.0
@@ -122,9 +135,10 @@ def wall_contact(q, b, p, walls, law, mode, dt):
         fn = 0.0
         u = 0.0
         slipped = 0.0
-        dropped = norm((history[0], history[1], history[2])) if mode == FORWARD else 0.0
-        history[:] = 0.0
-    store(walls.force[q, b], f)
+        dropped = norm(history) if mode == FORWARD else 0.0
+        history = ZERO
+    walls.history[q, b, 0], walls.history[q, b, 1], walls.history[q, b, 2] = history
+    walls.force[q, b, 0], walls.force[q, b, 1], walls.force[q, b, 2] = f
     walls.normal[q, b] = fn
     walls.energy[q, b] = u
     walls.slip[q, b] = slipped
@@ -142,15 +156,15 @@ def particle_net_force(q, p, pairs, walls, law, dyn, mode, dt):
     for s in range(pairs.start[q], pairs.start[q + 1]):
         k = pairs.slots[s]
         if pairs.i[k] == q:
-            f = add(f, pairs.force[k], 1.0)
-            t = add(t, pairs.torque_i[k], 1.0)
+            f = axpy(1.0, row(pairs.force, k), f)
+            t = axpy(1.0, row(pairs.torque_i, k), t)
         else:
-            f = add(f, pairs.force[k], -1.0)
-            t = add(t, pairs.torque_j[k], 1.0)
+            f = axpy(-1.0, row(pairs.force, k), f)
+            t = axpy(1.0, row(pairs.torque_j, k), t)
     for b in range(walls.force.shape[1]):
         wf, wt = wall_contact(q, b, p, walls, law, mode, dt)
-        f = add(f, wf, 1.0)
-        t = add(t, wt, 1.0)
+        f = axpy(1.0, wf, f)
+        t = axpy(1.0, wt, t)
     local = dyn.local_damping
     for d in range(3):
         p.f[q, d] = f[d] - local * abs(f[d]) * sign(p.v[q, d])  # Hanley 2020 Eq 21
@@ -160,40 +174,47 @@ def particle_net_force(q, p, pairs, walls, law, dyn, mode, dt):
 @jit
 def unwind_pair(k, p, pairs, law, dt):
     """Reversed step, before drifting back: undo Eq 10 and 9 for pair slot k."""
-    x, v, w, radius = p.x, p.v, p.omega, p.radius
+    x, radius = p.x, p.radius
     i = pairs.i[k]
     j = pairs.j[k]
-    d = (x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2])
+    d = axpy(-1.0, row(x, i), row(x, j))
     dist = norm(d)
     overlap = radius[i] + radius[j] - dist
     n = scaled(1.0 / dist, d)
+    w_i = row(p.omega, i)
+    w_j = row(p.omega, j)
     vrel = relative_velocity(
-        n, radius[i] - 0.5 * overlap, radius[j] - 0.5 * overlap, v[i], w[i], v[j], w[j]
+        n, radius[i] - 0.5 * overlap, radius[j] - 0.5 * overlap, row(p.v, i), w_i, row(p.v, j), w_j
     )
-    unwind_shear(
-        law,
-        dt,
-        overlap,
-        n,
-        radius[i] * radius[j] / (radius[i] + radius[j]),
-        (p.material[i], p.material[j]),
-        vrel,
-        0.5 * (dot(w[i], n) + dot(w[j], n)),
-        pairs.history[k],
-        pairs.pending[k],
-        pairs.normal_new[k],
+    put(
+        pairs.pending,
+        k,
+        unwind_shear(
+            law,
+            dt,
+            overlap,
+            n,
+            radius[i] * radius[j] / (radius[i] + radius[j]),
+            (p.material[i], p.material[j]),
+            vrel,
+            0.5 * (dot(w_i, n) + dot(w_j, n)),
+            row(pairs.history, k),
+        ),
     )
+    put(pairs.normal_new, k, n)
 
 
 @jit
 def unwind_walls(q, p, walls, law, dt):
     """Reversed step, before drifting back: undo Eq 10 and 9 for particle q's wall contacts."""
+    w_q = row(p.omega, q)
     for b in range(walls.history.shape[1]):
-        overlap, n = wall_overlap(walls, b, p.x[q], p.radius[q])
+        overlap, n = wall_overlap(walls, b, row(p.x, q), p.radius[q])
         vrel = relative_velocity(
-            n, p.radius[q] - 0.5 * overlap, 0.0, p.v[q], p.omega[q], walls.velocity[b], ZERO
+            n, p.radius[q] - 0.5 * overlap, 0.0, row(p.v, q), w_q, row(walls.velocity, b), ZERO
         )
-        unwind_shear(
+        history = cell(walls.history, q, b)
+        pending = unwind_shear(
             law,
             dt,
             overlap,
@@ -201,42 +222,52 @@ def unwind_walls(q, p, walls, law, dt):
             p.radius[q],
             (p.material[q], walls.material[b]),
             vrel,
-            0.5 * dot(p.omega[q], n),
-            walls.history[q, b],
-            walls.pending[q, b],
-            walls.normal_new[q, b],
+            0.5 * dot(w_q, n),
+            history,
         )
+        walls.pending[q, b, 0], walls.pending[q, b, 1], walls.pending[q, b, 2] = pending
+        walls.normal_new[q, b, 0], walls.normal_new[q, b, 1], walls.normal_new[q, b, 2] = n
 
 
-@pjit
-def pair_forces(p, pairs, law, mode, dt):
+def _pair_loop(p, pairs, law, mode, dt):
     for k in numba.prange(pairs.count[0]):
         pair_contact(k, p, pairs, law, mode, dt)
 
 
-@pjit
-def particle_forces(p, pairs, walls, law, dyn, mode, dt):
+def _particle_loop(p, pairs, walls, law, dyn, mode, dt):
     for q in numba.prange(p.x.shape[0]):
         particle_net_force(q, p, pairs, walls, law, dyn, mode, dt)
 
 
-@pjit
-def unwind_all(p, pairs, walls, law, dt):
+def _unwind_loop(p, pairs, walls, law, dt):
     for k in numba.prange(pairs.count[0]):
         unwind_pair(k, p, pairs, law, dt)
     for q in numba.prange(p.x.shape[0]):
         unwind_walls(q, p, walls, law, dt)
 
 
+pair_loop, pair_loop_parallel = serial_and_parallel(_pair_loop)
+particle_loop, particle_loop_parallel = serial_and_parallel(_particle_loop)
+unwind_loop, unwind_loop_parallel = serial_and_parallel(_unwind_loop)
+
+
 @jit
 def compute_forces(p, pairs, walls, law, dyn, mode, dt):
     """Forces at the current positions: Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed."""
-    pair_forces(p, pairs, law, mode, dt)
-    particle_forces(p, pairs, walls, law, dyn, mode, dt)
+    if p.x.shape[0] >= PARALLEL_FROM:
+        pair_loop_parallel(p, pairs, law, mode, dt)
+        particle_loop_parallel(p, pairs, walls, law, dyn, mode, dt)
+    else:
+        pair_loop(p, pairs, law, mode, dt)
+        particle_loop(p, pairs, walls, law, dyn, mode, dt)
 
 
 @jit
 def unwind_shear_history(p, pairs, walls, law, dt):
     """Undo the shear update of the forward step (inverse of Eq 10, 9) at the later positions."""
-    if law.tangential != NO_SHEAR:
-        unwind_all(p, pairs, walls, law, dt)
+    if law.tangential == NO_SHEAR:
+        return
+    if p.x.shape[0] >= PARALLEL_FROM:
+        unwind_loop_parallel(p, pairs, walls, law, dt)
+    else:
+        unwind_loop(p, pairs, walls, law, dt)

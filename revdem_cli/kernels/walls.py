@@ -15,7 +15,7 @@ def wall_overlap(walls, w, x, r):
     Plane: `point` on it, `axis` its unit normal into the domain. Cylinder: `point` on its
     axis, `axis` the axis direction, spheres inside it.
     """
-    a = walls.axis[w]
+    a = (walls.axis[w, 0], walls.axis[w, 1], walls.axis[w, 2])
     rel = (x[0] - walls.point[w, 0], x[1] - walls.point[w, 1], x[2] - walls.point[w, 2])
     along = rel[0] * a[0] + rel[1] * a[1] + rel[2] * a[2]
     if walls.kind[w] == PLANE:

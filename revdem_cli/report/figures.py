@@ -7,46 +7,43 @@ from pathlib import Path
 import numpy as np
 
 
-def _speeds(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _frames(path: Path, field: str) -> tuple[np.ndarray, np.ndarray]:
     from revdem_cli.io.h5md import open_trajectory
 
     with open_trajectory(path) as f:
-        group = f["particles/all/velocity"]
-        return group["time"][:], np.linalg.norm(group["value"][:], axis=2)
+        group = f[f"particles/all/{field}"]
+        return group["time"][:], group["value"][:]
 
 
-def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
-    """|v| of each particle against time, forward solid and reversed dashed (Hanley 2020 Fig 1)."""
+def _observable(path: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
+    from revdem_cli.io.h5md import open_trajectory, read_observable
+
+    with open_trajectory(path) as f:
+        return read_observable(f, name)
+
+
+def _figure(forward: Path, reverse: Path | None, png: Path, series, ylabel: str) -> Path:
+    """Plot series(path) -> [(label, time, values)] for both runs: forward solid, reversed
+    dashed, same colour per series."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
-    time, speed = _speeds(forward)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for q in range(min(speed.shape[1], len(colours))):
-        ax.plot(
-            time * 1e3,
-            speed[:, q],
-            color=colours[q],
-            lw=2.5,
-            alpha=0.5,
-            label=f"particle {q} forward",
-        )
-    if reverse is not None:
-        time, speed = _speeds(reverse)
-        for q in range(min(speed.shape[1], len(colours))):
+    for run, path, style in (
+        ("forward", forward, {"lw": 2.5, "alpha": 0.5}),
+        ("reversed", reverse, {"lw": 1.2, "ls": "--"}),
+    ):
+        if path is None:
+            continue
+        for k, (label, time, values) in enumerate(series(path)):
             ax.plot(
-                time * 1e3,
-                speed[:, q],
-                color=colours[q],
-                ls="--",
-                lw=1.2,
-                label=f"particle {q} reversed",
+                time * 1e3, values, color=colours[k % len(colours)], label=f"{label} {run}", **style
             )
     ax.set_xlabel("time (ms)")
-    ax.set_ylabel("|v| (m/s)")
+    ax.set_ylabel(ylabel)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -55,5 +52,38 @@ def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     return png
 
 
-FIGURES = {"speed": speed_figure}
+def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """|v| of each particle against time (Hanley 2020 Figure 1)."""
+
+    def series(path):
+        time, v = _frames(path, "velocity")
+        speed = np.linalg.norm(v, axis=2)
+        return [(f"particle {q}", time, speed[:, q]) for q in range(min(speed.shape[1], 8))]
+
+    return _figure(forward, reverse, png, series, "|v| (m/s)")
+
+
+def velocity_z_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """Vertical velocity of each particle against time (Hanley 2020 Figure 6)."""
+
+    def series(path):
+        time, v = _frames(path, "velocity")
+        return [(f"particle {q}", time, v[:, q, 2]) for q in range(min(v.shape[1], 8))]
+
+    return _figure(forward, reverse, png, series, "v_z (m/s)")
+
+
+def forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """Largest normal and shear contact force against time (Hanley 2020 Figure 5)."""
+
+    def series(path):
+        return [
+            (label, *_observable(path, name))
+            for label, name in (("normal", "max_normal_force"), ("shear", "max_shear_force"))
+        ]
+
+    return _figure(forward, reverse, png, series, "force (N)")
+
+
+FIGURES = {"speed": speed_figure, "velocity_z": velocity_z_figure, "forces": forces_figure}
 """Figure kinds a scenario can ask for in [output] figures."""
