@@ -114,17 +114,22 @@ def _criteria(body1, body2, contact, inverse_mass, omega_max) -> tuple[Estimate,
     )
 
 
-def _checks(body1, body2, contact) -> tuple[Estimate, ...]:
-    integrated = tuple(
+def _integrated(body1, body2, contact) -> tuple[Estimate, ...]:
+    """The limits the engine's verifiers find, leaving out those that do not apply."""
+    found = (
         Estimate(
             f"{key}_integrated",
             f"{label} limit, integrated",
-            "Eq 30",
+            source,
             verifier(body1, body2, contact),
         )
-        for key, (label, verifier) in verify.ENGINE_VERIFIERS.items()
+        for key, (label, source, verifier) in verify.ENGINE_VERIFIERS.items()
     )
-    return integrated + (
+    return tuple(e for e in found if e.dt is not None)
+
+
+def _euler(body1, body2, contact) -> tuple[Estimate, ...]:
+    return (
         Estimate(
             "eq40_real_eigenvalue",
             "Euler scheme, real λ = -1",
@@ -186,9 +191,9 @@ def assess(
     damping = criteria.damping_from_number(damping_number, kn, inverse_mass)
     contact = Contact(kn=kn, ks=ks, cn=damping, cs=damping)
     items = _criteria(body1, body2, contact, inverse_mass, omega_max)
-    checks = _checks(body1, body2, contact) if check else ()
+    integrated = _integrated(body1, body2, contact) if check else ()
+    checks = integrated + _euler(body1, body2, contact) if check else ()
     formula = next(e for e in items if e.key == "velocity_verlet")
-    integrated = checks[: len(verify.ENGINE_VERIFIERS)]
     reference = min(integrated, key=lambda e: e.dt) if integrated else formula
     limits = [formula, *integrated, *(e for e in items if e.key == "rotation")]
     return Assessment(

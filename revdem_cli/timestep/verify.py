@@ -3,7 +3,7 @@
 A `Verifier` takes two bodies and a contact and returns the largest Δt at which an
 integrator keeps that contact bounded. The velocity-Verlet verifier integrates the linear
 contact equation (Peng 2020 Eq 30) with the same half kick, drift, new force, half kick as
-the engine; a verifier that runs the engine itself on two particles fits the same type.
+the engine; `engine_pair.engine_limit` runs the engine itself on a sphere contact.
 The Eq 40 functions examine the scheme the paper analyses, through its eigenvalues.
 """
 
@@ -15,9 +15,11 @@ from functools import partial
 import numpy as np
 
 from revdem_cli.timestep.criteria import Contact, a_max
+from revdem_cli.timestep.engine_pair import engine_limit
 from revdem_cli.timestep.shapes import Body
 
-Verifier = Callable[[Body, Body, Contact], float]
+Verifier = Callable[[Body, Body, Contact], float | None]
+"""Largest stable Δt of a pair in s; None where the verifier does not apply to the pair."""
 
 STEPS = 20_000  # steps integrated per trial Δt
 GROWTH = 2.0  # late/early amplitude ratio that counts as unstable
@@ -122,7 +124,9 @@ velocity_verlet_limit: Verifier = partial(limit_of_pair, velocity_verlet_is_stab
 eq40_limit: Verifier = partial(limit_of_pair, eq40_is_stable)
 eq40_real_eigenvalue_limit: Verifier = partial(limit_of_pair, eq40_real_eigenvalues_above_minus_one)
 
-# The engine's integrators by key: a label and a verifier. The recommended Δt honours all.
-ENGINE_VERIFIERS: dict[str, tuple[str, Verifier]] = {
-    "velocity_verlet": ("velocity-Verlet", velocity_verlet_limit),
+# The engine's integrators by key: a label, what is integrated, and a verifier. The
+# recommended Δt honours all that apply.
+ENGINE_VERIFIERS: dict[str, tuple[str, str, Verifier]] = {
+    "velocity_verlet": ("velocity-Verlet", "Eq 30", velocity_verlet_limit),
+    "engine": ("revdem engine, spheres", "kernels.integrate.advance", engine_limit),
 }
