@@ -9,6 +9,7 @@ import numpy as np
 from revdem_cli.config import Reversal, Scenario
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import frame_steps, open_trajectory, read_frame
+from revdem_cli.kernels.events import AMOUNT, COUNT, KINDS, LAST, PARTICLE, PARTNER
 
 
 def _max_norm(a: np.ndarray, b: np.ndarray) -> float:
@@ -50,6 +51,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
                 identical &= bool(np.array_equal(va, vb))
                 errors.append(_max_norm(va, vb))
             rows.append((int(common[k]), errors[0] / diameter, errors[0], errors[1], errors[2]))
+        causes = divergence_causes(a, first_divergence_of(rows, tolerance))
     table = np.array([r[1:] for r in rows])
     limits = np.array(
         [
@@ -70,6 +72,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         "first_divergence_step": first_divergence,
         "bitwise_identical": identical,
         "reversible": first_divergence is None,
+        "divergence_causes": causes,
         "tolerance": tolerance.model_dump(),
         "smallest_diameter": diameter,
         "frames": {
@@ -77,4 +80,84 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
             "position_error_rel": table[:, 0].tolist(),
             "velocity_error": table[:, 2].tolist(),
         },
+    }
+
+
+def first_divergence_of(rows, tolerance: Reversal) -> int | None:
+    """Step of the first row (in the second run's order) whose errors exceed the tolerance."""
+    limits = (
+        tolerance.position_tolerance_rel,
+        np.inf,
+        tolerance.velocity_tolerance,
+        tolerance.angular_velocity_tolerance,
+    )
+    for row in rows:
+        if any(value > limit for value, limit in zip(row[1:], limits, strict=True)):
+            return row[0]
+    return None
+
+
+def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
+    """What destroyed information just before the reversed run parted from the forward one.
+
+    The reversed run parts at the frame `divergence_step`, having come from the next frame
+    of the forward run: the mechanisms that acted in between, newest first. If none did,
+    the latest one before; if none ever did, round-off growth alone.
+    """
+    if divergence_step is None or "observables/events" not in forward:
+        return []
+    steps = frame_steps(forward)
+    later = np.nonzero(steps > divergence_step)[0]
+    if len(later) == 0:
+        return []
+    log = forward["observables/events/value"][int(later[0])]
+    acted = [k for k in range(len(KINDS)) if log[k, COUNT] > 0]
+    window = [k for k in acted if log[k, LAST] > divergence_step]
+    if not window and acted:
+        window = [max(acted, key=lambda k: log[k, LAST])]
+    walls = _wall_names(forward)
+    causes = [_cause(k, log[k], walls) for k in window]
+    return sorted(causes, key=lambda cause: -cause["step"])
+
+
+def _wall_names(trajectory) -> list[str]:
+    text = trajectory["parameters/revdem"].attrs.get("scenario_json")
+    return [wall.name for wall in Scenario.model_validate_json(text).walls] if text else []
+
+
+def _cause(kind: int, entry, walls: list[str]) -> dict:
+    step, q, partner, amount = (
+        int(entry[LAST]),
+        int(entry[PARTICLE]),
+        int(entry[PARTNER]),
+        float(entry[AMOUNT]),
+    )
+    other = (
+        f"wall {walls[-1 - partner]}" if partner < 0 and -1 - partner < len(walls) else str(partner)
+    )
+    contact = f"contact {q}-{other}" if partner < 0 else f"contact {q}-{partner}"
+    messages = {
+        "contact_lost_with_shear_force": f"{contact} lost shear force {amount * 1e3:.3g} mN at "
+        f"step {step}: the force zeroed at separation cannot be recovered",
+        "coulomb_slip": f"{contact} slid at step {step}: the Coulomb limit removed "
+        f"{amount * 1e3:.3g} mN of shear force, which cannot be recovered",
+        "local_damping": f"local damping (gamma_l = {amount:g}) acted up to step {step}: it "
+        "pairs forces with the velocity of the other half step when reversed",
+        "viscous_damping": f"viscous contact damping acted up to step {step}: it pairs forces "
+        "with the velocity of the other half step when reversed",
+        "velocity_fixed_point_under_drag": f"particle {q} reached a fixed point of the drag "
+        f"map at step {step} (|v| = {amount:.4g} m/s, terminal velocity or rest): the time spent "
+        "there cannot be recovered",
+        "motion_below_round_off": f"particle {q} moved {amount:.3g} m in a step at step {step}, "
+        "too little to change its position in floating point: the motion is lost (the "
+        "particle is at rest to round-off)",
+    }
+    return {
+        "mechanism": KINDS[kind],
+        "step": step,
+        "particle": q,
+        "partner": partner,
+        "amount": amount,
+        "occurrences": int(entry[COUNT]),
+        "message": messages[KINDS[kind]],
     }

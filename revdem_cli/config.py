@@ -20,7 +20,9 @@ Vector3 = Annotated[tuple[float, float, float], Field(description="three compone
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+    model_config = ConfigDict(
+        extra="forbid", allow_inf_nan=False, frozen=True, ser_json_inf_nan="constants"
+    )
 
 
 class Material(_Model):

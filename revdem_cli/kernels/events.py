@@ -11,9 +11,12 @@ KINDS = (
     "coulomb_slip",  # shear force capped at mu |f_n| (§5.1); amount removed, N
     "local_damping",  # Eq 21 (§5.2)
     "viscous_damping",  # contact damping (§5.2)
-    "velocity_fixed_point_under_drag",  # drag map at a fixed point (§5.2, cases B, C), m/s
+    "velocity_fixed_point_under_drag",  # drag map at a fixed point (§5.2, case C), m/s
+    "motion_below_round_off",  # x + dt v == x for v != 0 (§5.2, case B: at rest), m
 )
-CONTACT_LOST, COULOMB_SLIP, LOCAL_DAMPING, VISCOUS_DAMPING, FIXED_POINT = range(len(KINDS))
+CONTACT_LOST, COULOMB_SLIP, LOCAL_DAMPING, VISCOUS_DAMPING, FIXED_POINT, MOTION_LOST = range(
+    len(KINDS)
+)
 COLUMNS = ("count", "first_step", "last_step", "particle", "partner", "amount")
 COUNT, FIRST, LAST, PARTICLE, PARTNER, AMOUNT = range(len(COLUMNS))
 

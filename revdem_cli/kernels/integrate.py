@@ -2,7 +2,7 @@
 
 from revdem_cli.kernels import jit
 from revdem_cli.kernels.contact import FORWARD, REVERSE
-from revdem_cli.kernels.events import note_contact_events, note_fixed_points
+from revdem_cli.kernels.events import MOTION_LOST, note, note_contact_events, note_fixed_points
 from revdem_cli.kernels.forces import compute_forces, unwind_shear_history
 from revdem_cli.kernels.neighbours import (
     build_pairs,
@@ -26,11 +26,20 @@ def kick(v, f, inv_m, h):
 
 
 @jit
-def drift(x, v, h):
-    """x += h v with the half-step velocity, h = +dt (Hanley 2020 Eq 3) or -dt (Eq 18)."""
+def drift(x, v, h, events, step):
+    """x += h v with the half-step velocity, h = +dt (Hanley 2020 Eq 3) or -dt (Eq 18).
+
+    A nonzero displacement too small to change a position is lost to round-off: logged.
+    """
     for q in range(x.shape[0]):
+        lost = 0.0
         for d in range(3):
-            x[q, d] += h * v[q, d]
+            moved = x[q, d] + h * v[q, d]
+            if moved == x[q, d] and v[q, d] != 0.0:
+                lost = max(lost, abs(h * v[q, d]))
+            x[q, d] = moved
+        if lost > 0.0:
+            note(events, MOTION_LOST, step, q, -1, lost)
 
 
 @jit
@@ -49,7 +58,7 @@ def forward_step(p, pairs, walls, law, dyn, events, dt, step, wall_time):
     if dyn.drag != 1.0:
         scale(p.v, dyn.drag)
         note_fixed_points(p.v, p.v_drift, step + 1, events)
-    drift(p.x, p.v, dt)
+    drift(p.x, p.v, dt, events, step + 1)
     place_walls(walls, wall_time)
     compute_forces(p, pairs, walls, law, dyn, FORWARD, dt)
     note_contact_events(pairs, walls, law, dyn, step + 1, events)
@@ -71,7 +80,7 @@ def reverse_step(p, pairs, walls, law, dyn, events, dt, step, wall_time):
     kick(p.v, p.f, p.inv_mass, -0.5 * dt)
     kick(p.omega, p.torque, p.inv_inertia, -0.5 * dt)
     unwind_shear_history(p, pairs, walls, law, dt)
-    drift(p.x, p.v, -dt)
+    drift(p.x, p.v, -dt, events, step - 1)
     place_walls(walls, wall_time)
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)

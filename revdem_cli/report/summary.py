@@ -41,7 +41,11 @@ def verdict_line(verdict: dict) -> str:
         return (
             "[bold green]reversible[/]: the reversed run retraces the forward run within tolerance"
         )
-    return f"[bold red]not reversible[/]: the runs part at step {verdict['first_divergence_step']}"
+    line = f"[bold red]not reversible[/]: the runs part at step {verdict['first_divergence_step']}"
+    causes = verdict.get("divergence_causes") or []
+    if not causes:
+        return line + "; no information-destroying mechanism acted: round-off growth"
+    return line + "".join(f"\n  cause: {cause['message']}" for cause in causes)
 
 
 def print_comparison(verdict: dict) -> None:

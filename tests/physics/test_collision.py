@@ -97,3 +97,41 @@ def test_a_perturbed_reversal_is_caught(tmp_path):
     assert verdict["max_velocity_error"] == pytest.approx(
         1e-6, rel=0.05
     )  # grows a little on the way back
+
+
+def test_viscous_damping_gives_the_spring_dashpot_restitution_coefficient(tmp_path):
+    beta, kn = 0.1, 5e3  # damping c = 2 beta sqrt(m* kn) with the reduced mass m*
+    contact = {"model": "linear", "kn": kn, "normal_damping": beta}
+    stage = {"name": "collide", "steps": 12000, "output_every": 1000}
+    path = forward(two_spheres(contact=contact, stages=[stage]), tmp_path)
+    v, _ = velocities(path)
+    restitution = (v[-1, 1, 0] - v[-1, 0, 0]) / (v[0, 0, 0] - v[0, 1, 0])
+    assert restitution == pytest.approx(
+        math.exp(-math.pi * beta / math.sqrt(1 - beta**2)), rel=2e-3
+    )
+
+
+def test_local_damping_stops_a_bouncing_sphere_and_is_named_when_reversal_fails(tmp_path):
+    scenario = two_spheres(
+        particles=[{"material": "sphere", "radius": 0.005, "position": [0, 0, 0.0051]}],
+        walls=[
+            {
+                "name": "floor",
+                "type": "plane",
+                "material": "sphere",
+                "point": [0, 0, 0],
+                "normal": [0, 0, 1],
+            }
+        ],
+        gravity=[0, 0, -9.81],
+        damping={"local": 0.7},
+        integrator={"dt": 1e-6},
+        stages=[{"name": "settle", "steps": 40000, "output_every": 1000, "reverse": True}],
+    )
+    outputs = run_scenario(scenario, "", ".toml", tmp_path)
+    with h5py.File(outputs.forward) as f:
+        kinetic = f["observables/kinetic_energy/value"][:]
+    assert kinetic[-1] < 1e-6 * kinetic.max()  # undamped, it would keep bouncing at the peak
+    verdict = outputs.verdict
+    assert not verdict["reversible"]
+    assert "local_damping" in [cause["mechanism"] for cause in verdict["divergence_causes"]]

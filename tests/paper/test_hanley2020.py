@@ -1,0 +1,65 @@
+"""Hanley 2020's verification cases against the numbers the paper reports
+(scenarios/hanley2020/paper_numbers.toml)."""
+
+import json
+import tomllib
+
+import h5py
+import numpy as np
+import pytest
+
+from revdem_cli.config import load_scenario
+from revdem_cli.engine import run_scenario
+from tests.conftest import ROOT
+
+PAPER = tomllib.loads((ROOT / "scenarios/hanley2020/paper_numbers.toml").read_text())
+
+
+def run(case: str, tmp_path, *overrides: str, reverse: bool = True):
+    scenario, text = load_scenario(ROOT / PAPER[case]["config"], list(overrides))
+    return run_scenario(scenario, text, ".toml", tmp_path, reverse=reverse)
+
+
+def test_figure_1_collision_reverses_to_round_off(collision_run):
+    paper = PAPER["collision"]
+    verdict = json.loads(collision_run.comparison.read_text())
+    assert verdict["max_position_error_rel"] <= paper["max_position_error_rel"]
+    assert verdict["max_velocity_error"] <= paper["max_velocity_error"]
+
+
+def test_figure_5_shear_forces_and_the_irreversibility_they_bring(tmp_path):
+    paper = PAPER["collision_shear"]
+    outputs = run("collision_shear", tmp_path)
+    with h5py.File(outputs.forward) as f:
+        shear = f["observables/max_shear_force/value"][:]
+        normal = f["observables/max_normal_force/value"][:]
+    at_separation = shear[np.nonzero(normal)[0][-1]]
+    tolerance = paper["relative_tolerance"]
+    assert shear.max() == pytest.approx(paper["max_shear_force"], rel=tolerance)
+    assert at_separation == pytest.approx(paper["shear_force_at_separation"], rel=tolerance)
+    verdict = outputs.verdict
+    assert verdict["reversible"] is paper["reversible"]
+    cause = verdict["divergence_causes"][0]
+    assert cause["mechanism"] == "contact_lost_with_shear_force"
+    assert cause["amount"] == pytest.approx(at_separation, rel=1e-6)
+    assert 0 <= cause["step"] - verdict["first_divergence_step"] <= 50  # within a frame
+
+
+def test_figure_6a_drop_with_drag_reverses_while_it_bounces(tmp_path):
+    # the first 10 ms of case A: impact at about 2 ms and the bounces after it
+    outputs = run("drop_A", tmp_path, "stages.0.steps=1000000")
+    assert outputs.verdict["reversible"] is PAPER["drop_A"]["reversible"]
+    assert outputs.verdict["max_position_error_rel"] <= 1e-6
+
+
+def test_figure_6c_falling_sphere_reaches_the_terminal_velocity(tmp_path):
+    paper = PAPER["drop_C"]
+    # 10 ms of free fall: ten time constants dt/(1 - gamma_d) = 1 ms, no contact yet
+    outputs = run("drop_C", tmp_path, "stages.0.steps=1000000", reverse=False)
+    with h5py.File(outputs.forward) as f:
+        vz = f["particles/all/velocity/value"][-1, 0, 2]
+        elastic = f["observables/elastic_energy/value"][:]
+    assert elastic.max() == 0.0
+    assert vz == pytest.approx(
+        paper["terminal_velocity"], rel=paper["terminal_velocity_relative_tolerance"]
+    )
