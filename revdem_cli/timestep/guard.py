@@ -1,0 +1,164 @@
+"""Critical time step of a sphere scenario, estimated from its input before it runs.
+
+Every contact is bounded by the two-body limit of velocity Verlet, 2/√(kA) undamped (Peng
+2020 Eq 47; for two spheres Eq 49, confirmed on the engine by `engine_pair`), taken with
+the smallest particle mass and the stiffest contact the scenario can form:
+
+- a sphere pair has A_n = 1/m₁ + 1/m₂ ≤ 2/m_min; a sphere on a wall, which does not move
+  under forces, has A_n = 1/m, the sphere's own mass;
+- across the contact, shear springs act with A_t = 7/2 A_n (Peng 2020 Eq 26, I = 2/5 m r²);
+- a linear contact has its given k_n, k_s. A Hertz contact stiffens as it closes: its
+  stiffness is taken at the largest overlap of a head-on impact at the largest approach
+  speed the scenario allows. Hanley 2020 §3.2.1 quotes 325 µs for its collision at about
+  1 m/s, from Burns, Piiroinen & Hanley 2019 (its ref 22); this estimate gives 480 µs there,
+  the same order. Hertz scenarios also get the Rayleigh time step; the smaller is returned.
+
+The approach speed of a particle is its starting speed, raised by a free fall onto each
+plane wall from its starting gap (the normal component of gravity); a pair approaches at
+most at the sum of the two largest such speeds, a wall at a particle's plus the wall's own.
+Speed gained by sliding down an inclined wall, or from stored elastic energy, is not
+bounded; several contacts on one particle lower the limit further.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from revdem_cli.config import Material, Scenario
+from revdem_cli.state import effective_modulus, effective_shear_modulus
+from revdem_cli.timestep.criteria import dt_velocity_verlet
+
+SHEAR_LEVER = 3.5  # A_t / A_n of a sphere contact: 1 + r²/(2/5 r²) (Peng 2020 Eq 26)
+
+
+@dataclass(frozen=True)
+class Kind:
+    """The most demanding contact of one kind (sphere pair or sphere on a wall)."""
+
+    name: str
+    inverse_mass: float  # A_n, 1/kg
+    rstar: float  # effective radius, m
+    estar: float  # largest effective Young's modulus, Pa
+    gstar: float  # largest effective shear modulus, Pa
+    speed: float  # largest approach speed, m/s
+
+
+def rayleigh_dt(radius: float, material: Material) -> float:
+    """Rayleigh time step: the time a Rayleigh wave takes to cross half the sphere."""
+    nu = material.poisson_ratio
+    # dt_r of the LIGGGHTS documentation, fix check/timestep/gran (Rayleigh-wave speed fit)
+    return (
+        math.pi
+        * radius
+        * math.sqrt(material.density / material.shear_modulus)
+        / (0.1631 * nu + 0.8766)
+    )
+
+
+def particle_speeds(scenario: Scenario) -> np.ndarray:
+    """Largest speed of each particle on reaching a plane wall: starting speed plus free fall
+    along the wall's normal from the starting gap, v² = |v₀|² + 2 g_n gap."""
+    velocity = np.array([p.velocity for p in scenario.particles], dtype=float)
+    squared = (velocity**2).sum(axis=1)
+    gravity = np.array(scenario.gravity, dtype=float)
+    for wall in (w for w in scenario.walls if w.type == "plane"):
+        normal = np.array(wall.normal, dtype=float) / math.hypot(*wall.normal)
+        toward = max(0.0, -float(gravity @ normal))  # gravity's component towards the plane
+        for q, p in enumerate(scenario.particles):
+            gap = float((np.array(p.position) - wall.point) @ normal) - p.radius
+            squared[q] = max(squared[q], float(velocity[q] @ velocity[q]) + 2.0 * toward * gap)
+    return np.sqrt(squared)
+
+
+def _largest_moduli(scenario: Scenario, pairs) -> tuple[float, float]:
+    materials = [(scenario.materials[a], scenario.materials[b]) for a, b in pairs]
+    return (
+        max(effective_modulus(a, b) for a, b in materials),
+        max(effective_shear_modulus(a, b) for a, b in materials),
+    )
+
+
+def contact_kinds(scenario: Scenario) -> list[Kind]:
+    """The sphere pair (two or more particles) and the sphere on a wall (any wall)."""
+    mass = min(
+        scenario.materials[p.material].density * 4.0 / 3.0 * math.pi * p.radius**3
+        for p in scenario.particles
+    )
+    radius = max(p.radius for p in scenario.particles)
+    used = {p.material for p in scenario.particles}
+    speeds = np.sort(particle_speeds(scenario))[::-1]
+    kinds = []
+    if len(scenario.particles) > 1:
+        moduli = _largest_moduli(scenario, [(a, b) for a in used for b in used])
+        kinds.append(
+            Kind("sphere pair", 2.0 / mass, radius / 2.0, *moduli, float(speeds[0] + speeds[1]))
+        )
+    if scenario.walls:
+        moduli = _largest_moduli(scenario, [(a, w.material) for a in used for w in scenario.walls])
+        wall_speed = max(math.hypot(*w.velocity) for w in scenario.walls)
+        kinds.append(
+            Kind("sphere on a wall", 1.0 / mass, radius, *moduli, float(speeds[0]) + wall_speed)
+        )
+    return kinds
+
+
+def impact_stiffness(scenario: Scenario, kind: Kind) -> tuple[float, float]:
+    """(k_n, k_s) in N/m at the largest overlap of a head-on impact at kind.speed; k_s = 0
+    without shear springs. The overlap stores the impact's kinetic energy, ½ m* v²."""
+    law = scenario.contact
+    energy = 0.5 * kind.speed**2 / kind.inverse_mass
+    if law.model == "linear":
+        kn = law.kn
+        overlap = math.sqrt(2.0 * energy / kn)  # ½ k_n δ² = ½ m* v²
+    else:
+        hertz = 4.0 / 3.0 * kind.estar * math.sqrt(kind.rstar)  # Hanley 2020 Eq 6
+        overlap = (2.5 * energy / hertz) ** 0.4  # U = 2/5 H δ^(5/2) (Hanley 2020 Eq 6)
+        kn = 1.5 * hertz * math.sqrt(overlap)  # dF/dδ of Hanley 2020 Eq 6
+    if law.tangential == "none":
+        return kn, 0.0
+    if law.tangential == "linear":
+        return kn, law.ks
+    return kn, 8.0 * kind.gstar * math.sqrt(kind.rstar * overlap)  # Hanley 2020 Eq 10
+
+
+def _limit(stiffness: float, beta: float, inverse_mass: float, reduced_mass: float) -> float:
+    """Velocity-Verlet limit of one direction; damping β × 2√(m* k) as the engine applies it."""
+    if stiffness == 0.0:
+        return math.inf
+    damping = 2.0 * beta * math.sqrt(reduced_mass * stiffness)
+    return dt_velocity_verlet(stiffness, damping, inverse_mass)  # Peng 2020 Eq 30, 47
+
+
+def contact_dt(scenario: Scenario, kind: Kind) -> float:
+    """Two-body limit of one kind of contact: the smaller of its normal and shear directions."""
+    kn, ks = impact_stiffness(scenario, kind)
+    law, reduced = scenario.contact, 1.0 / kind.inverse_mass
+    return min(
+        _limit(kn, law.normal_damping, kind.inverse_mass, reduced),
+        _limit(ks, law.tangential_damping, SHEAR_LEVER * kind.inverse_mass, reduced),
+    )
+
+
+def critical_time_step(scenario: Scenario) -> tuple[float, str]:
+    """Estimated critical Δt (s) of a sphere scenario and one line on where it comes from."""
+    estimates = {kind.name: (contact_dt(scenario, kind), kind) for kind in contact_kinds(scenario)}
+    if not estimates:
+        return math.inf, "one particle and no walls: no contact, no stability limit"
+    name, (contact, kind) = min(estimates.items(), key=lambda item: item[1][0])
+    shear = "" if scenario.contact.tangential == "none" else " with shear springs"
+    if scenario.contact.model == "linear":
+        return contact, (
+            f"linear contact: {contact:.3g} s, the velocity-Verlet limit of a {name}{shear} "
+            f"(Peng 2020 Eq 47-49) with the smallest particle mass"
+        )
+    rayleigh = min(
+        rayleigh_dt(p.radius, scenario.materials[p.material]) for p in scenario.particles
+    )
+    return min(rayleigh, contact), (
+        f"Hertz contact: the smaller of the Rayleigh time step {rayleigh:.3g} s and "
+        f"{contact:.3g} s, the velocity-Verlet limit of a {name}{shear} at the Hertz "
+        f"stiffness of a head-on impact at {kind.speed:.3g} m/s (Peng 2020 Eq 47, Hanley 2020 Eq 6)"
+    )
