@@ -69,6 +69,10 @@ def run(
         bool, typer.Option("--no-reverse", help="Run forward only, even if a stage is reversed.")
     ] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
+    allow_unstable_dt: Annotated[
+        bool,
+        typer.Option("--allow-unstable-dt", help="Run even if dt exceeds the critical estimate."),
+    ] = False,
 ) -> None:
     """Run a scenario forward; if a stage is marked reverse, run it backwards and compare.
 
@@ -80,7 +84,9 @@ def run(
 
     spec, text = load_scenario(scenario, overrides or [])
     with _progress(quiet) or _nothing() as progress:
-        outputs = run_scenario(spec, text, scenario.suffix.lower(), out, not no_reverse, progress)
+        outputs = run_scenario(
+            spec, text, scenario.suffix.lower(), out, not no_reverse, progress, allow_unstable_dt
+        )
     print_summary(outputs)
 
 

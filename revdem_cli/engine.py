@@ -207,8 +207,14 @@ def run_scenario(
     out_dir: Path,
     reverse: bool = True,
     progress: Progress | None = None,
+    allow_unstable_dt: bool = False,
 ) -> Outputs:
-    """Run every stage forward, save the restart, then reverse the marked stage if asked."""
+    """Run every stage forward, save the restart, then reverse the marked stage if asked.
+
+    A time step above the scenario's critical estimate is refused unless allowed.
+    """
+    if not allow_unstable_dt:
+        check_time_step(scenario)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = _paths(out_dir, scenario.name)
     model = Model.of(scenario)
@@ -235,6 +241,19 @@ def run_scenario(
         return reversed_outputs
     outputs.figures = _figures(scenario, paths["forward"], None, out_dir)
     return outputs
+
+
+def check_time_step(scenario: Scenario) -> None:
+    """Refuse a time step above the critical estimate of `timestep.guard`, saying by how much."""
+    from revdem_cli.timestep.guard import critical_time_step
+
+    limit, reason = critical_time_step(scenario)
+    dt = scenario.integrator.dt
+    if dt > limit:
+        raise InputError(
+            f"integrator.dt = {dt:.3g} s is {dt / limit:.3g} times the critical time step "
+            f"{limit:.3g} s ({reason}); use a smaller dt, or --allow-unstable-dt to run anyway"
+        )
 
 
 def reverse_run(

@@ -32,6 +32,7 @@ def _figure(forward: Path, reverse: Path | None, png: Path, series, ylabel: str)
 
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    span = []
     for run, path, style in (
         ("forward", forward, {"lw": 2.5, "alpha": 0.5}),
         ("reversed", reverse, {"lw": 1.2, "ls": "--"}),
@@ -42,6 +43,10 @@ def _figure(forward: Path, reverse: Path | None, png: Path, series, ylabel: str)
             ax.plot(
                 time * 1e3, values, color=colours[k % len(colours)], label=f"{label} {run}", **style
             )
+            if run == "forward":
+                span += [values.min(), values.max()]
+    margin = 0.15 * (max(span) - min(span)) or 1.0
+    ax.set_ylim(min(span) - margin, max(span) + margin)  # a runaway reversal goes off scale
     ax.set_xlabel("time (ms)")
     ax.set_ylabel(ylabel)
     ax.legend(fontsize=8)

@@ -122,3 +122,24 @@ def test_schema_describes_fields_with_units():
 
 def test_version():
     assert invoke("--version").output.startswith("revdem ")
+
+
+def test_a_time_step_above_the_critical_estimate_is_refused_unless_allowed(scenario, tmp_path):
+    path = scenario()
+    result = invoke("run", path, "--set", "integrator.dt=1e-3", "--out", tmp_path / "a")
+    assert_one_line_error(result, "integrator.dt = 0.001 s is", "times the critical time step")
+    assert not (tmp_path / "a").exists()
+    allowed = invoke(
+        "run",
+        path,
+        "--set",
+        "integrator.dt=1e-3",
+        "--set",
+        "stages.0.steps=10",
+        "--out",
+        tmp_path / "b",
+        "--allow-unstable-dt",
+        "--no-reverse",
+        "-q",
+    )
+    assert allowed.exit_code == 0, allowed.output
