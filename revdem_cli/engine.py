@@ -19,7 +19,7 @@ from revdem_cli.config import Scenario, Stage
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, read_restart, write_restart
-from revdem_cli.kernels.arrays import ContactLaw, Dynamics
+from revdem_cli.kernels.arrays import ContactLaw, Dynamics, Moduli
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.integrate import OK, advance
 from revdem_cli.kernels.observables import SCALARS, observe
@@ -30,6 +30,7 @@ from revdem_cli.state import (
     dynamics,
     empty_events,
     initial_state,
+    moduli,
 )
 
 Progress = Callable[[str, int, int, int], None]
@@ -42,12 +43,19 @@ class Model:
 
     scenario: Scenario
     law: ContactLaw
+    moduli: Moduli
     dynamics: Dynamics
     skin: float
 
     @classmethod
     def of(cls, scenario: Scenario) -> Model:
-        return cls(scenario, contact_law(scenario), dynamics(scenario), default_skin(scenario))
+        return cls(
+            scenario,
+            contact_law(scenario),
+            moduli(scenario),
+            dynamics(scenario),
+            default_skin(scenario),
+        )
 
     def observables(self) -> list[tuple[str, int]]:
         """Observable names and widths, in the column order of `kernels.observables.observe`."""
@@ -125,6 +133,7 @@ def run_stage(
                 state.pairs,
                 state.walls,
                 model.law,
+                model.moduli,
                 model.dynamics,
                 events,
                 run,
@@ -218,7 +227,7 @@ def run_scenario(
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = _paths(out_dir, scenario.name)
     model = Model.of(scenario)
-    state = initial_state(scenario, model.law, model.dynamics, model.skin)
+    state = initial_state(scenario)
     clocks = stage_clocks(scenario)
     with _writer(paths["forward"], state, model, text, "forward") as writer:
         for clock in clocks:

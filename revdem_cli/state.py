@@ -9,7 +9,7 @@ import numpy as np
 
 from revdem_cli.config import Material, Scenario
 from revdem_cli.kernels import contact, walls
-from revdem_cli.kernels.arrays import ContactLaw, Dynamics, Pairs, Particles, Walls
+from revdem_cli.kernels.arrays import ContactLaw, Dynamics, Moduli, Pairs, Particles, Walls
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import rebuild_pairs
@@ -40,14 +40,20 @@ def effective_shear_modulus(a: Material, b: Material) -> float:
 _TANGENTIAL = {"none": contact.NO_SHEAR, "linear": contact.LINEAR_SHEAR, "mindlin": contact.MINDLIN}
 
 
+def moduli(scenario: Scenario) -> Moduli:
+    """E* and G* of every pair of materials, in the order of [materials]."""
+    ms = list(scenario.materials.values())
+    return Moduli(
+        estar=np.array([[effective_modulus(a, b) for b in ms] for a in ms]),
+        gstar=np.array([[effective_shear_modulus(a, b) for b in ms] for a in ms]),
+    )
+
+
 def contact_law(scenario: Scenario) -> ContactLaw:
-    materials = list(scenario.materials.values())
     law = scenario.contact
     return ContactLaw(
         model=contact.LINEAR if law.model == "linear" else contact.HERTZ,
         kn=float(law.kn or 0.0),
-        estar=np.array([[effective_modulus(a, b) for b in materials] for a in materials]),
-        gstar=np.array([[effective_shear_modulus(a, b) for b in materials] for a in materials]),
         tangential=_TANGENTIAL[law.tangential],
         ks=float(law.ks or 0.0),
         mu=math.inf if law.friction is None else float(law.friction),
@@ -107,6 +113,7 @@ def wall_arrays(scenario: Scenario, n_particles: int) -> Walls:
         material=np.array([names.index(w.material) for w in ws], dtype=np.int64),
         history=per_contact.copy(),
         force=per_contact.copy(),
+        torque=per_contact.copy(),
         normal=per_contact_scalar.copy(),
         energy=per_contact_scalar.copy(),
         slip=per_contact_scalar.copy(),
@@ -170,15 +177,22 @@ class State:
         self.pairs = grown(self.pairs, max(2 * self.pairs.i.shape[0], needed + needed // 4 + 16))
 
 
-def initial_state(scenario: Scenario, law: ContactLaw, dyn: Dynamics, skin: float) -> State:
+def initial_state(scenario: Scenario) -> State:
     """The state at step 0 with its pair list and the forces at the initial positions."""
     p = particles(scenario)
     state = State(
         p, empty_pairs(len(p.x), 8 * len(p.x) + 16), wall_arrays(scenario, len(p.x)), step=0
     )
-    state.rebuild_pairs(skin)
+    state.rebuild_pairs(default_skin(scenario))
     compute_forces(
-        state.particles, state.pairs, state.walls, law, dyn, contact.STATIC, scenario.integrator.dt
+        state.particles,
+        state.pairs,
+        state.walls,
+        contact_law(scenario),
+        moduli(scenario),
+        dynamics(scenario),
+        contact.STATIC,
+        scenario.integrator.dt,
     )
     return state
 

@@ -57,6 +57,7 @@ Walls = namedtuple(
         "material",  # material index, (W,)
         "history",  # elastic shear force on the particle, N, (N, W, 3)
         "force",  # force on the particle from the wall, N, (N, W, 3)
+        "torque",  # moment of that force about the particle's centre, N m, (N, W, 3)
         "normal",  # normal force magnitude, N, (N, W)
         "energy",  # elastic energy, J, (N, W)
         "slip",  # shear force removed by the Coulomb cap this step, N, (N, W)
@@ -71,13 +72,19 @@ ContactLaw = namedtuple(
     [
         "model",  # contact.HERTZ or contact.LINEAR
         "kn",  # linear normal stiffness, N/m
-        "estar",  # effective Young's modulus E* of each material pair, Pa, (M, M)
-        "gstar",  # effective shear modulus G* of each material pair, Pa, (M, M)
         "tangential",  # contact.NO_SHEAR, LINEAR_SHEAR or MINDLIN
         "ks",  # linear shear stiffness, N/m
         "mu",  # Coulomb friction coefficient (inf: no sliding)
         "beta_n",  # normal viscous damping, fraction of critical
         "beta_t",  # tangential viscous damping, fraction of critical
+    ],
+)
+
+Moduli = namedtuple(
+    "Moduli",
+    [
+        "estar",  # effective Young's modulus E* of each material pair, Pa, (M, M)
+        "gstar",  # effective shear modulus G* of each material pair, Pa, (M, M)
     ],
 )
 

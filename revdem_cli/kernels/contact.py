@@ -52,24 +52,24 @@ def norm(a):
 
 
 @jit
-def normal_law(law, overlap, rstar, mat_a, mat_b):
+def normal_law(law, overlap, rstar, estar):
     """(elastic normal force, its stiffness dF/dd, stored energy) of one contact."""
     if law.model == LINEAR:
         force = law.kn * overlap  # Hanley 2020 Eq 6, linear
         return force, law.kn, 0.5 * force * overlap
     # Hanley 2020 Eq 6, Hertz: F = H d^1.5 with H = 4/3 E* sqrt(R*) (= 4G/(3(1-nu)) sqrt(R*))
-    h = 4.0 / 3.0 * law.estar[mat_a, mat_b] * math.sqrt(rstar)
+    h = 4.0 / 3.0 * estar * math.sqrt(rstar)
     root = math.sqrt(overlap)
     force = h * overlap * root
     return force, 1.5 * h * root, 0.4 * force * overlap  # U = 2/5 H d^2.5
 
 
 @jit
-def shear_stiffness(law, overlap, rstar, mat_a, mat_b):
+def shear_stiffness(law, overlap, rstar, gstar):
     """k_s: constant, or Mindlin H^s = H^n sqrt(U^n) 3(1-nu)/(2-nu) = 8 G* sqrt(R* d) (Eq 10)."""
     if law.tangential == LINEAR_SHEAR:
         return law.ks
-    return 8.0 * law.gstar[mat_a, mat_b] * math.sqrt(rstar * overlap)
+    return 8.0 * gstar * math.sqrt(rstar * overlap)
 
 
 @jit
@@ -124,7 +124,7 @@ def relative_velocity(n, arm_i, arm_j, v_i, w_i, v_j, w_j):
 
 @jit
 def contact_force(
-    law, mode, dt, overlap, n, rstar, mstar, mats, vrel, spin, history, pending, normal_new
+    law, mode, dt, overlap, n, rstar, mstar, moduli, vrel, spin, history, pending, normal_new
 ):
     """Force on i at one contact in overlap > 0, and the new shear history.
 
@@ -134,14 +134,14 @@ def contact_force(
     `unmap(pending)` (see `unwind_shear`), capped the same way. STATIC: the history as is.
     Returns (force on i, normal force, stored energy, slip amount, history).
     """
-    elastic, stiffness, energy = normal_law(law, overlap, rstar, mats[0], mats[1])
+    elastic, stiffness, energy = normal_law(law, overlap, rstar, moduli[0])
     vn = dot(vrel, n)
     normal = elastic - 2.0 * law.beta_n * math.sqrt(mstar * stiffness) * vn  # viscous, normal
     force = scaled(-normal, n)
     if law.tangential == NO_SHEAR:
         return force, normal, energy, 0.0, history
     vt = axpy(-vn, n, vrel)
-    ks = shear_stiffness(law, overlap, rstar, mats[0], mats[1])
+    ks = shear_stiffness(law, overlap, rstar, moduli[1])
     if mode == FORWARD:
         rotated = rotate_about(remap(history, n), n, spin * dt)  # Eq 7-9
         shear = axpy(ks * dt, vt, rotated)  # Eq 10
@@ -156,11 +156,11 @@ def contact_force(
 
 
 @jit
-def unwind_shear(law, dt, overlap, n, rstar, mats, vrel, spin, history):
+def unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, history):
     """Reversed step, at the later positions: undo Eq 10 and Eq 9. The result is mapped back
     onto the earlier contact plane by `unmap` once the particles have moved back."""
     if overlap <= 0.0:
         return (0.0, 0.0, 0.0)
     vt = axpy(-dot(vrel, n), n, vrel)
-    ks = shear_stiffness(law, overlap, rstar, mats[0], mats[1])
+    ks = shear_stiffness(law, overlap, rstar, gstar)
     return rotate_about(axpy(-ks * dt, vt, history), n, -spin * dt)

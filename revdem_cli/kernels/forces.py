@@ -1,10 +1,14 @@
 """Contact forces and net forces on particles.
 
-Each pair's force is computed once into its own slot, then gathered per particle in a fixed
-order (weight, pairs by partner index, walls in order), so sums do not depend on the thread
-count. Each parallel loop body is one call to a serial compiled function that does all the
-work of one item: numba's parallel-loop transformation has been seen to drop array stores
-made directly in a loop body over bundles.
+Three loops, each writing only its own slots: pairs (each pair's force computed once), wall
+contacts (each particle's, wall by wall), and the gather (each particle sums its weight,
+its pairs in the order of its partners' indices, and its walls in order), so sums do not
+depend on the thread count.
+
+The loops take plain arrays and do each item's work in the loop body, with helpers over
+scalars and 3-tuples: a compiled call that receives array bundles pays an atomic
+reference-count update per array, which would dominate the cost per item. Each loop is
+built serial and parallel; small systems step serially, without waking threads.
 """
 
 import numba
@@ -27,8 +31,8 @@ from revdem_cli.kernels.walls import wall_overlap
 ZERO = (0.0, 0.0, 0.0)
 
 PARALLEL_FROM = 256
-"""Systems of at least this many particles step with parallel loops; smaller ones serially,
-without the cost of waking threads. Results are the same either way."""
+"""Systems of at least this many particles step with parallel loops; smaller ones serially.
+Results are the same either way."""
 
 
 @jit
@@ -54,220 +58,416 @@ def cell(a, q, b):
 
 
 @jit
-def pair_contact(k, p, pairs, law, mode, dt):
-    """Force and torques of pair slot k at the current positions (Hanley 2020 Eq 4-10)."""
-    x, radius = p.x, p.radius
-    i = pairs.i[k]
-    j = pairs.j[k]
-    d = axpy(-1.0, row(x, i), row(x, j))
-    dist = norm(d)
-    overlap = radius[i] + radius[j] - dist
-    history = row(pairs.history, k)
-    if overlap > 0.0:
-        n = scaled(1.0 / dist, d)
-        arm_i = radius[i] - 0.5 * overlap
-        arm_j = radius[j] - 0.5 * overlap
-        w_i = row(p.omega, i)
-        w_j = row(p.omega, j)
-        f, fn, u, slipped, history = contact_force(
-            law,
-            mode,
-            dt,
-            overlap,
-            n,
-            radius[i] * radius[j] / (radius[i] + radius[j]),
-            p.mass[i] * p.mass[j] / (p.mass[i] + p.mass[j]),
-            (p.material[i], p.material[j]),
-            relative_velocity(n, arm_i, arm_j, row(p.v, i), w_i, row(p.v, j), w_j),
-            0.5 * (dot(w_i, n) + dot(w_j, n)),
-            history,
-            row(pairs.pending, k),
-            row(pairs.normal_new, k),
-        )
-        put(pairs.torque_i, k, cross(scaled(arm_i, n), f))  # Hanley 2020 Eq 5
-        put(pairs.torque_j, k, cross(scaled(arm_j, n), f))
-        dropped = 0.0
-    else:
-        f = ZERO
-        fn = 0.0
-        u = 0.0
-        slipped = 0.0
-        dropped = norm(history) if mode == FORWARD else 0.0
-        history = ZERO
-        put(pairs.torque_i, k, ZERO)
-        put(pairs.torque_j, k, ZERO)
-    put(pairs.history, k, history)
-    put(pairs.force, k, f)
-    pairs.normal[k] = fn
-    pairs.energy[k] = u
-    pairs.slip[k] = slipped
-    pairs.lost[k] = dropped
+def place(a, q, b, vector):
+    a[q, b, 0], a[q, b, 1], a[q, b, 2] = vector
 
 
-@jit
-def wall_contact(q, b, p, walls, law, mode, dt):
-    """Force and torque on particle q from wall b, returned as (force, torque)."""
-    overlap, n = wall_overlap(walls, b, row(p.x, q), p.radius[q])
-    history = cell(walls.history, q, b)
-    if overlap > 0.0:
-        arm = p.radius[q] - 0.5 * overlap
-        w_q = row(p.omega, q)
-        f, fn, u, slipped, history = contact_force(
-            law,
-            mode,
-            dt,
-            overlap,
-            n,
-            p.radius[q],
-            p.mass[q],
-            (p.material[q], walls.material[b]),
-            relative_velocity(n, arm, 0.0, row(p.v, q), w_q, row(walls.velocity, b), ZERO),
-            0.5 * dot(w_q, n),
-            history,
-            cell(walls.pending, q, b),
-            cell(walls.normal_new, q, b),
-        )
-        t = cross(scaled(arm, n), f)
-        dropped = 0.0
-    else:
-        f = ZERO
-        t = ZERO
-        fn = 0.0
-        u = 0.0
-        slipped = 0.0
-        dropped = norm(history) if mode == FORWARD else 0.0
-        history = ZERO
-    walls.history[q, b, 0], walls.history[q, b, 1], walls.history[q, b, 2] = history
-    walls.force[q, b, 0], walls.force[q, b, 1], walls.force[q, b, 2] = f
-    walls.normal[q, b] = fn
-    walls.energy[q, b] = u
-    walls.slip[q, b] = slipped
-    walls.lost[q, b] = dropped
-    return f, t
-
-
-@jit
-def particle_net_force(q, p, pairs, walls, law, dyn, mode, dt):
-    """Net force and moment on particle q: weight, pair contacts by partner index, walls in
-    order (Eq 4-5), then local damping of each component, f - gamma_l |f| sgn(v) (Eq 21)."""
-    g = dyn.gravity
-    f = (p.mass[q] * g[0], p.mass[q] * g[1], p.mass[q] * g[2])
-    t = ZERO
-    for s in range(pairs.start[q], pairs.start[q + 1]):
-        k = pairs.slots[s]
-        if pairs.i[k] == q:
-            f = axpy(1.0, row(pairs.force, k), f)
-            t = axpy(1.0, row(pairs.torque_i, k), t)
+def _pair_loop(
+    x,
+    v,
+    w,
+    radius,
+    mass,
+    material,
+    estar,
+    gstar,
+    pi,
+    pj,
+    n_pairs,
+    history,
+    pending,
+    normal_new,
+    force,
+    torque_i,
+    torque_j,
+    normal,
+    energy,
+    slip,
+    lost,
+    law,
+    mode,
+    dt,
+):
+    """Force on i from j and the moments about both centres, for every listed pair
+    (Hanley 2020 Eq 4-10); contact history zeroed on separation."""
+    for k in numba.prange(n_pairs):
+        i = pi[k]
+        j = pj[k]
+        d = axpy(-1.0, row(x, i), row(x, j))
+        dist = norm(d)
+        overlap = radius[i] + radius[j] - dist
+        shear = row(history, k)
+        if overlap > 0.0:
+            n = scaled(1.0 / dist, d)
+            arm_i = radius[i] - 0.5 * overlap
+            arm_j = radius[j] - 0.5 * overlap
+            w_i = row(w, i)
+            w_j = row(w, j)
+            a, b = material[i], material[j]
+            f, fn, u, slipped, shear = contact_force(
+                law,
+                mode,
+                dt,
+                overlap,
+                n,
+                radius[i] * radius[j] / (radius[i] + radius[j]),
+                mass[i] * mass[j] / (mass[i] + mass[j]),
+                (estar[a, b], gstar[a, b]),
+                relative_velocity(n, arm_i, arm_j, row(v, i), w_i, row(v, j), w_j),
+                0.5 * (dot(w_i, n) + dot(w_j, n)),
+                shear,
+                row(pending, k),
+                row(normal_new, k),
+            )
+            put(torque_i, k, cross(scaled(arm_i, n), f))  # Hanley 2020 Eq 5
+            put(torque_j, k, cross(scaled(arm_j, n), f))
+            dropped = 0.0
         else:
-            f = axpy(-1.0, row(pairs.force, k), f)
-            t = axpy(1.0, row(pairs.torque_j, k), t)
-    for b in range(walls.force.shape[1]):
-        wf, wt = wall_contact(q, b, p, walls, law, mode, dt)
-        f = axpy(1.0, wf, f)
-        t = axpy(1.0, wt, t)
-    local = dyn.local_damping
-    for d in range(3):
-        p.f[q, d] = f[d] - local * abs(f[d]) * sign(p.v[q, d])  # Hanley 2020 Eq 21
-        p.torque[q, d] = t[d] - local * abs(t[d]) * sign(p.omega[q, d])
+            f = ZERO
+            fn = 0.0
+            u = 0.0
+            slipped = 0.0
+            dropped = norm(shear) if mode == FORWARD else 0.0
+            shear = ZERO
+            put(torque_i, k, ZERO)
+            put(torque_j, k, ZERO)
+        put(history, k, shear)
+        put(force, k, f)
+        normal[k] = fn
+        energy[k] = u
+        slip[k] = slipped
+        lost[k] = dropped
 
 
-@jit
-def unwind_pair(k, p, pairs, law, dt):
-    """Reversed step, before drifting back: undo Eq 10 and 9 for pair slot k."""
-    x, radius = p.x, p.radius
-    i = pairs.i[k]
-    j = pairs.j[k]
-    d = axpy(-1.0, row(x, i), row(x, j))
-    dist = norm(d)
-    overlap = radius[i] + radius[j] - dist
-    n = scaled(1.0 / dist, d)
-    w_i = row(p.omega, i)
-    w_j = row(p.omega, j)
-    vrel = relative_velocity(
-        n, radius[i] - 0.5 * overlap, radius[j] - 0.5 * overlap, row(p.v, i), w_i, row(p.v, j), w_j
-    )
-    put(
-        pairs.pending,
-        k,
-        unwind_shear(
-            law,
-            dt,
-            overlap,
-            n,
-            radius[i] * radius[j] / (radius[i] + radius[j]),
-            (p.material[i], p.material[j]),
-            vrel,
-            0.5 * (dot(w_i, n) + dot(w_j, n)),
-            row(pairs.history, k),
-        ),
-    )
-    put(pairs.normal_new, k, n)
+def _wall_loop(
+    x,
+    v,
+    w,
+    radius,
+    mass,
+    material,
+    estar,
+    gstar,
+    kind,
+    point,
+    axis,
+    wall_radius,
+    wall_velocity,
+    wall_material,
+    history,
+    pending,
+    normal_new,
+    force,
+    torque,
+    normal,
+    energy,
+    slip,
+    lost,
+    law,
+    mode,
+    dt,
+):
+    """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r)."""
+    for q in numba.prange(x.shape[0]):
+        w_q = row(w, q)
+        for b in range(kind.shape[0]):
+            overlap, n = wall_overlap(
+                kind[b], row(point, b), row(axis, b), wall_radius[b], row(x, q), radius[q]
+            )
+            shear = cell(history, q, b)
+            if overlap > 0.0:
+                arm = radius[q] - 0.5 * overlap
+                m = wall_material[b]
+                f, fn, u, slipped, shear = contact_force(
+                    law,
+                    mode,
+                    dt,
+                    overlap,
+                    n,
+                    radius[q],
+                    mass[q],
+                    (estar[material[q], m], gstar[material[q], m]),
+                    relative_velocity(n, arm, 0.0, row(v, q), w_q, row(wall_velocity, b), ZERO),
+                    0.5 * dot(w_q, n),
+                    shear,
+                    cell(pending, q, b),
+                    cell(normal_new, q, b),
+                )
+                t = cross(scaled(arm, n), f)
+                dropped = 0.0
+            else:
+                f = ZERO
+                t = ZERO
+                fn = 0.0
+                u = 0.0
+                slipped = 0.0
+                dropped = norm(shear) if mode == FORWARD else 0.0
+                shear = ZERO
+            place(history, q, b, shear)
+            place(force, q, b, f)
+            place(torque, q, b, t)
+            normal[q, b] = fn
+            energy[q, b] = u
+            slip[q, b] = slipped
+            lost[q, b] = dropped
 
 
-@jit
-def unwind_walls(q, p, walls, law, dt):
-    """Reversed step, before drifting back: undo Eq 10 and 9 for particle q's wall contacts."""
-    w_q = row(p.omega, q)
-    for b in range(walls.history.shape[1]):
-        overlap, n = wall_overlap(walls, b, row(p.x, q), p.radius[q])
+def _gather_loop(
+    mass,
+    v,
+    w,
+    gravity,
+    local,
+    pi,
+    start,
+    slots,
+    pair_force,
+    torque_i,
+    torque_j,
+    wall_force,
+    wall_torque,
+    f_out,
+    t_out,
+):
+    """Net force and moment on each particle: weight, pairs by partner index, walls in order
+    (Hanley 2020 Eq 4-5), then local damping of each component, f - gamma_l |f| sgn(v)
+    (Eq 21)."""
+    for q in numba.prange(f_out.shape[0]):
+        f = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
+        t = ZERO
+        for s in range(start[q], start[q + 1]):
+            k = slots[s]
+            if pi[k] == q:
+                f = axpy(1.0, row(pair_force, k), f)
+                t = axpy(1.0, row(torque_i, k), t)
+            else:
+                f = axpy(-1.0, row(pair_force, k), f)
+                t = axpy(1.0, row(torque_j, k), t)
+        for b in range(wall_force.shape[1]):
+            f = axpy(1.0, cell(wall_force, q, b), f)
+            t = axpy(1.0, cell(wall_torque, q, b), t)
+        for d in range(3):
+            f_out[q, d] = f[d] - local * abs(f[d]) * sign(v[q, d])  # Hanley 2020 Eq 21
+            t_out[q, d] = t[d] - local * abs(t[d]) * sign(w[q, d])
+
+
+def _unwind_pair_loop(
+    x, v, w, radius, material, gstar, pi, pj, n_pairs, history, pending, normal_new, law, dt
+):
+    """Reversed step, before drifting back: undo Eq 10 and 9 for every pair."""
+    for k in numba.prange(n_pairs):
+        i = pi[k]
+        j = pj[k]
+        d = axpy(-1.0, row(x, i), row(x, j))
+        dist = norm(d)
+        overlap = radius[i] + radius[j] - dist
+        n = scaled(1.0 / dist, d)
+        w_i = row(w, i)
+        w_j = row(w, j)
         vrel = relative_velocity(
-            n, p.radius[q] - 0.5 * overlap, 0.0, row(p.v, q), w_q, row(walls.velocity, b), ZERO
+            n, radius[i] - 0.5 * overlap, radius[j] - 0.5 * overlap, row(v, i), w_i, row(v, j), w_j
         )
-        history = cell(walls.history, q, b)
-        pending = unwind_shear(
-            law,
-            dt,
-            overlap,
-            n,
-            p.radius[q],
-            (p.material[q], walls.material[b]),
-            vrel,
-            0.5 * dot(w_q, n),
-            history,
+        put(
+            pending,
+            k,
+            unwind_shear(
+                law,
+                dt,
+                overlap,
+                n,
+                radius[i] * radius[j] / (radius[i] + radius[j]),
+                gstar[material[i], material[j]],
+                vrel,
+                0.5 * (dot(w_i, n) + dot(w_j, n)),
+                row(history, k),
+            ),
         )
-        walls.pending[q, b, 0], walls.pending[q, b, 1], walls.pending[q, b, 2] = pending
-        walls.normal_new[q, b, 0], walls.normal_new[q, b, 1], walls.normal_new[q, b, 2] = n
+        put(normal_new, k, n)
 
 
-def _pair_loop(p, pairs, law, mode, dt):
-    for k in numba.prange(pairs.count[0]):
-        pair_contact(k, p, pairs, law, mode, dt)
-
-
-def _particle_loop(p, pairs, walls, law, dyn, mode, dt):
-    for q in numba.prange(p.x.shape[0]):
-        particle_net_force(q, p, pairs, walls, law, dyn, mode, dt)
-
-
-def _unwind_loop(p, pairs, walls, law, dt):
-    for k in numba.prange(pairs.count[0]):
-        unwind_pair(k, p, pairs, law, dt)
-    for q in numba.prange(p.x.shape[0]):
-        unwind_walls(q, p, walls, law, dt)
+def _unwind_wall_loop(
+    x,
+    v,
+    w,
+    radius,
+    material,
+    gstar,
+    kind,
+    point,
+    axis,
+    wall_radius,
+    wall_velocity,
+    wall_material,
+    history,
+    pending,
+    normal_new,
+    law,
+    dt,
+):
+    """Reversed step, before drifting back: undo Eq 10 and 9 for every wall contact."""
+    for q in numba.prange(x.shape[0]):
+        w_q = row(w, q)
+        for b in range(kind.shape[0]):
+            overlap, n = wall_overlap(
+                kind[b], row(point, b), row(axis, b), wall_radius[b], row(x, q), radius[q]
+            )
+            vrel = relative_velocity(
+                n, radius[q] - 0.5 * overlap, 0.0, row(v, q), w_q, row(wall_velocity, b), ZERO
+            )
+            place(
+                pending,
+                q,
+                b,
+                unwind_shear(
+                    law,
+                    dt,
+                    overlap,
+                    n,
+                    radius[q],
+                    gstar[material[q], wall_material[b]],
+                    vrel,
+                    0.5 * dot(w_q, n),
+                    cell(history, q, b),
+                ),
+            )
+            place(normal_new, q, b, n)
 
 
 pair_loop, pair_loop_parallel = serial_and_parallel(_pair_loop)
-particle_loop, particle_loop_parallel = serial_and_parallel(_particle_loop)
-unwind_loop, unwind_loop_parallel = serial_and_parallel(_unwind_loop)
+wall_loop, wall_loop_parallel = serial_and_parallel(_wall_loop)
+gather_loop, gather_loop_parallel = serial_and_parallel(_gather_loop)
+unwind_pair_loop, unwind_pair_loop_parallel = serial_and_parallel(_unwind_pair_loop)
+unwind_wall_loop, unwind_wall_loop_parallel = serial_and_parallel(_unwind_wall_loop)
 
 
 @jit
-def compute_forces(p, pairs, walls, law, dyn, mode, dt):
+def compute_forces(p, pairs, walls, law, moduli, dyn, mode, dt):
     """Forces at the current positions: Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed."""
-    if p.x.shape[0] >= PARALLEL_FROM:
-        pair_loop_parallel(p, pairs, law, mode, dt)
-        particle_loop_parallel(p, pairs, walls, law, dyn, mode, dt)
+    parallel = p.x.shape[0] >= PARALLEL_FROM
+    pair_args = (
+        p.x,
+        p.v,
+        p.omega,
+        p.radius,
+        p.mass,
+        p.material,
+        moduli.estar,
+        moduli.gstar,
+        pairs.i,
+        pairs.j,
+        pairs.count[0],
+        pairs.history,
+        pairs.pending,
+        pairs.normal_new,
+        pairs.force,
+        pairs.torque_i,
+        pairs.torque_j,
+        pairs.normal,
+        pairs.energy,
+        pairs.slip,
+        pairs.lost,
+        law,
+        mode,
+        dt,
+    )
+    wall_args = (
+        p.x,
+        p.v,
+        p.omega,
+        p.radius,
+        p.mass,
+        p.material,
+        moduli.estar,
+        moduli.gstar,
+        walls.kind,
+        walls.point,
+        walls.axis,
+        walls.radius,
+        walls.velocity,
+        walls.material,
+        walls.history,
+        walls.pending,
+        walls.normal_new,
+        walls.force,
+        walls.torque,
+        walls.normal,
+        walls.energy,
+        walls.slip,
+        walls.lost,
+        law,
+        mode,
+        dt,
+    )
+    gather_args = (
+        p.mass,
+        p.v,
+        p.omega,
+        dyn.gravity,
+        dyn.local_damping,
+        pairs.i,
+        pairs.start,
+        pairs.slots,
+        pairs.force,
+        pairs.torque_i,
+        pairs.torque_j,
+        walls.force,
+        walls.torque,
+        p.f,
+        p.torque,
+    )
+    if parallel:
+        pair_loop_parallel(*pair_args)
+        wall_loop_parallel(*wall_args)
+        gather_loop_parallel(*gather_args)
     else:
-        pair_loop(p, pairs, law, mode, dt)
-        particle_loop(p, pairs, walls, law, dyn, mode, dt)
+        pair_loop(*pair_args)
+        wall_loop(*wall_args)
+        gather_loop(*gather_args)
 
 
 @jit
-def unwind_shear_history(p, pairs, walls, law, dt):
+def unwind_shear_history(p, pairs, walls, law, moduli, dt):
     """Undo the shear update of the forward step (inverse of Eq 10, 9) at the later positions."""
     if law.tangential == NO_SHEAR:
         return
+    pair_args = (
+        p.x,
+        p.v,
+        p.omega,
+        p.radius,
+        p.material,
+        moduli.gstar,
+        pairs.i,
+        pairs.j,
+        pairs.count[0],
+        pairs.history,
+        pairs.pending,
+        pairs.normal_new,
+        law,
+        dt,
+    )
+    wall_args = (
+        p.x,
+        p.v,
+        p.omega,
+        p.radius,
+        p.material,
+        moduli.gstar,
+        walls.kind,
+        walls.point,
+        walls.axis,
+        walls.radius,
+        walls.velocity,
+        walls.material,
+        walls.history,
+        walls.pending,
+        walls.normal_new,
+        law,
+        dt,
+    )
     if p.x.shape[0] >= PARALLEL_FROM:
-        unwind_loop_parallel(p, pairs, walls, law, dt)
+        unwind_pair_loop_parallel(*pair_args)
+        unwind_wall_loop_parallel(*wall_args)
     else:
-        unwind_loop(p, pairs, walls, law, dt)
+        unwind_pair_loop(*pair_args)
+        unwind_wall_loop(*wall_args)

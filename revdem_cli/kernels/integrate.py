@@ -51,7 +51,7 @@ def scale(v, factor):
 
 
 @jit
-def forward_step(p, pairs, walls, law, dyn, events, dt, step, wall_time):
+def forward_step(p, pairs, walls, law, moduli, dyn, events, dt, step, wall_time):
     """One forward step from `step` (Hanley 2020 Eq 1-12, with drag Eq 25-26)."""
     kick(p.v, p.f, p.inv_mass, 0.5 * dt)
     kick(p.omega, p.torque, p.inv_inertia, 0.5 * dt)
@@ -60,14 +60,14 @@ def forward_step(p, pairs, walls, law, dyn, events, dt, step, wall_time):
         note_fixed_points(p.v, p.v_drift, step + 1, events)
     drift(p.x, p.v, dt, events, step + 1)
     place_walls(walls, wall_time)
-    compute_forces(p, pairs, walls, law, dyn, FORWARD, dt)
+    compute_forces(p, pairs, walls, law, moduli, dyn, FORWARD, dt)
     note_contact_events(pairs, walls, law, dyn, step + 1, events)
     kick(p.v, p.f, p.inv_mass, 0.5 * dt)
     kick(p.omega, p.torque, p.inv_inertia, 0.5 * dt)
 
 
 @jit
-def reverse_step(p, pairs, walls, law, dyn, events, dt, step, wall_time):
+def reverse_step(p, pairs, walls, law, moduli, dyn, events, dt, step, wall_time):
     """One reversed step from `step`: the forward step's operations undone in reverse order.
 
     Kick back with the stored force (Eq 17, 27); undo the shear increment and spin
@@ -79,13 +79,13 @@ def reverse_step(p, pairs, walls, law, dyn, events, dt, step, wall_time):
     """
     kick(p.v, p.f, p.inv_mass, -0.5 * dt)
     kick(p.omega, p.torque, p.inv_inertia, -0.5 * dt)
-    unwind_shear_history(p, pairs, walls, law, dt)
+    unwind_shear_history(p, pairs, walls, law, moduli, dt)
     drift(p.x, p.v, -dt, events, step - 1)
     place_walls(walls, wall_time)
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)
         scale(p.v, 1.0 / dyn.drag)
-    compute_forces(p, pairs, walls, law, dyn, REVERSE, dt)
+    compute_forces(p, pairs, walls, law, moduli, dyn, REVERSE, dt)
     note_contact_events(pairs, walls, law, dyn, step - 1, events)
     kick(p.v, p.f, p.inv_mass, -0.5 * dt)
     kick(p.omega, p.torque, p.inv_inertia, -0.5 * dt)
@@ -116,7 +116,7 @@ def rebuild_pairs(p, pairs, skin):
 
 
 @jit
-def advance(p, pairs, walls, law, dyn, events, run, step, stop, obs):
+def advance(p, pairs, walls, law, moduli, dyn, events, run, step, stop, obs):
     """Run whole steps from `step` to `stop` (forward if stop > step, else reversed).
 
     run = (dt, skin, first step of the stage, last step, observables interval). Observables
@@ -135,9 +135,9 @@ def advance(p, pairs, walls, law, dyn, events, run, step, stop, obs):
                 return PAIR_OVERFLOW, step, rows
         wall_time = (step + direction - first) * dt
         if direction > 0:
-            forward_step(p, pairs, walls, law, dyn, events, dt, step, wall_time)
+            forward_step(p, pairs, walls, law, moduli, dyn, events, dt, step, wall_time)
         else:
-            reverse_step(p, pairs, walls, law, dyn, events, dt, step, wall_time)
+            reverse_step(p, pairs, walls, law, moduli, dyn, events, dt, step, wall_time)
         step += direction
         if (step - first) % every == 0 or step == last:
             obs[rows, 0] = step

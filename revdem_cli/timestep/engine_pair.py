@@ -126,7 +126,7 @@ def engine_is_stable(scenario, dt: float) -> bool:
     from revdem_cli.state import empty_events, initial_state
 
     model = Model.of(scenario)
-    state = initial_state(scenario, model.law, model.dynamics, model.skin)
+    state = initial_state(scenario)
     start = _kinetic_energy(state.particles)
     width = 1 + sum(columns for _, columns in model.observables())
     obs = np.zeros((STEPS, width))
@@ -136,6 +136,7 @@ def engine_is_stable(scenario, dt: float) -> bool:
         state.pairs,
         state.walls,
         model.law,
+        model.moduli,
         model.dynamics,
         empty_events(),
         run,

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from revdem_cli.engine import Model
 from revdem_cli.state import initial_state
 from revdem_cli.timestep import engine_pair, shapes
 from revdem_cli.timestep.assessment import assess
@@ -43,8 +42,7 @@ def test_shear_springs_make_the_tangential_mode_critical():
 def test_the_engine_pair_has_the_inverse_masses_of_the_given_spheres():
     other = shapes.sphere(0.02, 1000.0)
     scenario = engine_pair.resting_pair(SPHERE, other, Contact(kn=KN, ks=KN))
-    model = Model.of(scenario)
-    particles = initial_state(scenario, model.law, model.dynamics, model.skin).particles
+    particles = initial_state(scenario).particles
     heavy, light = particles.mass
     assert 1 / heavy + 1 / light == pytest.approx(1 / SPHERE.mass + 1 / other.mass, rel=1e-12)
     assert heavy == pytest.approx(engine_pair.HEAVY * light, rel=1e-2)

@@ -5,7 +5,7 @@ import pytest
 
 from revdem_cli.config import Material
 from revdem_cli.kernels.contact import normal_law, remap, rotate_about, unmap
-from revdem_cli.state import contact_law, effective_modulus, effective_shear_modulus
+from revdem_cli.state import contact_law, effective_modulus, effective_shear_modulus, moduli
 from tests.conftest import two_spheres
 
 SPHERE = Material(density=1000, shear_modulus=2e6, poisson_ratio=0.2)
@@ -15,7 +15,7 @@ def test_equal_materials_give_the_papers_hertz_stiffness():
     # Hanley 2020 Eq 6: H = 4G/(3(1-nu)) sqrt(r_a r_b/(r_a+r_b)) for identical particles
     law = contact_law(two_spheres())
     g, nu, r, overlap = 2e6, 0.2, 0.005, 1e-5
-    force, stiffness, _ = normal_law(law, overlap, r / 2, 0, 0)
+    force, stiffness, _ = normal_law(law, overlap, r / 2, moduli(two_spheres()).estar[0, 0])
     h = 4 * g / (3 * (1 - nu)) * math.sqrt(r * r / (2 * r))
     assert force == pytest.approx(h * overlap**1.5, rel=1e-14)
     assert stiffness == pytest.approx(1.5 * h * overlap**0.5, rel=1e-14)
@@ -44,11 +44,11 @@ def test_force_is_minus_the_derivative_of_the_stored_energy(contact):
     for overlap in np.geomspace(1e-7, 1e-4, 5):
         h = overlap * 1e-5
         up, down = (
-            normal_law(law, overlap + h, 0.0025, 0, 0),
-            normal_law(law, overlap - h, 0.0025, 0, 0),
+            normal_law(law, overlap + h, 0.0025, 2.5e6),
+            normal_law(law, overlap - h, 0.0025, 2.5e6),
         )
         assert (up[2] - down[2]) / (2 * h) == pytest.approx(
-            normal_law(law, overlap, 0.0025, 0, 0)[0], rel=1e-7
+            normal_law(law, overlap, 0.0025, 2.5e6)[0], rel=1e-7
         )
 
 
