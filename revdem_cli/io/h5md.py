@@ -7,12 +7,14 @@
 /observables/events                 value [F, kinds, columns] at each frame: the log of
                                     information-destroying mechanisms (kernels/events.py)
 /parameters/revdem                  attrs: direction, dt, arithmetic, scenario, source restart
-Frames are flushed as they are written, so an interrupted run keeps what it wrote.
+Rows are written in blocks at least every two seconds, so an interrupted run keeps what it
+wrote up to then.
 """
 
 from __future__ import annotations
 
 import getpass
+import time
 from pathlib import Path
 
 import h5py
@@ -48,11 +50,35 @@ def _append(dataset: h5py.Dataset, values) -> None:
     dataset[n:] = values
 
 
+class _Appender:
+    """Rows waiting to be appended to one dataset."""
+
+    def __init__(self, dataset: h5py.Dataset):
+        self.dataset = dataset
+        self.rows: list[np.ndarray] = []
+        self.nbytes = 0
+
+    def add(self, values) -> None:
+        values = np.asarray(values)
+        self.rows.append(values)
+        self.nbytes += values.nbytes
+
+    def write(self) -> None:
+        if self.rows:
+            _append(self.dataset, np.concatenate(self.rows))
+            self.rows, self.nbytes = [], 0
+
+
 class TrajectoryWriter:
     """Appends frames and observables to a new H5MD file.
 
-    `observables` lists (name, columns): a scalar observable has 1 column, a vector 3.
+    `observables` lists (name, columns): a scalar observable has 1 column, a vector 3. Rows
+    are gathered in memory and written in blocks, at least every FLUSH_SECONDS and whenever
+    FLUSH_BYTES are waiting, so an interrupted run keeps all but its last moments.
     """
+
+    FLUSH_SECONDS = 2.0
+    FLUSH_BYTES = 64 * 2**20
 
     def __init__(
         self,
@@ -78,56 +104,84 @@ class TrajectoryWriter:
         box.attrs["dimension"] = 3
         box.attrs["boundary"] = np.array([b"none"] * 3)
         clock = None
+        frame_groups = []
         for name in FRAME_FIELDS:
             clock = _series(everything, name, (n, 3), clock)
-        self.frame_clock = clock
+            frame_groups.append(clock)
         everything.create_dataset("radius", data=radius)
         everything.create_dataset("mass", data=mass)
         everything.create_dataset("id", data=np.arange(n, dtype=np.int64))
-        self.events = _series(f, "observables/events", events_shape, self.frame_clock)["value"]
-        self.observables_layout = observables
+        events = _series(f, "observables/events", events_shape, clock)
+        self.frame_rows = [_Appender(clock["step"]), _Appender(clock["time"])]
+        self.frame_rows += [_Appender(g["value"]) for g in frame_groups + [events]]
         clock = None
+        widths = []
         for name, columns in observables:
             clock = _series(f, f"observables/{name}", () if columns == 1 else (columns,), clock)
-        self.observable_clock = clock
+            widths.append((_Appender(clock["value"]), columns))
+        self.observable_clock = [_Appender(clock["step"]), _Appender(clock["time"])]
+        self.observable_rows = widths
         revdem = f.create_group("parameters/revdem")
         revdem.attrs["schema_version"] = SCHEMA_VERSION
         for key, value in parameters.items():
             revdem.attrs[key] = value
         self.last_step: int | None = None
+        self.last_observable: int | None = None
+        self.flushed = time.monotonic()
+
+    def _appenders(self):
+        yield from self.frame_rows
+        yield from self.observable_clock
+        yield from (appender for appender, _ in self.observable_rows)
 
     def frame(self, step: int, time: float, particles, events: np.ndarray) -> None:
         """Append one frame; a frame at the step already written last is skipped."""
         if step == self.last_step:
             return
         self.last_step = step
-        group = self.file["particles/all"]
-        _append(self.frame_clock["step"], [step])
-        _append(self.frame_clock["time"], [time])
-        for name, values in zip(
-            FRAME_FIELDS, (particles.x, particles.v, particles.omega, particles.f), strict=True
-        ):
-            _append(group[name]["value"], values[None])
-        _append(self.events, events[None])
-        self.file.flush()
+        values = (
+            [step],
+            [time],
+            particles.x[None],
+            particles.v[None],
+            particles.omega[None],
+            particles.f[None],
+            events[None],
+        )
+        for appender, value in zip(self.frame_rows, values, strict=True):
+            appender.add(np.array(value))
+        self._flush_if_due()
 
     def last_observable_step(self) -> int | None:
-        steps = self.observable_clock["step"]
-        return int(steps[-1]) if steps.shape[0] else None
+        return self.last_observable
 
     def observables(self, steps, times, values) -> None:
         """Append rows of observables; values has the columns of the layout side by side."""
         if len(steps) == 0:
             return
-        _append(self.observable_clock["step"], steps)
-        _append(self.observable_clock["time"], times)
+        self.last_observable = int(steps[-1])
+        self.observable_clock[0].add(steps)
+        self.observable_clock[1].add(times)
         column = 0
-        for name, columns in self.observables_layout:
+        for appender, columns in self.observable_rows:
             block = values[:, column] if columns == 1 else values[:, column : column + columns]
-            _append(self.file[f"observables/{name}/value"], block)
+            appender.add(block.copy())
             column += columns
 
+    def _flush_if_due(self) -> None:
+        waiting = sum(appender.nbytes for appender in self._appenders())
+        if waiting > self.FLUSH_BYTES or time.monotonic() - self.flushed > self.FLUSH_SECONDS:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write everything waiting and flush the file to disk."""
+        for appender in self._appenders():
+            appender.write()
+        self.file.flush()
+        self.flushed = time.monotonic()
+
     def close(self) -> None:
+        self.flush()
         self.file.close()
 
     def __enter__(self) -> TrajectoryWriter:
