@@ -62,6 +62,35 @@ def place(a, q, b, vector):
     a[q, b, 0], a[q, b, 1], a[q, b, 2] = vector
 
 
+@jit
+def pair_kinematics(i, j, x, v, w, radius):
+    """(overlap, normal n from i to j, lever arms of i and j, velocity of j relative to i at
+    the contact, mean spin about n) of the pair (i, j)."""
+    d = axpy(-1.0, row(x, i), row(x, j))
+    dist = norm(d)
+    overlap = radius[i] + radius[j] - dist
+    n = scaled(1.0 / dist, d)
+    arm_i = radius[i] - 0.5 * overlap
+    arm_j = radius[j] - 0.5 * overlap
+    w_i = row(w, i)
+    w_j = row(w, j)
+    vrel = relative_velocity(n, arm_i, arm_j, row(v, i), w_i, row(v, j), w_j)
+    return overlap, n, arm_i, arm_j, vrel, 0.5 * (dot(w_i, n) + dot(w_j, n))
+
+
+@jit
+def wall_kinematics(q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_velocity):
+    """(overlap, normal n towards the wall, lever arm, velocity of the wall relative to the
+    particle at the contact, half the particle's spin about n) of particle q and wall b."""
+    overlap, n = wall_overlap(
+        kind[b], row(point, b), row(axis, b), wall_radius[b], row(x, q), radius[q]
+    )
+    arm = radius[q] - 0.5 * overlap
+    w_q = row(w, q)
+    vrel = relative_velocity(n, arm, 0.0, row(v, q), w_q, row(wall_velocity, b), ZERO)
+    return overlap, n, arm, vrel, 0.5 * dot(w_q, n)
+
+
 def _pair_loop(
     x,
     v,
@@ -93,16 +122,9 @@ def _pair_loop(
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
-        d = axpy(-1.0, row(x, i), row(x, j))
-        dist = norm(d)
-        overlap = radius[i] + radius[j] - dist
+        overlap, n, arm_i, arm_j, vrel, spin = pair_kinematics(i, j, x, v, w, radius)
         shear = row(history, k)
         if overlap > 0.0:
-            n = scaled(1.0 / dist, d)
-            arm_i = radius[i] - 0.5 * overlap
-            arm_j = radius[j] - 0.5 * overlap
-            w_i = row(w, i)
-            w_j = row(w, j)
             a, b = material[i], material[j]
             f, fn, u, slipped, shear = contact_force(
                 law,
@@ -113,8 +135,8 @@ def _pair_loop(
                 radius[i] * radius[j] / (radius[i] + radius[j]),
                 mass[i] * mass[j] / (mass[i] + mass[j]),
                 (estar[a, b], gstar[a, b]),
-                relative_velocity(n, arm_i, arm_j, row(v, i), w_i, row(v, j), w_j),
-                0.5 * (dot(w_i, n) + dot(w_j, n)),
+                vrel,
+                spin,
                 shear,
                 row(pending, k),
                 row(normal_new, k),
@@ -169,14 +191,12 @@ def _wall_loop(
 ):
     """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r)."""
     for q in numba.prange(x.shape[0]):
-        w_q = row(w, q)
         for b in range(kind.shape[0]):
-            overlap, n = wall_overlap(
-                kind[b], row(point, b), row(axis, b), wall_radius[b], row(x, q), radius[q]
+            overlap, n, arm, vrel, spin = wall_kinematics(
+                q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_velocity
             )
             shear = cell(history, q, b)
             if overlap > 0.0:
-                arm = radius[q] - 0.5 * overlap
                 m = wall_material[b]
                 f, fn, u, slipped, shear = contact_force(
                     law,
@@ -187,8 +207,8 @@ def _wall_loop(
                     radius[q],
                     mass[q],
                     (estar[material[q], m], gstar[material[q], m]),
-                    relative_velocity(n, arm, 0.0, row(v, q), w_q, row(wall_velocity, b), ZERO),
-                    0.5 * dot(w_q, n),
+                    vrel,
+                    spin,
                     shear,
                     cell(pending, q, b),
                     cell(normal_new, q, b),
@@ -258,30 +278,10 @@ def _unwind_pair_loop(
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
-        d = axpy(-1.0, row(x, i), row(x, j))
-        dist = norm(d)
-        overlap = radius[i] + radius[j] - dist
-        n = scaled(1.0 / dist, d)
-        w_i = row(w, i)
-        w_j = row(w, j)
-        vrel = relative_velocity(
-            n, radius[i] - 0.5 * overlap, radius[j] - 0.5 * overlap, row(v, i), w_i, row(v, j), w_j
-        )
-        put(
-            pending,
-            k,
-            unwind_shear(
-                law,
-                dt,
-                overlap,
-                n,
-                radius[i] * radius[j] / (radius[i] + radius[j]),
-                gstar[material[i], material[j]],
-                vrel,
-                0.5 * (dot(w_i, n) + dot(w_j, n)),
-                row(history, k),
-            ),
-        )
+        overlap, n, _, _, vrel, spin = pair_kinematics(i, j, x, v, w, radius)
+        rstar = radius[i] * radius[j] / (radius[i] + radius[j])
+        gs = gstar[material[i], material[j]]
+        put(pending, k, unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, row(history, k)))
         put(normal_new, k, n)
 
 
@@ -306,30 +306,15 @@ def _unwind_wall_loop(
 ):
     """Reversed step, before drifting back: undo Eq 10 and 9 for every wall contact."""
     for q in numba.prange(x.shape[0]):
-        w_q = row(w, q)
         for b in range(kind.shape[0]):
-            overlap, n = wall_overlap(
-                kind[b], row(point, b), row(axis, b), wall_radius[b], row(x, q), radius[q]
+            overlap, n, _, vrel, spin = wall_kinematics(
+                q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_velocity
             )
-            vrel = relative_velocity(
-                n, radius[q] - 0.5 * overlap, 0.0, row(v, q), w_q, row(wall_velocity, b), ZERO
+            gs = gstar[material[q], wall_material[b]]
+            shear = unwind_shear(
+                law, dt, overlap, n, radius[q], gs, vrel, spin, cell(history, q, b)
             )
-            place(
-                pending,
-                q,
-                b,
-                unwind_shear(
-                    law,
-                    dt,
-                    overlap,
-                    n,
-                    radius[q],
-                    gstar[material[q], wall_material[b]],
-                    vrel,
-                    0.5 * dot(w_q, n),
-                    cell(history, q, b),
-                ),
-            )
+            place(pending, q, b, shear)
             place(normal_new, q, b, n)
 
 
