@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -101,8 +102,9 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     """What destroyed information just before the reversed run parted from the forward one.
 
     The reversed run parts at the frame `divergence_step`, having come from the next frame
-    of the forward run: the mechanisms that acted in between, newest first. If none did,
-    the latest one before; if none ever did, round-off growth alone.
+    of the forward run: the mechanisms that acted in between, newest first. If none did and
+    the run has drag, the reversed run's division by gamma_d, which amplifies round-off
+    exponentially; otherwise nothing is named (round-off growth alone).
     """
     if divergence_step is None or "observables/events" not in forward:
         return []
@@ -111,18 +113,35 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     if len(later) == 0:
         return []
     log = forward["observables/events/value"][int(later[0])]
-    acted = [k for k in range(len(KINDS)) if log[k, COUNT] > 0]
-    window = [k for k in acted if log[k, LAST] > divergence_step]
-    if not window and acted:
-        window = [max(acted, key=lambda k: log[k, LAST])]
-    walls = _wall_names(forward)
-    causes = [_cause(k, log[k], walls) for k in window]
-    return sorted(causes, key=lambda cause: -cause["step"])
+    scenario = _scenario_of(forward)
+    walls = [wall.name for wall in scenario.walls] if scenario else []
+    window = [k for k in range(len(KINDS)) if log[k, COUNT] > 0 and log[k, LAST] > divergence_step]
+    causes = sorted((_cause(k, log[k], walls) for k in window), key=lambda cause: -cause["step"])
+    if not causes and scenario is not None and scenario.damping.drag < 1.0:
+        causes = [_drag_amplification(scenario.damping.drag, int(steps[-1]), divergence_step)]
+    return causes
 
 
-def _wall_names(trajectory) -> list[str]:
+def _scenario_of(trajectory) -> Scenario | None:
     text = trajectory["parameters/revdem"].attrs.get("scenario_json")
-    return [wall.name for wall in Scenario.model_validate_json(text).walls] if text else []
+    return Scenario.model_validate_json(text) if text else None
+
+
+def _drag_amplification(drag: float, restart_step: int, step: int) -> dict:
+    """The reversed step divides velocities by gamma_d (Hanley 2020 Eq 28): round-off grows
+    by 1/gamma_d per step on the way back."""
+    exponent = (restart_step - step) * -math.log(drag)
+    return {
+        "mechanism": "drag_amplifies_round_off",
+        "step": step,
+        "particle": -1,
+        "partner": -1,
+        "amount": exponent,
+        "occurrences": restart_step - step,
+        "message": f"no mechanism destroyed information here, but the reversed run divides "
+        f"velocities by gamma_d = {drag:g} each step (Eq 28): round-off has grown by "
+        f"e^{exponent:.3g} over the {restart_step - step} steps back from the restart",
+    }
 
 
 def _cause(kind: int, entry, walls: list[str]) -> dict:

@@ -255,7 +255,8 @@ class Scenario(_Model):
             gap = float(np.linalg.norm(x[j] - x[i])) - r[i] - r[j]
             if gap < -1e-2 * min(r[i], r[j]):
                 raise _FieldError(
-                    f"particles[{j}].position", f"particle {j} overlaps particle {i} by {-gap:.3g} m"
+                    f"particles[{j}].position",
+                    f"particle {j} overlaps particle {i} by {-gap:.3g} m",
                 )
 
     @property
@@ -280,7 +281,8 @@ def _field_path(location: tuple) -> str:
     return path
 
 
-def _describe(error: ValidationError) -> str:
+def describe_validation_error(error: ValidationError) -> str:
+    """The first problem of a validation error as `field.path: message`, and how many more."""
     first = error.errors()[0]
     message = first["msg"].removeprefix("Value error, ")
     path = _field_path(first["loc"])
@@ -357,7 +359,7 @@ def scenario_from_text(text: str, suffix: str, origin: str, overrides: list[str]
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        raise InputError(f"{origin}: {_describe(exc)}") from None
+        raise InputError(f"{origin}: {describe_validation_error(exc)}") from None
 
 
 def load_scenario(path: str | Path, overrides: list[str] = ()) -> tuple[Scenario, str]:
