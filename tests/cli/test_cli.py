@@ -143,3 +143,10 @@ def test_a_time_step_above_the_critical_estimate_is_refused_unless_allowed(scena
         "-q",
     )
     assert allowed.exit_code == 0, allowed.output
+
+
+def test_a_yaml_scenario_runs_and_reverses(tmp_path):
+    result = invoke("run", CONFIGS / "smoke" / "collision.yaml", "--out", tmp_path, "-q")
+    assert result.exit_code == 0, result.output
+    verdict = json.loads((tmp_path / "collision_smoke.compare.json").read_text())
+    assert verdict["reversible"] and verdict["max_position_error_rel"] <= 1e-10
