@@ -76,8 +76,18 @@ def run(
 ) -> None:
     """Run a scenario forward; if a stage is marked reverse, run it backwards and compare.
 
+    A file with kind = "critical_time_step" is a time-step study: its figures go to --out.
+
     Example: revdem run configs/collision.toml --out out
     """
+    from revdem_cli.timestep.study import read_study, run_study
+
+    study = read_study(scenario, overrides or [])
+    if study is not None:
+        for path in run_study(study, out):
+            typer.echo(f"wrote {path}")
+        return
+
     from revdem_cli.config import load_scenario
     from revdem_cli.engine import run_scenario
     from revdem_cli.report.summary import print_summary

@@ -271,9 +271,10 @@ def dt(
     Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
     """
     if figures is not None:
-        from revdem_cli.timestep.figures import write_figures
+        from revdem_cli.timestep.figures import PAPER_STEMS, write_figures
+        from revdem_cli.timestep.study import PAPER
 
-        for path in write_figures(figures):
+        for path in write_figures(figures, PAPER, PAPER_STEMS):
             typer.echo(f"wrote {path}")
         return
     case = _Case(

@@ -7,20 +7,25 @@ formula (dashed) and as found by integration (markers).
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from revdem_cli.timestep import criteria, shapes, verify
 
-ELLIPSOID = (3.0, 2.0, 1.0)  # semi-axes of Figures 4 and 5 (m)
-DENSITY = 1000.0  # kg/m³
-KN = 1e10  # N/m; k_s = k_n throughout
-DAMPING_NUMBERS = (0, 1, 2, 3, 4, 5)
-VOLUME = 8.0 * math.pi  # Figure 6 (m³)
-OMEGA_MAX = 1.0  # Figure 6 (rad/s)
-FIGURE6_CURVES = (1.0, 2.0, 3.0, 4.0, 5.0)  # e2 of the plotted curves
+if TYPE_CHECKING:
+    from revdem_cli.timestep.study import Particle, TimestepStudy
+
+# File stems of `revdem dt --figures`, the names of the committed copies in scenarios/peng2020.
+PAPER_STEMS = {
+    3: "figure3_damping",
+    4: "figure4_stiffness",
+    5: "figure5_density",
+    6: "figure6_aspect_ratio",
+}
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> Path:
@@ -41,11 +46,16 @@ def _integrated_limit(k: float, c: float, inverse_mass: float) -> float:
     return verify.limit_1d(verify.velocity_verlet_is_stable, k, c, inverse_mass)
 
 
+def _marked(i: int, every: int) -> bool:
+    """Whether point i is one integrated at every `every`-th point (0: none)."""
+    return every > 0 and i % every == 0
+
+
 def figure3_data(betas: np.ndarray, every: int) -> dict[str, np.ndarray]:
     """Δt √(k/m) of two equal spheres against β (Eq 58-60); integrated at every `every`-th β."""
     curves = [criteria.sphere_normalised(beta) for beta in betas]
     integrated = [
-        _integrated_limit(1.0, beta, 7.0) if i % every == 0 else math.nan
+        _integrated_limit(1.0, beta, 7.0) if _marked(i, every) else math.nan
         for i, beta in enumerate(betas)
     ]
     columns = {"beta": betas}
@@ -56,17 +66,20 @@ def figure3_data(betas: np.ndarray, every: int) -> dict[str, np.ndarray]:
     return columns
 
 
-def damping_sweep_data(parameter: str, values: np.ndarray, every: int) -> dict[str, np.ndarray]:
-    """Figures 4 (parameter "kn") and 5 ("density"): the ellipsoid pair for N = 0..5."""
+def damping_sweep_data(
+    study: TimestepStudy, parameter: str, values: np.ndarray, every: int
+) -> dict[str, np.ndarray]:
+    """Figures 4 (parameter "kn") and 5 ("density"): the study's particle pair, one row per N."""
+    particle, contact = study.particle, study.contact
     rows = []
     for i, value in enumerate(values):
-        kn = value if parameter == "kn" else KN
-        density = value if parameter == "density" else DENSITY
-        body = shapes.ellipsoid(*ELLIPSOID, density)
+        kn = value if parameter == "kn" else contact.kn
+        density = value if parameter == "density" else particle.density
+        body = particle.body(density, particle.semi_axes)
         inverse_mass = criteria.a_max(body, body)
-        for number in DAMPING_NUMBERS:
+        for number in contact.damping_numbers:
             c = criteria.damping_from_number(number, kn, inverse_mass)
-            integrated = _integrated_limit(kn, c, inverse_mass) if i % every == 0 else math.nan
+            integrated = _integrated_limit(kn, c, inverse_mass) if _marked(i, every) else math.nan
             rows.append(
                 (
                     value,
@@ -88,30 +101,51 @@ def damping_sweep_data(parameter: str, values: np.ndarray, every: int) -> dict[s
     return dict(zip(names, np.array(rows).T, strict=True))
 
 
-def ellipsoid_of_aspect_ratios(e1: float, e2: float) -> shapes.Body:
-    """The Figure 6 ellipsoid: a/b = e1, b/c = e2, volume 8π m³."""
-    c = (VOLUME / (4.0 / 3.0 * math.pi * e1 * e2**2)) ** (1.0 / 3.0)
-    return shapes.ellipsoid(e1 * e2 * c, e2 * c, c, DENSITY)
+def body_of_aspect_ratios(study: TimestepStudy, e1: float, e2: float) -> shapes.Body:
+    """The Figure 6 particle: a/b = e1, b/c = e2 at the study's volume (Peng 2020 Section 6.4).
+
+    Every length scales with c and the volume with c³, so c follows from the body at c = 1.
+    """
+    particle = study.particle
+    unit = particle.body(particle.density, (e1 * e2, e2, 1.0))
+    c = (study.figure6.volume / unit.volume) ** (1.0 / 3.0)
+    return particle.body(particle.density, (e1 * e2 * c, e2 * c, c))
 
 
-def figure6_data(ratios: np.ndarray) -> dict[str, np.ndarray]:
+def figure6_data(study: TimestepStudy, ratios: np.ndarray) -> dict[str, np.ndarray]:
     """Translation- (Eq 48) and rotation-dominant (Eq 56) Δt over aspect ratios e1, e2."""
+    kn, omega_max = study.contact.kn, study.figure6.omega_max
     rows = []
     for e1 in ratios:
         for e2 in ratios:
-            body = ellipsoid_of_aspect_ratios(e1, e2)
+            body = body_of_aspect_ratios(study, e1, e2)
             b = criteria.b_max(body)
             rows.append(
                 (
                     e1,
                     e2,
                     *body.half_lengths,
-                    criteria.dt_amplification(KN, 0.0, criteria.a_max(body, body)),
-                    criteria.dt_rotation(OMEGA_MAX, b, b),
+                    criteria.dt_amplification(kn, 0.0, criteria.a_max(body, body)),
+                    criteria.dt_rotation(omega_max, b, b),
                 )
             )
     names = ("e1", "e2", "a", "b", "c", "dt_translation_eq48", "dt_rotation_eq56")
     return dict(zip(names, np.array(rows).T, strict=True))
+
+
+def _number(value: float) -> str:
+    """A number for a plot title: 1e10, not 1e+10."""
+    return f"{value:g}".replace("e+", "e")
+
+
+def _particles(particle: Particle, semi_axes: bool) -> str:
+    """The particle pair in words, for plot titles."""
+    words = f"{particle.shape.capitalize()}s"
+    if semi_axes:
+        words += " " + "×".join(f"{h:g}" for h in particle.semi_axes) + " m"
+    if particle.exponents is not None:
+        words += ", ε1 = {:g}, ε2 = {:g}".format(*particle.exponents)
+    return words
 
 
 def _plot_figure3(columns, path: Path) -> None:
@@ -140,12 +174,14 @@ def _plot_damping_sweep(columns, parameter: str, xlabel: str, title: str, path: 
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for number, colour in zip(
-        DAMPING_NUMBERS, plt.rcParams["axes.prop_cycle"].by_key()["color"], strict=False
-    ):
+    colours = itertools.cycle(plt.rcParams["axes.prop_cycle"].by_key()["color"])
+    numbers = dict.fromkeys(columns["N"])  # the damping numbers N, in the study's order
+    for number, colour in zip(numbers, colours, strict=False):
         rows = columns["N"] == number
         x = columns[parameter][rows]
-        ax.plot(x, columns["eq46_amplification"][rows], color=colour, label=f"N = {number}, Eq 46")
+        ax.plot(
+            x, columns["eq46_amplification"][rows], color=colour, label=f"N = {number:g}, Eq 46"
+        )
         ax.plot(x, columns["velocity_verlet"][rows], color=colour, ls="--")
         ax.plot(x, columns["velocity_verlet_integrated"][rows], "o", color=colour, ms=4)
     ax.plot([], [], "k--", label="velocity-Verlet limit")
@@ -157,30 +193,34 @@ def _plot_damping_sweep(columns, parameter: str, xlabel: str, title: str, path: 
     plt.close(fig)
 
 
-def _plot_figure6(columns, path: Path) -> None:
+def _plot_figure6(columns, study: TimestepStudy, path: Path) -> None:
     import matplotlib.pyplot as plt
 
+    figure6 = study.figure6
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
     panels = (
         ("dt_translation_eq48", "(A) translation-dominant, Eq 48"),
-        ("dt_rotation_eq56", f"(B) rotation-dominant, Eq 56, ω_max = {OMEGA_MAX:g} rad/s"),
+        ("dt_rotation_eq56", f"(B) rotation-dominant, Eq 56, ω_max = {figure6.omega_max:g} rad/s"),
     )
     for ax, (key, title) in zip(axes, panels, strict=True):
-        for e2 in FIGURE6_CURVES:
+        for e2 in figure6.plotted_e2:
             rows = np.isclose(columns["e2"], e2)
             ax.plot(columns["e1"][rows], columns[key][rows], label=f"e2 = b/c = {e2:g}")
         ax.set(xlabel="e1 = a/b", ylabel="Δt_cri (s)", yscale="log", title=title)
         ax.legend(fontsize=8)
     fig.suptitle(
-        "Two equal ellipsoids, V = 8π m³, k_n = 1e10 N/m, ρ = 1000 kg/m³ (Peng 2020 Figure 6)"
+        f"Two equal {_particles(study.particle, semi_axes=False).lower()}, "
+        f"V = {figure6.volume / math.pi:.4g}π m³, k_n = {_number(study.contact.kn)} N/m, "
+        f"ρ = {study.particle.density:g} kg/m³ (Peng 2020 Figure 6)"
     )
     fig.tight_layout()
     fig.savefig(path, dpi=150)
     plt.close(fig)
 
 
-def write_figures(directory: Path) -> list[Path]:
-    """Write Figures 3-6 as PNG and CSV into `directory`; the paths written."""
+def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) -> list[Path]:
+    """Write the study's figures as PNG and CSV into `directory`, figure n as `stems[n]`.*;
+    the paths written."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -188,31 +228,42 @@ def write_figures(directory: Path) -> list[Path]:
     directory.mkdir(parents=True, exist_ok=True)
     written = []
 
-    def save(name, columns, plot, *args):
-        written.append(_write_csv(directory / f"{name}.csv", columns))
-        plot(columns, *args, directory / f"{name}.png")
-        written.append(directory / f"{name}.png")
+    def save(number, columns, plot, *args):
+        stem = stems[number]
+        written.append(_write_csv(directory / f"{stem}.csv", columns))
+        plot(columns, *args, directory / f"{stem}.png")
+        written.append(directory / f"{stem}.png")
 
-    betas = np.linspace(0.0, 3.0, 301)
-    save("figure3_damping", figure3_data(betas, every=25), _plot_figure3)
-    kn = np.linspace(1e10, 1e11, 37)
-    save(
-        "figure4_stiffness",
-        damping_sweep_data("kn", kn, every=12),
-        _plot_damping_sweep,
-        "kn",
-        "k_n = k_s (N/m)",
-        "Ellipsoids 3×2×1 m, ρ = 1000 kg/m³ (Peng 2020 Figure 4)",
-    )
-    density = np.linspace(500.0, 5000.0, 37)
-    save(
-        "figure5_density",
-        damping_sweep_data("density", density, every=12),
-        _plot_damping_sweep,
-        "density",
-        "ρ (kg/m³)",
-        "Ellipsoids 3×2×1 m, k_n = k_s = 1e10 N/m (Peng 2020 Figure 5)",
-    )
-    ratios = np.linspace(1.0, 5.0, 41)
-    save("figure6_aspect_ratio", figure6_data(ratios), _plot_figure6)
+    particle, kn = study.particle, study.contact.kn
+    for number in study.figures:
+        if number == 3:
+            figure = study.figure3
+            save(3, figure3_data(figure.beta.values(), figure.integrate_every), _plot_figure3)
+        elif number == 4:
+            figure = study.figure4
+            save(
+                4,
+                damping_sweep_data(study, "kn", figure.kn.values(), figure.integrate_every),
+                _plot_damping_sweep,
+                "kn",
+                "k_n = k_s (N/m)",
+                f"{_particles(particle, semi_axes=True)}, ρ = {particle.density:g} kg/m³ "
+                "(Peng 2020 Figure 4)",
+            )
+        elif number == 5:
+            figure = study.figure5
+            save(
+                5,
+                damping_sweep_data(
+                    study, "density", figure.density.values(), figure.integrate_every
+                ),
+                _plot_damping_sweep,
+                "density",
+                "ρ (kg/m³)",
+                f"{_particles(particle, semi_axes=True)}, k_n = k_s = {_number(kn)} N/m "
+                "(Peng 2020 Figure 5)",
+            )
+        else:
+            ratios = study.figure6.aspect_ratios.values()
+            save(6, figure6_data(study, ratios), _plot_figure6, study)
     return written

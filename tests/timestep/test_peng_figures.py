@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from revdem_cli.timestep import criteria, figures
+from revdem_cli.timestep import criteria, figures, shapes
+from revdem_cli.timestep.study import PAPER
 
 
 def test_figure3_curves_meet_when_undamped_and_part_with_damping(paper):
@@ -25,7 +26,7 @@ def test_figure3_curves_meet_when_undamped_and_part_with_damping(paper):
 )
 def test_figures4_and_5_follow_stiffness_and_density(paper, figure, parameter, sign):
     low, high = paper[figure][parameter]
-    data = figures.damping_sweep_data(parameter, np.linspace(low, high, 3), every=99)
+    data = figures.damping_sweep_data(PAPER, parameter, np.linspace(low, high, 3), every=99)
     for number in paper[figure]["damping_numbers"]:
         rows = data["N"] == number
         for key in ("eq46_amplification", "velocity_verlet"):
@@ -41,8 +42,8 @@ def test_figures4_and_5_follow_stiffness_and_density(paper, figure, parameter, s
 def test_figure6_shrinks_with_aspect_ratio_and_rotation_is_orders_slower(paper):
     case = paper["figure6"]
     ratios = np.linspace(*case["aspect_ratios"], 5)
-    data = figures.figure6_data(ratios)
-    body = figures.ellipsoid_of_aspect_ratios(2.0, 3.0)
+    data = figures.figure6_data(PAPER, ratios)
+    body = figures.body_of_aspect_ratios(PAPER, 2.0, 3.0)
     assert body.volume == pytest.approx(case["volume_over_pi"] * math.pi)
     shape = (ratios.size, ratios.size)
     for key in ("dt_translation_eq48", "dt_rotation_eq56"):
@@ -58,7 +59,8 @@ def test_figure6_shrinks_with_aspect_ratio_and_rotation_is_orders_slower(paper):
 @pytest.mark.parametrize(
     "name, parameter", [("figure4_stiffness", "kn"), ("figure5_density", "density")]
 )
-def test_committed_damping_figures_match_the_code(committed, name, parameter):
+def test_committed_damping_figures_match_the_code(paper, committed, name, parameter):
+    pair = paper["ellipsoid_pair"]
     data = committed(name)
     for value, number, eq46, vv, integrated in zip(
         data[parameter],
@@ -68,9 +70,9 @@ def test_committed_damping_figures_match_the_code(committed, name, parameter):
         data["velocity_verlet_integrated"],
         strict=True,
     ):
-        kn = value if parameter == "kn" else figures.KN
-        density = value if parameter == "density" else figures.DENSITY
-        body = figures.shapes.ellipsoid(*figures.ELLIPSOID, density)
+        kn = value if parameter == "kn" else pair["kn"]
+        density = value if parameter == "density" else pair["density"]
+        body = shapes.ellipsoid(*pair["semi_axes"], density)
         inverse_mass = criteria.a_max(body, body)
         c = criteria.damping_from_number(number, kn, inverse_mass)
         assert eq46 == pytest.approx(criteria.dt_amplification(kn, c, inverse_mass), rel=1e-9)
@@ -85,7 +87,7 @@ def test_committed_figures_3_and_6_match_the_code(committed):
         assert np.allclose(fig3[key], fresh[key], rtol=1e-9, equal_nan=True)
     fig6 = committed("figure6_aspect_ratio")
     size = round(math.sqrt(len(fig6["e1"])))
-    fresh = figures.figure6_data(fig6["e1"][::size])
+    fresh = figures.figure6_data(PAPER, fig6["e1"][::size])
     for key in ("dt_translation_eq48", "dt_rotation_eq56"):
         assert np.allclose(fig6[key], fresh[key], rtol=1e-9)
 
