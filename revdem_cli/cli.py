@@ -179,6 +179,24 @@ def schema() -> None:
     typer.echo(json.dumps(Scenario.model_json_schema(), indent=2))
 
 
+@app.command()
+def info(
+    file: Annotated[Path, typer.Argument(help="A revdem trajectory or restart file (.h5).")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+) -> None:
+    """Summarise a revdem file: kind, direction, scenario, stages, particles, frames, dt,
+    and the reversal verdict when the run's comparison lies beside it.
+
+    Example: revdem info out/collision.forward.h5
+    """
+    import json
+
+    from revdem_cli.report.info import describe, info_lines
+
+    summary = describe(file)
+    typer.echo(json.dumps(summary, indent=2) if as_json else "\n".join(info_lines(summary)))
+
+
 app.command("dt")(_dt)
 
 

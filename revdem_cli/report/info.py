@@ -1,0 +1,115 @@
+"""`revdem info`: what a revdem file holds, read without running anything."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+
+from revdem_cli.errors import InputError
+
+
+def describe(path: str | Path) -> dict:
+    """A summary of a revdem trajectory or restart file; InputError for anything else."""
+    path = Path(path)
+    try:
+        f = h5py.File(path, "r")
+    except (OSError, FileNotFoundError):
+        raise InputError(f"{path}: not a readable HDF5 file") from None
+    try:
+        with f:
+            if "revdem" in f and f["revdem"].attrs.get("kind") == "restart":
+                return _restart(path, f)
+            if "parameters/revdem" in f and "particles/all/position" in f:
+                return _trajectory(path, f)
+            raise InputError(f"{path}: not a revdem trajectory or restart file")
+    except (KeyError, ValueError, OSError) as exc:
+        raise InputError(f"{path}: damaged revdem file ({exc})") from None
+
+
+def _scenario(text: str) -> dict:
+    from revdem_cli.config import Scenario
+
+    scenario = Scenario.model_validate_json(text)
+    return {
+        "scenario": scenario.name,
+        "stages": [
+            {"name": s.name, "steps": s.steps, "output_every": s.output_every, "reverse": s.reverse}
+            for s in scenario.stages
+        ],
+        "dt": scenario.integrator.dt,
+    }
+
+
+def _trajectory(path: Path, f: h5py.File) -> dict:
+    attrs = f["parameters/revdem"].attrs
+    steps = f["particles/all/position/step"][:]
+    info = {
+        "file": str(path),
+        "kind": "trajectory",
+        "direction": str(attrs["direction"]),
+        **_scenario(str(attrs["scenario_json"])),
+        "particles": int(f["particles/all/radius"].shape[0]),
+        "frames": int(len(steps)),
+        "first_step": int(steps[0]) if len(steps) else None,
+        "last_step": int(steps[-1]) if len(steps) else None,
+        "dt": float(attrs["dt"]),
+    }
+    comparison = path.with_name(f"{info['scenario']}.compare.json")
+    if comparison.exists():
+        verdict = json.loads(comparison.read_text())
+        info["comparison"] = {
+            key: verdict[key]
+            for key in ("reversible", "max_position_error_rel", "first_divergence_step")
+        }
+    return info
+
+
+def _restart(path: Path, f: h5py.File) -> dict:
+    attrs = f["revdem"].attrs
+    return {
+        "file": str(path),
+        "kind": "restart",
+        "direction": "forward",
+        **_scenario(str(attrs["scenario_json"])),
+        "particles": int(f["particles/x"].shape[0]),
+        "step": int(attrs["step"]),
+        "stage": str(attrs["stage"]),
+        "trajectory": str(attrs["trajectory"]),
+    }
+
+
+def info_lines(info: dict) -> list[str]:
+    """The summary as `label: value` lines."""
+    stages = ", ".join(
+        f"{s['name']} ({s['steps']} steps{', reversed' if s['reverse'] else ''})"
+        for s in info["stages"]
+    )
+    lines = [
+        f"file:       {info['file']}",
+        f"kind:       {info['kind']}"
+        + (f" ({info['direction']})" if info["kind"] == "trajectory" else ""),
+        f"scenario:   {info['scenario']}",
+        f"stages:     {stages}",
+        f"particles:  {info['particles']}",
+        f"dt:         {info['dt']:.6g} s",
+    ]
+    if info["kind"] == "trajectory":
+        lines.append(
+            f"frames:     {info['frames']}, steps {info['first_step']} to {info['last_step']}"
+        )
+    else:
+        lines.append(f"step:       {info['step']} (end of stage {info['stage']})")
+        lines.append(f"trajectory: {info['trajectory']}")
+    verdict = info.get("comparison")
+    if verdict is not None:
+        if verdict["reversible"]:
+            line = "reversible"
+        else:
+            line = f"not reversible, the runs part at step {verdict['first_divergence_step']}"
+        lines.append(
+            f"reversal:   {line} (max position error / diameter "
+            f"{verdict['max_position_error_rel']:.3g})"
+        )
+    return lines

@@ -1,0 +1,67 @@
+"""`revdem info`: a summary of any revdem file, one line and exit 2 for anything else."""
+
+import json
+
+import h5py
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+
+runner = CliRunner()
+
+
+def info(*args):
+    return runner.invoke(app, ["info", *map(str, args)])
+
+
+def test_a_forward_trajectory_shows_its_run_and_the_reversal_verdict(smoke_run):
+    result = info(smoke_run / "collision_smoke.forward.h5")
+    assert result.exit_code == 0, result.output
+    assert "trajectory (forward)" in result.output
+    assert "collision_smoke" in result.output
+    assert "frames:     21, steps 0 to 1000" in result.output
+    assert "reversal:   reversible" in result.output
+
+
+def test_json_summary_of_a_reversed_trajectory(smoke_run):
+    result = info(smoke_run / "collision_smoke.reverse.h5", "--json")
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["kind"] == "trajectory" and summary["direction"] == "reverse"
+    assert (summary["first_step"], summary["last_step"], summary["frames"]) == (1000, 0, 21)
+    assert summary["particles"] == 2 and summary["dt"] == 1e-7
+    assert summary["stages"] == [
+        {"name": "collide", "steps": 1000, "output_every": 50, "reverse": True}
+    ]
+    assert summary["comparison"]["reversible"] is True
+
+
+def test_a_restart_shows_its_step_and_trajectory(smoke_run):
+    result = info(smoke_run / "collision_smoke.restart.h5", "--json")
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["kind"] == "restart" and summary["step"] == 1000
+    assert summary["trajectory"].endswith("collision_smoke.forward.h5")
+    assert "comparison" not in summary
+
+
+def test_other_files_exit_2_with_one_line(smoke_run, tmp_path):
+    text = tmp_path / "notes.h5"
+    text.write_text("not hdf5")
+    foreign = tmp_path / "foreign.h5"
+    with h5py.File(foreign, "w") as f:
+        f["data"] = [1, 2, 3]
+    damaged = tmp_path / "damaged.h5"
+    with h5py.File(damaged, "w") as f:
+        f.create_group("parameters/revdem")
+        f["particles/all/position/value"] = [[[0.0, 0.0, 0.0]]]
+    for path, message in (
+        (text, "not a readable HDF5 file"),
+        (foreign, "not a revdem trajectory or restart file"),
+        (damaged, "damaged revdem file"),
+        (tmp_path / "missing.h5", "not a readable HDF5 file"),
+    ):
+        result = info(path)
+        assert result.exit_code == 2, result.output
+        lines = result.output.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"error: {path}: {message}"), lines
