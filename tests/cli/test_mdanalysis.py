@@ -1,0 +1,26 @@
+"""revdem trajectories open in MDAnalysis' H5MD reader, frame by frame, as written."""
+
+import h5py
+import MDAnalysis
+import numpy as np
+
+
+def test_mdanalysis_reads_positions_velocities_time_and_the_open_box(smoke_run):
+    path = smoke_run / "collision_smoke.forward.h5"
+    universe = MDAnalysis.Universe.empty(2, trajectory=True)
+    # SI units ("m") are not among MDAnalysis' length units, so the file is read as it is.
+    universe.load_new(str(path), format="H5MD", convert_units=False)
+    with h5py.File(path, "r") as f:
+        position = f["particles/all/position/value"][:]
+        velocity = f["particles/all/velocity/value"][:]
+        time = f["particles/all/position/time"][:]
+        steps = f["particles/all/position/step"][:]
+    assert len(universe.trajectory) == len(position) == 21
+    for frame in (0, 10, 20):
+        ts = universe.trajectory[frame]
+        # MDAnalysis holds coordinates in float32
+        np.testing.assert_allclose(universe.atoms.positions, position[frame], rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(universe.atoms.velocities, velocity[frame], rtol=1e-6)
+        assert ts.time == time[frame] and ts.data["step"] == steps[frame]
+        assert ts.dimensions is None  # boundary "none": an open box without edges
+    assert not np.allclose(position[20], position[0])
