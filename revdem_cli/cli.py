@@ -197,6 +197,30 @@ def info(
     typer.echo(json.dumps(summary, indent=2) if as_json else "\n".join(info_lines(summary)))
 
 
+@app.command()
+def export(
+    trajectory: Annotated[Path, typer.Argument(help="Trajectory, e.g. out/collision.forward.h5.")],
+    vtk: Annotated[
+        bool, typer.Option("--vtk", help="VTK XML: one .vtp a frame and a .pvd series.")
+    ] = False,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Output directory (default: TRAJECTORY without .h5, + .vtk)."),
+    ] = None,
+) -> None:
+    """Export a trajectory for visualisation; open the .pvd in ParaView and glyph the points
+    with spheres scaled by `radius`.
+
+    Example: revdem export --vtk out/collision.forward.h5 --out out/vtk
+    """
+    if not vtk:
+        raise InputError("export: choose a format (--vtk)")
+    from revdem_cli.io.vtk import export_vtk
+
+    written = export_vtk(trajectory, out or trajectory.with_suffix(".vtk"))
+    typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
+
+
 app.command("dt")(_dt)
 
 
