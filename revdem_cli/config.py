@@ -165,6 +165,17 @@ class Stage(_Model):
         default=False,
         description="save the end of this stage as the restart and run it backwards in time",
     )
+    dt: float | None = Field(
+        default=None, gt=0, description="time step of this stage, s; default: integrator.dt"
+    )
+    damping: Damping | None = Field(
+        default=None, description="damping during this stage; default: [damping]"
+    )
+    wall_velocities: dict[str, Vector3] = Field(
+        default_factory=dict,
+        description="velocity of named walls during this stage, m/s; the others move at the "
+        "velocity given in [[walls]]",
+    )
 
     @property
     def observable_interval(self) -> int:
@@ -224,8 +235,16 @@ class Scenario(_Model):
                         f"{kind}[{i}].material",
                         f"unknown material '{item.material}' (known: {', '.join(self.materials)})",
                     )
+        wall_names = [w.name for w in self.walls]
+        for i, stage in enumerate(self.stages):
+            for name in stage.wall_velocities:
+                if name not in wall_names:
+                    raise _FieldError(
+                        f"stages[{i}].wall_velocities.{name}",
+                        f"no wall is named '{name}' (walls: {', '.join(wall_names) or 'none'})",
+                    )
         for i, wall in enumerate(self.walls):
-            if [w.name for w in self.walls].index(wall.name) != i:
+            if wall_names.index(wall.name) != i:
                 raise _FieldError(f"walls[{i}].name", f"wall name '{wall.name}' is used twice")
         names = [stage.name for stage in self.stages]
         for i, name in enumerate(names):

@@ -20,7 +20,9 @@ from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, read_restart, write_restart
 from revdem_cli.kernels.arrays import ContactLaw, Dynamics, Moduli
+from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
+from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import OK, advance
 from revdem_cli.kernels.observables import SCALARS, observe
 from revdem_cli.state import (
@@ -57,6 +59,17 @@ class Model:
             default_skin(scenario),
         )
 
+    def stage_dynamics(self, stage: Stage) -> Dynamics:
+        """Gravity and the damping of a stage: its own, else the scenario's."""
+        return self.dynamics if stage.damping is None else dynamics(self.scenario, stage.damping)
+
+    def stage_wall_velocities(self, stage: Stage) -> np.ndarray:
+        """Velocity of each wall during a stage, m/s, (W, 3)."""
+        return np.array(
+            [stage.wall_velocities.get(w.name, w.velocity) for w in self.scenario.walls],
+            dtype=np.float64,
+        ).reshape(-1, 3)
+
     def observables(self) -> list[tuple[str, int]]:
         """Observable names and widths, in the column order of `kernels.observables.observe`."""
         return [(name, 1) for name in SCALARS] + [
@@ -89,9 +102,10 @@ class StageClock:
 def stage_clocks(scenario: Scenario) -> list[StageClock]:
     clocks, step, time = [], 0, 0.0
     for stage in scenario.stages:
-        clocks.append(StageClock(stage, step, time, scenario.integrator.dt))
+        dt = stage.dt or scenario.integrator.dt
+        clocks.append(StageClock(stage, step, time, dt))
         step += stage.steps
-        time += stage.steps * scenario.integrator.dt
+        time += stage.steps * dt
     return clocks
 
 
@@ -118,12 +132,25 @@ def run_stage(
         )
     if direction > 0:
         state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
+    state.walls.velocity[:] = model.stage_wall_velocities(clock.stage)
+    dyn = model.stage_dynamics(clock.stage)
+    if direction > 0:  # the stage's first kick uses forces under the stage's own settings
+        compute_forces(
+            state.particles,
+            state.pairs,
+            state.walls,
+            model.law,
+            model.moduli,
+            dyn,
+            STATIC,
+            clock.dt,
+        )
     every = clock.stage.observable_interval
     width = 1 + sum(columns for _, columns in model.observables())
     buffer = np.zeros((clock.stage.output_every // every + 2, width))
     run = np.array([clock.dt, model.skin, clock.first_step, clock.last_step, every], dtype=float)
     events = empty_events()
-    _record_now(state, model, clock, writer, buffer, events)
+    _record_now(state, dyn, clock, writer, buffer, events)
     label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
     total = abs(frames[-1] - frames[0])
     for target in frames[1:]:
@@ -134,7 +161,7 @@ def run_stage(
                 state.walls,
                 model.law,
                 model.moduli,
-                model.dynamics,
+                dyn,
                 events,
                 run,
                 state.step,
@@ -149,13 +176,13 @@ def run_stage(
             progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
 
 
-def _record_now(state, model, clock, writer, buffer, events) -> None:
+def _record_now(state, dyn, clock, writer, buffer, events) -> None:
     """Write the frame and observables of the state as it is (the start of a stage)."""
     writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
     if writer.last_observable_step() == state.step:
         return
     buffer[0, 0] = state.step
-    observe(state.particles, state.pairs, state.walls, model.dynamics, buffer[0])
+    observe(state.particles, state.pairs, state.walls, dyn, buffer[0])
     _write_observables(writer, clock, buffer[:1])
 
 
@@ -257,10 +284,13 @@ def check_time_step(scenario: Scenario) -> None:
     from revdem_cli.timestep.guard import critical_time_step
 
     limit, reason = critical_time_step(scenario)
-    dt = scenario.integrator.dt
+    steps = [("integrator.dt", scenario.integrator.dt)] + [
+        (f"stages[{i}].dt", stage.dt) for i, stage in enumerate(scenario.stages) if stage.dt
+    ]
+    field, dt = max(steps, key=lambda item: item[1])
     if dt > limit:
         raise InputError(
-            f"integrator.dt = {dt:.3g} s is {dt / limit:.3g} times the critical time step "
+            f"{field} = {dt:.3g} s is {dt / limit:.3g} times the critical time step "
             f"{limit:.3g} s ({reason}); use a smaller dt, or --allow-unstable-dt to run anyway"
         )
 

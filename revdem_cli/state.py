@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from revdem_cli.config import Material, Scenario
+from revdem_cli.config import Damping, Material, Scenario
 from revdem_cli.kernels import contact, walls
 from revdem_cli.kernels.arrays import ContactLaw, Dynamics, Moduli, Pairs, Particles, Walls
 from revdem_cli.kernels.events import COLUMNS, KINDS
@@ -62,10 +62,10 @@ def contact_law(scenario: Scenario) -> ContactLaw:
     )
 
 
-def dynamics(scenario: Scenario) -> Dynamics:
-    return Dynamics(
-        np.array(scenario.gravity, dtype=np.float64), scenario.damping.local, scenario.damping.drag
-    )
+def dynamics(scenario: Scenario, damping: Damping | None = None) -> Dynamics:
+    """Gravity and damping: `damping` if given (a stage's), else the scenario's."""
+    damping = damping or scenario.damping
+    return Dynamics(np.array(scenario.gravity, dtype=np.float64), damping.local, damping.drag)
 
 
 def particles(scenario: Scenario) -> Particles:
