@@ -14,7 +14,9 @@ from revdem_cli.timestep.command import dt as _dt
 
 
 class _Commands(TyperGroup):
-    """Turns bad input anywhere in a command into one line on stderr and exit status 2."""
+    """Turns bad input anywhere in a command into one line on stderr and exit status 2, and a
+    failure of the machine or the file system (RuntimeError, OSError, MemoryError) into one
+    line and exit status 1. Any other exception is a bug and keeps its traceback."""
 
     def invoke(self, ctx):
         try:
@@ -22,6 +24,11 @@ class _Commands(TyperGroup):
         except InputError as exc:
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(2) from None
+        except (typer.Exit, typer.Abort):
+            raise  # typer's own ways out are RuntimeErrors too
+        except (RuntimeError, OSError, MemoryError) as exc:
+            typer.echo(f"failed: {type(exc).__name__}: {exc}", err=True)
+            raise typer.Exit(1) from None
 
 
 app = typer.Typer(
@@ -30,6 +37,7 @@ app = typer.Typer(
     help="DEM of spheres forward and in reversed time; critical time steps of convex particles.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    add_completion=True,
 )
 
 
@@ -184,8 +192,10 @@ def info(
     file: Annotated[Path, typer.Argument(help="A revdem trajectory or restart file (.h5).")],
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
 ) -> None:
-    """Summarise a revdem file: kind, direction, scenario, stages, particles, frames, dt,
-    and the reversal verdict when the run's comparison lies beside it.
+    """Summarise a revdem trajectory or restart file.
+
+    Kind, direction, scenario, stages, particles, frames and steps, dt, and the reversal
+    verdict when the run's NAME.compare.json lies beside the trajectory.
 
     Example: revdem info out/collision.forward.h5
     """
@@ -208,8 +218,9 @@ def export(
         typer.Option("--out", help="Output directory (default: TRAJECTORY without .h5, + .vtk)."),
     ] = None,
 ) -> None:
-    """Export a trajectory for visualisation; open the .pvd in ParaView and glyph the points
-    with spheres scaled by `radius`.
+    """Export a trajectory for visualisation (VTK for ParaView).
+
+    Open the .pvd in ParaView and glyph the points with spheres scaled by `radius`.
 
     Example: revdem export --vtk out/collision.forward.h5 --out out/vtk
     """
