@@ -12,7 +12,7 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
 
 from revdem_cli.errors import InputError
 
@@ -129,6 +129,68 @@ class Particle(_Model):
     )
 
 
+class Region(_Model):
+    """Where generated spheres go: a vertical cylinder (axis along z) or a box."""
+
+    shape: Literal["cylinder", "box"] = Field(description="'cylinder' or 'box'")
+    origin: Vector3 = Field(description="cylinder: centre of its base; box: lower corner, m")
+    radius: float | None = Field(default=None, gt=0, description="cylinder radius, m")
+    height: float | None = Field(default=None, gt=0, description="cylinder height, m")
+    size: Vector3 | None = Field(default=None, description="box edge lengths, m")
+
+    @model_validator(mode="after")
+    def _dimensions(self) -> Region:
+        if self.shape == "cylinder" and (self.radius is None or self.height is None):
+            raise ValueError("a cylinder needs radius and height")
+        if self.shape == "box" and (self.size is None or min(self.size) <= 0):
+            raise ValueError("a box needs a size with three positive edge lengths")
+        return self
+
+    @property
+    def extent(self) -> tuple[float, float, float]:
+        """(radius, height, 0) of a cylinder, or the edge lengths of a box, m."""
+        return (self.radius, self.height, 0.0) if self.shape == "cylinder" else self.size
+
+
+class Packing(_Model):
+    """Spheres with radii drawn uniformly from [radius_min, radius_max], placed at random
+    without overlap inside a region (random sequential addition), from a seeded generator."""
+
+    count: int = Field(gt=0, le=5_000_000, description="number of spheres")
+    material: str = Field(description="name of a material in [materials]")
+    radius_min: float = Field(gt=0, description="smallest radius, m")
+    radius_max: float = Field(gt=0, description="largest radius, m")
+    region: Region
+    seed: int = Field(default=0, ge=0, description="seed of the random generator")
+    velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="initial velocity, m/s")
+
+    @model_validator(mode="after")
+    def _radii(self) -> Packing:
+        if self.radius_max < self.radius_min:
+            raise ValueError("radius_max must not be below radius_min")
+        return self
+
+    def spheres(self) -> list[Particle]:
+        """The generated spheres; raises PackingError if the region cannot take them."""
+        import numpy as np
+
+        from revdem_cli.build.packing import place_spheres
+
+        rng = np.random.default_rng(self.seed)
+        radii = rng.uniform(self.radius_min, self.radius_max, self.count)
+        region = self.region
+        centres = place_spheres(radii, region.shape, region.origin, region.extent, self.seed + 1)
+        return [
+            Particle(
+                material=self.material,
+                radius=float(r),
+                position=tuple(map(float, x)),
+                velocity=self.velocity,
+            )
+            for r, x in zip(radii, centres, strict=True)
+        ]
+
+
 class Integrator(_Model):
     """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
 
@@ -208,13 +270,18 @@ class Output(_Model):
 class Scenario(_Model):
     """A complete revdem experiment."""
 
+    _spheres: list[Particle] = PrivateAttr(default_factory=list)
+
     name: str = Field(
         pattern=r"^[A-Za-z0-9_.-]+$", description="run name, used for output file names"
     )
     description: str = Field(default="", description="free text")
     materials: dict[str, Material] = Field(min_length=1, description="materials by name")
     contact: ContactLaw = Field(description="contact law between particles")
-    particles: list[Particle] = Field(min_length=1, description="explicit list of spheres")
+    particles: list[Particle] = Field(default_factory=list, description="spheres given one by one")
+    packings: list[Packing] = Field(
+        default_factory=list, description="spheres generated at random in regions"
+    )
     walls: list[Wall] = Field(default_factory=list, description="walls")
     gravity: Vector3 = Field(
         default=(0.0, 0.0, 0.0), description="gravitational acceleration, m/s^2"
@@ -228,7 +295,11 @@ class Scenario(_Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> Scenario:
-        for kind, items in (("particles", self.particles), ("walls", self.walls)):
+        for kind, items in (
+            ("particles", self.particles),
+            ("packings", self.packings),
+            ("walls", self.walls),
+        ):
             for i, item in enumerate(items):
                 if item.material not in self.materials:
                     raise _FieldError(
@@ -259,24 +330,41 @@ class Scenario(_Model):
             raise _FieldError(
                 f"stages[{reversed_stages[0]}].reverse", "the reversed stage must be the last stage"
             )
+        self._generate()
         self._check_overlaps()
         return self
 
+    def _generate(self) -> None:
+        from revdem_cli.build.packing import PackingError
+
+        spheres = list(self.particles)
+        for i, packing in enumerate(self.packings):
+            try:
+                spheres += packing.spheres()
+            except PackingError as exc:
+                raise _FieldError(f"packings[{i}]", str(exc)) from None
+        if not spheres:
+            raise _FieldError("particles", "no spheres: give [[particles]] or [[packings]]")
+        self._spheres = spheres
+
+    @property
+    def spheres(self) -> list[Particle]:
+        """Every sphere of the scenario: those given one by one, then the generated ones."""
+        return self._spheres
+
     def _check_overlaps(self) -> None:
-        """Explicit particles may touch, or overlap by up to 1 % of the smaller radius (a contact
-        already loaded), no more."""
+        """Spheres may touch, or overlap by up to 1 % of the smaller radius (a contact already
+        loaded), no more."""
         import numpy as np
         from scipy.spatial import cKDTree
 
-        x = np.array([p.position for p in self.particles])
-        r = np.array([p.radius for p in self.particles])
+        x = np.array([p.position for p in self._spheres])
+        r = np.array([p.radius for p in self._spheres])
         for i, j in sorted(cKDTree(x).query_pairs(2.0 * r.max())):
             gap = float(np.linalg.norm(x[j] - x[i])) - r[i] - r[j]
             if gap < -1e-2 * min(r[i], r[j]):
-                raise _FieldError(
-                    f"particles[{j}].position",
-                    f"particle {j} overlaps particle {i} by {-gap:.3g} m",
-                )
+                where = f"particles[{j}].position" if j < len(self.particles) else "packings"
+                raise _FieldError(where, f"sphere {j} overlaps sphere {i} by {-gap:.3g} m")
 
     @property
     def reversed_stage(self) -> Stage | None:

@@ -70,7 +70,7 @@ def dynamics(scenario: Scenario, damping: Damping | None = None) -> Dynamics:
 
 def particles(scenario: Scenario) -> Particles:
     names = list(scenario.materials)
-    ps = scenario.particles
+    ps = scenario.spheres
     n = len(ps)
     radius = np.array([p.radius for p in ps], dtype=np.float64)
     density = np.array([scenario.materials[p.material].density for p in ps])
@@ -199,4 +199,4 @@ def initial_state(scenario: Scenario) -> State:
 
 def default_skin(scenario: Scenario) -> float:
     """Neighbour skin: as given, else 10 % of the largest radius."""
-    return scenario.neighbours.skin or 0.1 * max(p.radius for p in scenario.particles)
+    return scenario.neighbours.skin or 0.1 * max(p.radius for p in scenario.spheres)

@@ -1,0 +1,1 @@
+"""Initial states: generated packings of spheres."""

@@ -1,0 +1,58 @@
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from revdem_cli.config import scenario_from_text
+from revdem_cli.errors import InputError
+
+OEDOMETER_FILL = """
+name = "fill"
+[materials.sphere]
+density = 1000.0
+shear_modulus = 2.0e6
+poisson_ratio = 0.2
+[contact]
+model = "hertz"
+[[packings]]
+count = 900
+material = "sphere"
+radius_min = 0.0045
+radius_max = 0.0055
+seed = 3
+region = {shape = "cylinder", origin = [0.0, 0.0, 0.0], radius = 0.1, height = 0.2}
+[integrator]
+dt = 5e-8
+[[stages]]
+name = "none"
+steps = 1
+"""
+
+
+def spheres(text=OEDOMETER_FILL):
+    scenario = scenario_from_text(text, ".toml", "fill.toml")
+    x = np.array([p.position for p in scenario.spheres])
+    r = np.array([p.radius for p in scenario.spheres])
+    return x, r
+
+
+def test_the_papers_oedometer_fill_has_no_overlap_and_stays_in_the_cylinder():
+    x, r = spheres()  # Hanley 2020 §3.2.2: 900 spheres, diameters U(9, 11) mm, R = 0.1 m
+    assert len(r) == 900
+    assert 0.0045 <= r.min() and r.max() <= 0.0055 and r.std() > 0.0002
+    for i, j in cKDTree(x).query_pairs(0.011):
+        assert np.linalg.norm(x[i] - x[j]) >= r[i] + r[j]
+    assert (np.hypot(x[:, 0], x[:, 1]) + r <= 0.1).all()
+    assert (x[:, 2] - r >= 0).all() and (x[:, 2] + r <= 0.2).all()
+
+
+def test_a_seed_gives_the_same_packing_and_another_seed_another():
+    first, second = spheres()[0], spheres()[0]
+    np.testing.assert_array_equal(first, second)
+    other = spheres(OEDOMETER_FILL.replace("seed = 3", "seed = 4"))[0]
+    assert not np.array_equal(first, other)
+
+
+def test_a_region_too_small_is_refused_with_one_line():
+    text = OEDOMETER_FILL.replace("radius = 0.1, height = 0.2", "radius = 0.02, height = 0.02")
+    with pytest.raises(InputError, match=r"fill.toml: packings\[0\]: sphere \d+ of 900 found no"):
+        spheres(text)
