@@ -66,3 +66,38 @@ def test_the_time_step_guard_checks_every_stage(tmp_path):
     data["stages"][0]["dt"] = 1e-2
     with pytest.raises(InputError, match=r"stages\[0\]\.dt = 0\.01 s is .* times the critical"):
         run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path)
+
+
+def test_a_frictionless_sphere_bounces_elastically_off_the_inside_of_a_cylinder(tmp_path):
+    data = on_plane(tangential="none").model_dump()
+    data["gravity"] = (0.0, 0.0, 0.0)
+    data["particles"][0].update(position=(0.09, 0.0, 0.5), velocity=(0.3, 0.4, 0.0))
+    data["walls"] = [
+        {
+            "name": "tube",
+            "type": "cylinder",
+            "material": "plane",
+            "point": (0.0, 0.0, 0.0),
+            "normal": (0.0, 0.0, 1.0),
+            "radius": 0.1,
+        }
+    ]
+    data["stages"] = [
+        {
+            "name": "bounce",
+            "steps": 30000,
+            "dt": 1e-6,
+            "output_every": 1000,
+            "observables_every": 100,
+            "reverse": True,
+        }
+    ]
+    outputs = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path)
+    with h5py.File(outputs.forward) as f:
+        x = f["particles/all/position/value"][:, 0]
+        total = f["observables/total_energy/value"][:]
+        elastic = f["observables/elastic_energy/value"][:]
+    assert elastic.max() > 0.1 * total[0]  # it hit the wall
+    assert np.hypot(x[:, 0], x[:, 1]).max() < 0.1  # and stayed inside
+    assert np.ptp(total) < 1e-6 * total[0]
+    assert outputs.verdict["reversible"] and outputs.verdict["max_position_error_rel"] < 1e-10
