@@ -57,12 +57,14 @@ def _root(
 
 
 def _progress(quiet: bool):
-    """A rich progress display, or None when quiet or not on a terminal."""
-    if quiet:
-        return None
+    """A rich progress display of steps, or None when quiet."""
+    return None if quiet else _progress_of("steps")
+
+
+def _progress_of(unit: str):
     from revdem_cli.report.progress import RunProgress
 
-    return RunProgress()
+    return RunProgress(unit=unit)
 
 
 @app.command()
@@ -230,6 +232,50 @@ def export(
 
     written = export_vtk(trajectory, out or trajectory.with_suffix(".vtk"))
     typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
+
+
+@app.command()
+def sweep(
+    scenario: Annotated[
+        Path, typer.Argument(help='Scenario file, or a sweep file (TOML, kind = "sweep").')
+    ],
+    sets: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set", help="key=v1,v2,...: values of a scenario field; every combination runs."
+        ),
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("out/sweep"),
+    scheduler: Annotated[
+        str | None,
+        typer.Option("--scheduler", help="Address of a dask scheduler (default: a local cluster)."),
+    ] = None,
+    workers: Annotated[
+        int, typer.Option("--workers", min=1, help="Worker processes of the local cluster.")
+    ] = 2,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
+) -> None:
+    """Run every combination of --set values, forward and reversed, in parallel (dask).
+
+    Each variant runs in its own folder under --out; sweep.csv and sweep.h5 there hold each
+    variant's values, reversal verdict and final energies. Exit status 1 if a variant failed.
+
+    Example: revdem sweep configs/collision_shear.toml --set contact.friction=0.1,0.3,inf
+    """
+    from revdem_cli.sweep import read_sweep, run_sweep
+
+    plan = read_sweep(scenario, sets or [])
+    progress = None if quiet else _progress_of("variants")
+    with progress or _nothing() as shown:
+        rows, tables = run_sweep(plan, out, scheduler, workers, shown)
+    failed = [row for row in rows if row["error"]]
+    for path in tables:
+        typer.echo(f"wrote {path}")
+    typer.echo(f"{len(rows)} variants, {len(failed)} failed")
+    for row in failed:
+        typer.echo(f"failed: {row['folder']}: {row['error']}", err=True)
+    if failed:
+        raise typer.Exit(1)
 
 
 app.command("dt")(_dt)

@@ -9,14 +9,15 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 
 class RunProgress:
-    """Context manager; call it as progress(label, done, total) once per output frame."""
+    """Context manager; call it as progress(label, done, total) once per output frame (or
+    once per finished item, counted in `unit`)."""
 
-    def __init__(self, n_particles: int | None = None):
+    def __init__(self, n_particles: int | None = None, unit: str = "steps"):
         self.console = Console(stderr=True)
         self.bar = Progress(
             TextColumn("{task.description}"),
             BarColumn(),
-            TextColumn("{task.completed:>9,.0f}/{task.total:,.0f} steps"),
+            TextColumn("{task.completed:>9,.0f}/{task.total:,.0f} " + unit),
             TextColumn("{task.fields[rate]}"),
             TimeRemainingColumn(),
             console=self.console,
