@@ -278,6 +278,25 @@ def sweep(
         raise typer.Exit(1)
 
 
+@app.command()
+def report(
+    directory: Annotated[Path, typer.Argument(help="Directory of runs, e.g. out.")],
+    paper: Annotated[
+        Path, typer.Option("--paper", help="What the paper reports (paper_numbers.toml).")
+    ] = Path("scenarios/hanley2020/paper_numbers.toml"),
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Markdown file (default: DIRECTORY/report.md).")
+    ] = None,
+) -> None:
+    """Write a Markdown page setting the paper's numbers beside the runs in DIRECTORY.
+
+    Example: revdem report out
+    """
+    from revdem_cli.report.paper import write_report
+
+    typer.echo(f"wrote {write_report(directory, paper, out or directory / 'report.md')}")
+
+
 app.command("dt")(_dt)
 
 

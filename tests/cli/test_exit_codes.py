@@ -31,7 +31,8 @@ def test_a_programming_error_is_not_turned_into_a_message(tmp_path, monkeypatch)
 
 
 @pytest.mark.parametrize(
-    "command", ["run", "reverse", "compare", "validate", "schema", "info", "export", "dt"]
+    "command",
+    ["run", "reverse", "compare", "validate", "schema", "info", "export", "sweep", "report", "dt"],
 )
 def test_every_command_shows_an_example(command):
     result = runner.invoke(app, [command, "--help"], terminal_width=200)

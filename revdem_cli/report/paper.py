@@ -1,0 +1,145 @@
+"""`revdem report`: a Markdown page setting what a paper reports (paper_numbers.toml) beside
+what revdem's runs in a directory gave.
+
+Each table of the paper file is a case: `config` names the scenario, whose run in the
+directory is NAME.forward.h5 and NAME.compare.json (NAME: the table's name). Each number a
+case reports is measured by the entry of MEASURES of the same name; `relative_tolerance` or
+`<quantity>_relative_tolerance` sets how close counts as agreeing.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from revdem_cli.errors import InputError
+from revdem_cli.io.h5md import open_trajectory, read_observable
+
+ABOUT = {"config", "section", "claim", "relative_tolerance"}
+"""Entries of a case that describe it rather than report a number."""
+
+
+def _verdict(key: str) -> Callable:
+    return lambda run: run.verdict()[key]
+
+
+def _shear_forces(run) -> tuple[np.ndarray, np.ndarray]:
+    with open_trajectory(run.forward) as f:
+        return (
+            read_observable(f, "max_shear_force")[1],
+            read_observable(f, "max_normal_force")[1],
+        )
+
+
+def _max_shear_force(run) -> float:
+    return float(_shear_forces(run)[0].max())
+
+
+def _shear_force_at_separation(run) -> float:
+    shear, normal = _shear_forces(run)
+    touching = np.nonzero(normal)[0]
+    return float(shear[touching[-1]]) if len(touching) else 0.0
+
+
+def _velocity_before_contact(run) -> float:
+    """Vertical velocity of particle 0 at the last frame before its first contact."""
+    with open_trajectory(run.forward) as f:
+        times, elastic = read_observable(f, "elastic_energy")
+        touching = np.nonzero(elastic > 0.0)[0]
+        first_contact = times[touching[0]] if len(touching) else np.inf
+        frame_times = f["particles/all/velocity/time"][:]
+        before = np.nonzero(frame_times < first_contact)[0]
+        return float(f["particles/all/velocity/value"][before[-1], 0, 2])
+
+
+MEASURES: dict[str, tuple[str, Callable]] = {
+    "max_position_error_rel": ("at most", _verdict("max_position_error_rel")),
+    "max_velocity_error": ("at most", _verdict("max_velocity_error")),
+    "reversible": ("equal", _verdict("reversible")),
+    "max_shear_force": ("close", _max_shear_force),
+    "shear_force_at_separation": ("close", _shear_force_at_separation),
+    "terminal_velocity": ("close", _velocity_before_contact),
+}
+"""quantity -> (how revdem's value is judged against the paper's, how it is measured)."""
+
+
+class _Run:
+    def __init__(self, directory: Path, name: str):
+        self.forward = directory / f"{name}.forward.h5"
+        self.comparison = directory / f"{name}.compare.json"
+
+    def verdict(self) -> dict:
+        if not self.comparison.exists():
+            raise FileNotFoundError(self.comparison.name)
+        return json.loads(self.comparison.read_text())
+
+
+def _judge(how: str, paper, ours, tolerance: float | None) -> bool:
+    if how == "at most":
+        return ours <= paper
+    if how == "equal":
+        return ours == paper
+    return abs(ours - paper) <= (tolerance or 0.0) * abs(paper)
+
+
+def _show(value) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def case_rows(name: str, case: dict, directory: Path) -> list[tuple[str, str, str, str]]:
+    """(quantity, paper, revdem, agrees) for each number the case reports."""
+    run = _Run(directory, name)
+    rows = []
+    for key, paper in case.items():
+        if key in ABOUT or key.endswith("_relative_tolerance"):
+            continue
+        if key not in MEASURES:
+            rows.append((key, _show(paper), "not measured", ""))
+            continue
+        how, measure = MEASURES[key]
+        try:
+            ours = measure(run)
+        except (FileNotFoundError, InputError):
+            rows.append((key, _show(paper), f"no run in {directory}", ""))
+            continue
+        tolerance = case.get(f"{key}_relative_tolerance", case.get("relative_tolerance"))
+        agrees = _judge(how, paper, ours, tolerance)
+        shown = f"≤ {_show(paper)}" if how == "at most" else _show(paper)
+        if how == "close":
+            shown += f" ± {100 * (tolerance or 0.0):g}%"
+        rows.append((key, shown, _show(ours), "yes" if agrees else "**no**"))
+    return rows
+
+
+def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
+    """Write the Markdown page to `out`; InputError for a paper file that cannot be read."""
+    try:
+        paper = tomllib.loads(Path(paper_path).read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(f"{paper_path}: cannot read the paper's numbers ({exc})") from None
+    lines = [
+        f"# {paper_path} against the runs in {directory}",
+        "",
+        "Run a case with `revdem run CONFIG --out DIR`; its files are NAME.forward.h5 and "
+        "NAME.compare.json.",
+    ]
+    for name, case in paper.items():
+        if not isinstance(case, dict):
+            continue
+        title = f"## {name}" + (f" ({case['section']})" if "section" in case else "")
+        lines += ["", title, ""]
+        if "config" in case:
+            lines += [f"`{case['config']}`" + (f": {case['claim']}" if "claim" in case else ""), ""]
+        lines += ["| quantity | paper | revdem | agrees |", "|---|---|---|---|"]
+        lines += [f"| {' | '.join(row)} |" for row in case_rows(name, case, Path(directory))]
+    out = Path(out)
+    out.write_text("\n".join(lines) + "\n")
+    return out

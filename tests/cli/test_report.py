@@ -1,0 +1,49 @@
+"""`revdem report`: the paper's numbers beside a directory's runs, as a Markdown page."""
+
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+from tests.conftest import ROOT
+
+runner = CliRunner()
+
+PAPER = """
+[collision_smoke]
+config = "configs/smoke/collision.yaml"
+section = "§0"
+max_position_error_rel = 1e-10
+reversible = false
+max_shear_force = 0.066
+relative_tolerance = 0.10
+coefficient_of_restitution = 1.0
+
+[drop_A]
+reversible = true
+"""
+
+
+def test_report_judges_each_number_against_the_run(smoke_run, tmp_path):
+    paper = tmp_path / "paper.toml"
+    paper.write_text(PAPER)
+    page = tmp_path / "page.md"
+    args = ["report", str(smoke_run), "--paper", str(paper), "--out", str(page)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    smoke, drop = page.read_text().split("## drop_A")
+    lines = smoke.splitlines()
+    assert "## collision_smoke (§0)" in lines
+    rows = {line.split(" | ")[0].strip("| "): line for line in lines if line.startswith("| ")}
+    assert rows["max_position_error_rel"].endswith("| yes |")  # the smoke run reverses
+    assert "| no | yes | **no** |" in rows["reversible"]  # the paper file says otherwise
+    assert "| 0.066 ± 10% | 0 | **no** |" in rows["max_shear_force"]  # no shear law
+    assert "not measured" in rows["coefficient_of_restitution"]
+    assert drop.splitlines()[-1] == f"| reversible | yes | no run in {smoke_run} |  |"
+
+
+def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    result = runner.invoke(app, ["report", str(smoke_run), "--out", str(tmp_path / "r.md")])
+    assert result.exit_code == 0, result.output
+    assert "## collision_shear (§4, Figure 5)" in (tmp_path / "r.md").read_text()
+    missing = runner.invoke(app, ["report", str(smoke_run), "--paper", str(tmp_path / "no")])
+    assert missing.exit_code == 2 and "cannot read the paper's numbers" in missing.output
