@@ -102,3 +102,15 @@ def test_a_bad_variant_stops_the_sweep_before_it_starts(tmp_path, values, messag
     result = runner.invoke(app, ["sweep", smoke, "--set", f"integrator.dt={values}", "--out", out])
     assert result.exit_code == 2 and message in result.output, result.output
     assert not out.exists()
+
+
+def test_a_variant_that_fails_is_recorded_not_raised(tmp_path):
+    from revdem_cli.config import load_scenario
+    from revdem_cli.sweep import run_variant
+
+    scenario, text = load_scenario(CONFIGS / "smoke" / "collision.yaml", ["stages.0.steps=100"])
+    taken = tmp_path / "taken"
+    taken.write_text("")
+    row = run_variant(scenario.model_dump_json(), text, ".yaml", taken)
+    assert row["error"].startswith("FileExistsError")
+    assert row["reversible"] is None and row["kinetic_energy"] is None
