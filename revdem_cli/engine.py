@@ -130,21 +130,11 @@ def run_stage(
         raise ValueError(
             f"stage {clock.stage.name} starts at step {frames[0]}, state is at {state.step}"
         )
-    if direction > 0:
-        state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
     state.walls.velocity[:] = model.stage_wall_velocities(clock.stage)
     dyn = model.stage_dynamics(clock.stage)
-    if direction > 0:  # the stage's first kick uses forces under the stage's own settings
-        compute_forces(
-            state.particles,
-            state.pairs,
-            state.walls,
-            model.law,
-            model.moduli,
-            dyn,
-            STATIC,
-            clock.dt,
-        )
+    if direction > 0:
+        state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
+        compute_forces(*_system(state, model, dyn), STATIC, clock.dt)  # under the stage's settings
     every = clock.stage.observable_interval
     width = 1 + sum(columns for _, columns in model.observables())
     buffer = np.zeros((clock.stage.output_every // every + 2, width))
@@ -156,17 +146,7 @@ def run_stage(
     for target in frames[1:]:
         while state.step != target:
             status, state.step, rows = advance(
-                state.particles,
-                state.pairs,
-                state.walls,
-                model.law,
-                model.moduli,
-                dyn,
-                events,
-                run,
-                state.step,
-                target,
-                buffer,
+                *_system(state, model, dyn), events, run, state.step, target, buffer
             )
             _write_observables(writer, clock, buffer[:rows])
             if status != OK:
@@ -174,6 +154,11 @@ def run_stage(
         writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
         if progress is not None:
             progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
+
+
+def _system(state: State, model: Model, dyn: Dynamics) -> tuple:
+    """The bundles the kernels step: particles, pairs, walls, contact law, moduli, dynamics."""
+    return state.particles, state.pairs, state.walls, model.law, model.moduli, dyn
 
 
 def _record_now(state, dyn, clock, writer, buffer, events) -> None:
