@@ -23,5 +23,13 @@ lint: $(STAMP)
 	$(BIN)/ruff check revdem_cli tests
 	$(BIN)/ruff format --check revdem_cli tests
 
+PAPER_CASES := collision collision_shear drop_A drop_B drop_C
+
+paper: $(STAMP)
+	mkdir -p scenarios/report
+	for case in $(PAPER_CASES); do $(BIN)/revdem run configs/$$case.toml --out $(OUT)/paper -q || exit 1; done
+	$(BIN)/revdem report $(OUT)/paper --out scenarios/report/hanley2020.md
+	$(BIN)/revdem run configs/ellipsoid_dt.toml --out scenarios/report -q
+
 clean:
 	rm -rf $(OUT) .pytest_cache

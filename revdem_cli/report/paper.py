@@ -10,6 +10,7 @@ case reports is measured by the entry of MEASURES of the same name; `relative_to
 from __future__ import annotations
 
 import json
+import shutil
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -140,6 +141,18 @@ def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
             lines += [f"`{case['config']}`" + (f": {case['claim']}" if "claim" in case else ""), ""]
         lines += ["| quantity | paper | revdem | agrees |", "|---|---|---|---|"]
         lines += [f"| {' | '.join(row)} |" for row in case_rows(name, case, Path(directory))]
+        lines += [f"\n![{figure.stem}]({figure.name})" for figure in _figures(name, directory, out)]
     out = Path(out)
     out.write_text("\n".join(lines) + "\n")
     return out
+
+
+def _figures(name: str, directory: Path, out: Path) -> list[Path]:
+    """The run's figures (NAME.*.png), copied beside the page when they live elsewhere."""
+    figures = []
+    for figure in sorted(Path(directory).glob(f"{name}.*.png")):
+        target = Path(out).parent / figure.name
+        if target.resolve() != figure.resolve():
+            shutil.copyfile(figure, target)
+        figures.append(target)
+    return figures

@@ -47,3 +47,21 @@ def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypat
     assert "## collision_shear (§4, Figure 5)" in (tmp_path / "r.md").read_text()
     missing = runner.invoke(app, ["report", str(smoke_run), "--paper", str(tmp_path / "no")])
     assert missing.exit_code == 2 and "cannot read the paper's numbers" in missing.output
+
+
+def test_report_shows_each_runs_figures_beside_the_page(smoke_run, tmp_path):
+    import shutil
+
+    from revdem_cli.report.figures import speed_figure
+
+    runs = tmp_path / "runs"
+    shutil.copytree(smoke_run, runs)
+    speed_figure(runs / "collision_smoke.forward.h5", None, runs / "collision_smoke.speed.png")
+    paper = tmp_path / "paper.toml"
+    paper.write_text(PAPER)
+    (tmp_path / "pages").mkdir()
+    page = tmp_path / "pages" / "page.md"
+    result = runner.invoke(app, ["report", str(runs), "--paper", str(paper), "--out", str(page)])
+    assert result.exit_code == 0, result.output
+    assert "![collision_smoke.speed](collision_smoke.speed.png)" in page.read_text()
+    assert (tmp_path / "pages" / "collision_smoke.speed.png").read_bytes()[:4] == b"\x89PNG"
