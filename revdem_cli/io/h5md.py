@@ -3,6 +3,8 @@
 /h5md                               version [1, 1]; author; creator revdem
 /particles/all/{position,velocity,angular_velocity,force}   step [F], time [F], value [F, N, 3]
 /particles/all/{radius,mass,id}     time-independent [N]
+/particles/all/box                  boundary "none"; edges: step, time, value [F, 3], the
+                                    bounding box of the spheres at each frame
 /observables/<name>                 step, time, value [F] or [F, 3]
 /observables/events                 value [F, kinds, columns] at each frame: the log of
                                     information-destroying mechanisms (kernels/events.py)
@@ -48,6 +50,12 @@ def _append(dataset: h5py.Dataset, values) -> None:
     n = dataset.shape[0]
     dataset.resize(n + values.shape[0], axis=0)
     dataset[n:] = values
+
+
+def bounding_box(x: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Edge lengths of the smallest axis-aligned box holding every sphere, m: the box of a
+    frame whose boundaries are open."""
+    return (x + radius[:, None]).max(axis=0) - (x - radius[:, None]).min(axis=0)
 
 
 class _Appender:
@@ -112,8 +120,9 @@ class TrajectoryWriter:
         everything.create_dataset("mass", data=mass)
         everything.create_dataset("id", data=np.arange(n, dtype=np.int64))
         events = _series(f, "observables/events", events_shape, clock)
+        edges = _series(box, "edges", (3,), clock)
         self.frame_rows = [_Appender(clock["step"]), _Appender(clock["time"])]
-        self.frame_rows += [_Appender(g["value"]) for g in frame_groups + [events]]
+        self.frame_rows += [_Appender(g["value"]) for g in frame_groups + [events, edges]]
         clock = None
         widths = []
         for name, columns in observables:
@@ -147,6 +156,7 @@ class TrajectoryWriter:
             particles.omega[None],
             particles.f[None],
             events[None],
+            bounding_box(particles.x, particles.radius)[None],
         )
         for appender, value in zip(self.frame_rows, values, strict=True):
             appender.add(np.array(value))

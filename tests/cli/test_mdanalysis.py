@@ -5,7 +5,7 @@ import MDAnalysis
 import numpy as np
 
 
-def test_mdanalysis_reads_positions_velocities_time_and_the_open_box(smoke_run):
+def test_mdanalysis_reads_positions_velocities_time_and_the_box(smoke_run):
     path = smoke_run / "collision_smoke.forward.h5"
     universe = MDAnalysis.Universe.empty(2, trajectory=True)
     # SI units ("m") are not among MDAnalysis' length units, so the file is read as it is.
@@ -22,5 +22,7 @@ def test_mdanalysis_reads_positions_velocities_time_and_the_open_box(smoke_run):
         np.testing.assert_allclose(universe.atoms.positions, position[frame], rtol=1e-6, atol=1e-12)
         np.testing.assert_allclose(universe.atoms.velocities, velocity[frame], rtol=1e-6)
         assert ts.time == time[frame] and ts.data["step"] == steps[frame]
-        assert ts.dimensions is None  # boundary "none": an open box without edges
+        # boundary "none": the box is the bounding box of the spheres at that frame
+        extent = (position[frame] + 0.005).max(axis=0) - (position[frame] - 0.005).min(axis=0)
+        np.testing.assert_allclose(ts.dimensions, [*extent, 90, 90, 90], rtol=1e-6)
     assert not np.allclose(position[20], position[0])
