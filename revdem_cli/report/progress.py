@@ -9,10 +9,10 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 
 class RunProgress:
-    """Context manager; call it as progress(label, done, total) once per output frame (or
-    once per finished item, counted in `unit`)."""
+    """Context manager; call it as progress(label, done, total, particles) once per output
+    frame, or progress(label, done, total) once per finished item counted in `unit`."""
 
-    def __init__(self, n_particles: int | None = None, unit: str = "steps"):
+    def __init__(self, unit: str = "steps"):
         self.console = Console(stderr=True)
         self.bar = Progress(
             TextColumn("{task.description}"),
