@@ -210,6 +210,31 @@ class Neighbours(_Model):
     )
 
 
+class WallForce(_Model):
+    """A wall and a force magnitude."""
+
+    wall: str = Field(description="wall name")
+    force: float = Field(gt=0, description="magnitude of the force on the wall, N")
+
+
+class StopWhen(_Model):
+    """A condition that ends a stage at the first output frame where it holds; the stage's
+    `steps` is then the most it may run. Exactly one condition is given."""
+
+    kinetic_energy_below: float | None = Field(
+        default=None, gt=0, description="total kinetic energy below this, J"
+    )
+    wall_force_above: WallForce | None = Field(
+        default=None, description="the force on a wall above a magnitude"
+    )
+
+    @model_validator(mode="after")
+    def _one(self) -> StopWhen:
+        if (self.kinetic_energy_below is None) == (self.wall_force_above is None):
+            raise ValueError("give exactly one of kinetic_energy_below, wall_force_above")
+        return self
+
+
 class Stage(_Model):
     """A named stretch of the run with its own step count and output intervals."""
 
@@ -232,6 +257,9 @@ class Stage(_Model):
     )
     damping: Damping | None = Field(
         default=None, description="damping during this stage; default: [damping]"
+    )
+    stop_when: StopWhen | None = Field(
+        default=None, description="end the stage early, at the first frame where this holds"
     )
     wall_velocities: dict[str, Vector3] = Field(
         default_factory=dict,
@@ -308,6 +336,12 @@ class Scenario(_Model):
                     )
         wall_names = [w.name for w in self.walls]
         for i, stage in enumerate(self.stages):
+            stop = stage.stop_when
+            if stop and stop.wall_force_above and stop.wall_force_above.wall not in wall_names:
+                raise _FieldError(
+                    f"stages[{i}].stop_when.wall_force_above.wall",
+                    f"no wall is named '{stop.wall_force_above.wall}'",
+                )
             for name in stage.wall_velocities:
                 if name not in wall_names:
                     raise _FieldError(

@@ -85,10 +85,11 @@ class StageClock:
     first_step: int
     first_time: float
     dt: float
+    end_step: int | None = None  # where the stage ended, if a stop condition ended it early
 
     @property
     def last_step(self) -> int:
-        return self.first_step + self.stage.steps
+        return self.end_step if self.end_step is not None else self.first_step + self.stage.steps
 
     def time(self, step) -> np.ndarray | float:
         return self.first_time + (np.asarray(step) - self.first_step) * self.dt
@@ -99,14 +100,8 @@ class StageClock:
         return steps + [self.last_step]
 
 
-def stage_clocks(scenario: Scenario) -> list[StageClock]:
-    clocks, step, time = [], 0, 0.0
-    for stage in scenario.stages:
-        dt = stage.dt or scenario.integrator.dt
-        clocks.append(StageClock(stage, step, time, dt))
-        step += stage.steps
-        time += stage.steps * dt
-    return clocks
+def stage_dt(scenario: Scenario, stage: Stage) -> float:
+    return stage.dt or scenario.integrator.dt
 
 
 def run_stage(
@@ -154,6 +149,21 @@ def run_stage(
         writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
         if progress is not None:
             progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
+        if direction > 0 and _stop_reached(state, model, dyn, clock.stage.stop_when):
+            return
+
+
+def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
+    """Whether a stage's stop condition holds in the state as it is."""
+    if stop is None:
+        return False
+    row = np.zeros(1 + sum(columns for _, columns in model.observables()))
+    observe(state.particles, state.pairs, state.walls, dyn, row)
+    if stop.kinetic_energy_below is not None:
+        return row[1] < stop.kinetic_energy_below
+    names = [wall.name for wall in model.scenario.walls]
+    column = 1 + len(SCALARS) + 3 * names.index(stop.wall_force_above.wall)
+    return float(np.linalg.norm(row[column : column + 3])) > stop.wall_force_above.force
 
 
 def _system(state: State, model: Model, dyn: Dynamics) -> tuple:
@@ -240,10 +250,12 @@ def run_scenario(
     paths = _paths(out_dir, scenario.name)
     model = Model.of(scenario)
     state = initial_state(scenario)
-    clocks = stage_clocks(scenario)
+    time = 0.0
     with _writer(paths["forward"], state, model, text, "forward") as writer:
-        for clock in clocks:
+        for stage in scenario.stages:  # a stage starts where the previous one ended
+            clock = StageClock(stage, state.step, time, stage_dt(scenario, stage))
             run_stage(state, model, clock, +1, writer, progress)
+            time = float(clock.time(state.step))
     write_restart(
         paths["restart"],
         Restart(
@@ -251,8 +263,10 @@ def run_scenario(
             scenario.model_dump_json(),
             text,
             suffix,
-            clocks[-1].stage.name,
+            clock.stage.name,
             str(paths["forward"].resolve()),
+            clock.first_step,
+            clock.first_time,
         ),
     )
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
@@ -292,11 +306,17 @@ def reverse_run(
     out_dir = Path(out_dir) if out_dir is not None else Path(restart_path).parent
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = _paths(out_dir, scenario.name)
-    clock = next(c for c in stage_clocks(scenario) if c.stage.name == restart.stage)
-    if steps is not None and not 0 < steps <= clock.stage.steps:
-        raise InputError(
-            f"--steps {steps}: must be between 1 and the stage's {clock.stage.steps} steps"
-        )
+    stage = next(s for s in scenario.stages if s.name == restart.stage)
+    clock = StageClock(
+        stage,
+        restart.stage_first_step,
+        restart.stage_first_time,
+        stage_dt(scenario, stage),
+        end_step=restart.state.step,
+    )
+    length = clock.last_step - clock.first_step
+    if steps is not None and not 0 < steps <= length:
+        raise InputError(f"--steps {steps}: must be between 1 and the stage's {length} steps")
     stop = clock.first_step if steps is None else restart.state.step - steps
     model = Model.of(scenario)
     state = restart.state

@@ -29,6 +29,8 @@ class Restart:
     scenario_suffix: str
     stage: str  # name of the stage that ended here
     trajectory: str  # the forward trajectory this restart ends
+    stage_first_step: int  # where that stage began
+    stage_first_time: float  # s
 
 
 def write_restart(path: Path, restart: Restart) -> None:
@@ -45,6 +47,8 @@ def write_restart(path: Path, restart: Restart) -> None:
         meta.attrs["scenario_text"] = restart.scenario_text
         meta.attrs["scenario_suffix"] = restart.scenario_suffix
         meta.attrs["trajectory"] = restart.trajectory
+        meta.attrs["stage_first_step"] = restart.stage_first_step
+        meta.attrs["stage_first_time"] = restart.stage_first_time
         for name in Particles._fields:
             f.create_dataset(f"particles/{name}", data=getattr(s.particles, name))
         for name in Walls._fields:
@@ -87,4 +91,6 @@ def read_restart(path: str | Path) -> Restart:
             scenario_suffix=str(meta.attrs["scenario_suffix"]),
             stage=str(meta.attrs["stage"]),
             trajectory=str(meta.attrs["trajectory"]),
+            stage_first_step=int(meta.attrs["stage_first_step"]),
+            stage_first_time=float(meta.attrs["stage_first_time"]),
         )

@@ -101,3 +101,49 @@ def test_a_frictionless_sphere_bounces_elastically_off_the_inside_of_a_cylinder(
     assert np.hypot(x[:, 0], x[:, 1]).max() < 0.1  # and stayed inside
     assert np.ptp(total) < 1e-6 * total[0]
     assert outputs.verdict["reversible"] and outputs.verdict["max_position_error_rel"] < 1e-10
+
+
+def test_a_stage_ends_at_the_first_frame_where_its_stop_condition_holds(tmp_path):
+    data = settle_then_push().model_dump()
+    data["stages"][0].update(steps=40000, stop_when={"kinetic_energy_below": 1e-12})
+    outputs = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path)
+    with h5py.File(outputs.forward) as f:
+        steps = f["particles/all/position/step"][:]
+        time = f["particles/all/position/time"][:]
+        kinetic = f["observables/kinetic_energy/value"][:]
+        kinetic_steps = f["observables/kinetic_energy/step"][:]
+    push_start = int(steps[-1]) - 6000
+    assert push_start < 40000 and push_start % 500 == 0  # ended early, at a frame
+    assert kinetic[kinetic_steps == push_start][0] < 1e-12
+    assert kinetic[kinetic_steps == push_start - 500][0] >= 1e-12  # not a frame earlier
+    assert time[-1] == pytest.approx(push_start * 1e-5 + 6000 * 5e-6, rel=1e-12)
+    verdict = outputs.verdict
+    assert verdict["reversible"] and verdict["frames_compared"] == 13
+    assert min(verdict["frames"]["step"]) == push_start
+
+
+def test_a_wall_pushing_down_stops_when_its_force_exceeds_the_target(tmp_path):
+    data = settle_then_push().model_dump()
+    data["walls"].append(
+        {
+            "name": "lid",
+            "type": "plane",
+            "material": "plane",
+            "point": (0.0, 0.0, 0.0105),
+            "normal": (0.0, 0.0, -1.0),
+        }
+    )
+    data["stages"][1] = {
+        "name": "press",
+        "steps": 20000,
+        "dt": 5e-6,
+        "output_every": 100,
+        "wall_velocities": {"lid": (0.0, 0.0, -0.01)},
+        "stop_when": {"wall_force_above": {"wall": "lid", "force": 0.02}},
+    }
+    outputs = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path)
+    with h5py.File(outputs.forward) as f:
+        lid = np.linalg.norm(f["observables/wall_force/lid/value"][:], axis=1)
+        steps = f["observables/wall_force/lid/step"][:]
+    assert steps[-1] < 4000 + 20000  # stopped early
+    assert lid[-1] > 0.02 and (lid[steps <= steps[-1] - 100] <= 0.02).all()
