@@ -162,17 +162,28 @@ def validate(
         list[str] | None, typer.Option("--set", help="Override a scenario field.")
     ] = None,
 ) -> None:
-    """Check a scenario file without running it.
+    """Check a scenario, time-step study or sweep file without running it.
 
     Example: revdem validate configs/collision.toml
     """
     from revdem_cli.config import load_scenario
+    from revdem_cli.sweep import load_variants, read_sweep
+    from revdem_cli.timestep.study import read_study
 
+    study = read_study(scenario, overrides or [])
+    if study is not None:
+        typer.echo(f"{scenario}: valid time-step study: figures {study.figures}")
+        return
+    sweep = read_sweep(scenario, [])
+    if sweep.scenario != scenario:
+        variants = load_variants(sweep)
+        typer.echo(f"{scenario}: valid sweep: {len(variants)} variants of {sweep.scenario}")
+        return
     spec, _ = load_scenario(scenario, overrides or [])
     steps = sum(stage.steps for stage in spec.stages)
     typer.echo(
-        f"{scenario}: valid: {len(spec.particles)} particles, {len(spec.stages)} "
-        f"stage(s), {steps} steps"
+        f"{scenario}: valid: {len(spec.spheres)} particles, {len(spec.stages)} "
+        f"stage(s), at most {steps} steps"
     )
 
 

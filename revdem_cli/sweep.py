@@ -167,6 +167,20 @@ def _client(scheduler: str | None, workers: int):
         yield client
 
 
+def load_variants(sweep: Sweep) -> list[tuple]:
+    """(scenario, text) of every variant, each validated and its time step checked."""
+    from revdem_cli.config import load_scenario
+    from revdem_cli.engine import check_time_step
+
+    loaded = [
+        load_scenario(sweep.scenario, [f"{key}={value}" for key, value in variant.items()])
+        for variant in sweep.variants()
+    ]
+    for scenario, _ in loaded:
+        check_time_step(scenario)
+    return loaded
+
+
 def run_sweep(
     sweep: Sweep,
     out_dir: Path,
@@ -177,18 +191,9 @@ def run_sweep(
     """Run every variant; returns the table's rows and the table files written."""
     from distributed import as_completed
 
-    from revdem_cli.config import load_scenario
-    from revdem_cli.engine import check_time_step
-
     out_dir = Path(out_dir)
     variants = sweep.variants()
-    # every variant is validated here, so that bad input stops the sweep before it starts
-    loaded = [
-        load_scenario(sweep.scenario, [f"{key}={value}" for key, value in variant.items()])
-        for variant in variants
-    ]
-    for scenario, _ in loaded:
-        check_time_step(scenario)
+    loaded = load_variants(sweep)  # bad input stops the sweep before it starts
     varying = [key for key, values in sweep.grid.items() if len(values) > 1]
     folders = [
         folder_name(index, {key: variant[key] for key in varying})

@@ -150,3 +150,14 @@ def test_a_yaml_scenario_runs_and_reverses(tmp_path):
     assert result.exit_code == 0, result.output
     verdict = json.loads((tmp_path / "collision_smoke.compare.json").read_text())
     assert verdict["reversible"] and verdict["max_position_error_rel"] <= 1e-10
+
+
+@pytest.mark.parametrize(
+    "path",
+    sorted(p for p in CONFIGS.rglob("*") if p.suffix in (".toml", ".yaml")),
+    ids=lambda p: str(p.relative_to(CONFIGS)),
+)
+def test_every_shipped_file_validates(path):
+    result = invoke("validate", path)
+    assert result.exit_code == 0, result.output
+    assert result.output.startswith(f"{path}: valid")
