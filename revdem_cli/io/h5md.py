@@ -24,7 +24,7 @@ import numpy as np
 
 from revdem_cli import __version__
 from revdem_cli.errors import InputError
-from revdem_cli.io import SCHEMA_VERSION
+from revdem_cli.io import SCHEMA_VERSION, open_hdf5
 
 FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
 
@@ -204,10 +204,7 @@ class TrajectoryWriter:
 def open_trajectory(path: str | Path) -> h5py.File:
     """Open a revdem trajectory for reading, with a clear error for anything else."""
     path = Path(path)
-    try:
-        f = h5py.File(path, "r")
-    except (OSError, FileNotFoundError):
-        raise InputError(f"{path}: not a readable HDF5 file") from None
+    f = open_hdf5(path)
     if "particles/all/position" not in f or "parameters/revdem" not in f:
         f.close()
         raise InputError(f"{path}: not a revdem trajectory (no /particles/all/position)")

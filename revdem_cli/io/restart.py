@@ -12,7 +12,7 @@ from pathlib import Path
 import h5py
 
 from revdem_cli.errors import InputError
-from revdem_cli.io import SCHEMA_VERSION
+from revdem_cli.io import SCHEMA_VERSION, open_hdf5
 from revdem_cli.kernels.arrays import Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
 from revdem_cli.state import State, empty_pairs
@@ -62,10 +62,7 @@ def write_restart(path: Path, restart: Restart) -> None:
 
 def read_restart(path: str | Path) -> Restart:
     path = Path(path)
-    try:
-        f = h5py.File(path, "r")
-    except (OSError, FileNotFoundError):
-        raise InputError(f"{path}: not a readable HDF5 file") from None
+    f = open_hdf5(path)
     with f:
         meta = f.get("revdem")
         if meta is None or meta.attrs.get("kind") != "restart":

@@ -8,15 +8,13 @@ from pathlib import Path
 import h5py
 
 from revdem_cli.errors import InputError
+from revdem_cli.io import open_hdf5
 
 
 def describe(path: str | Path) -> dict:
     """A summary of a revdem trajectory or restart file; InputError for anything else."""
     path = Path(path)
-    try:
-        f = h5py.File(path, "r")
-    except (OSError, FileNotFoundError):
-        raise InputError(f"{path}: not a readable HDF5 file") from None
+    f = open_hdf5(path)
     try:
         with f:
             if "revdem" in f and f["revdem"].attrs.get("kind") == "restart":
