@@ -13,6 +13,17 @@ ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
 
 
+def assert_one_line_error(result, *fragments):
+    """A command that failed on bad input: exit 2, one line "error: ..." holding the
+    fragments, no traceback."""
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    assert lines[0].startswith("error: ") and "Traceback" not in result.output
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
 def two_spheres(**changes) -> Scenario:
     """A small two-sphere scenario (the paper's collision materials); fields can be replaced."""
     data = {

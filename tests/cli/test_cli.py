@@ -6,7 +6,7 @@ import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
-from tests.conftest import CONFIGS
+from tests.conftest import CONFIGS, assert_one_line_error
 
 runner = CliRunner()
 
@@ -25,15 +25,6 @@ def scenario(tmp_path):
         return path
 
     return write
-
-
-def assert_one_line_error(result, *fragments):
-    assert result.exit_code == 2, result.output
-    lines = result.output.strip().splitlines()
-    assert len(lines) == 1, result.output
-    assert "Traceback" not in result.output
-    for fragment in fragments:
-        assert fragment in lines[0]
 
 
 @pytest.mark.parametrize(

@@ -11,6 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
+from tests.conftest import assert_one_line_error
 
 runner = CliRunner()
 ELLIPSOID = ("--shape", "ellipsoid", "--semi-axes", 3, 2, 1, "--density", 1000, "--kn", 1e10)
@@ -25,15 +26,6 @@ def as_json(*args) -> dict:
     result = invoke(*args, "--json")
     assert result.exit_code == 0, result.output
     return json.loads(result.output)
-
-
-def assert_one_line_error(result, *fragments):
-    assert result.exit_code == 2, result.output
-    lines = result.output.strip().splitlines()
-    assert len(lines) == 1, result.output
-    assert lines[0].startswith("error: ")
-    for fragment in fragments:
-        assert fragment in lines[0]
 
 
 def test_ellipsoid_example_prints_mass_a_max_and_time_step(paper):

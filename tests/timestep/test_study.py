@@ -14,7 +14,7 @@ from revdem_cli.cli import app
 from revdem_cli.errors import InputError
 from revdem_cli.timestep import figures, shapes
 from revdem_cli.timestep.study import PAPER, read_study, study_from_text
-from tests.conftest import CONFIGS
+from tests.conftest import CONFIGS, assert_one_line_error
 
 runner = CliRunner()
 STUDY = CONFIGS / "ellipsoid_dt.toml"
@@ -190,15 +190,6 @@ def test_superquadric_with_unit_exponents_is_the_ellipsoid():
     assert body.volume == pytest.approx(8.0 * math.pi)
     assert body.half_lengths[0] / body.half_lengths[1] == pytest.approx(2.0)
     assert body.moments != shapes.ellipsoid(*body.half_lengths, 1000.0).moments
-
-
-def assert_one_line_error(result, *fragments):
-    assert result.exit_code == 2, result.output
-    lines = result.output.strip().splitlines()
-    assert len(lines) == 1, result.output
-    assert lines[0].startswith("error: ")
-    for fragment in fragments:
-        assert fragment in lines[0]
 
 
 @pytest.mark.parametrize(
