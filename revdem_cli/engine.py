@@ -24,7 +24,7 @@ from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import OK, advance
-from revdem_cli.kernels.observables import SCALARS, observe
+from revdem_cli.kernels.observables import SCALARS, WALL_FORCES, observe
 from revdem_cli.state import (
     State,
     contact_law,
@@ -75,6 +75,11 @@ class Model:
         return [(name, 1) for name in SCALARS] + [
             (f"wall_force/{wall.name}", 3) for wall in self.scenario.walls
         ]
+
+    @property
+    def observables_row(self) -> int:
+        """Length of an observables row: the step, then every observable's columns."""
+        return 1 + sum(columns for _, columns in self.observables())
 
 
 @dataclass(frozen=True)
@@ -131,8 +136,7 @@ def run_stage(
         state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
         compute_forces(*_system(state, model, dyn), STATIC, clock.dt)  # under the stage's settings
     every = clock.stage.observable_interval
-    width = 1 + sum(columns for _, columns in model.observables())
-    buffer = np.zeros((clock.stage.output_every // every + 2, width))
+    buffer = np.zeros((clock.stage.output_every // every + 2, model.observables_row))
     run = np.array([clock.dt, model.skin, clock.first_step, clock.last_step, every], dtype=float)
     events = empty_events()
     _record_now(state, dyn, clock, writer, buffer, events)
@@ -157,12 +161,12 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
     """Whether a stage's stop condition holds in the state as it is."""
     if stop is None:
         return False
-    row = np.zeros(1 + sum(columns for _, columns in model.observables()))
+    row = np.zeros(model.observables_row)
     observe(state.particles, state.pairs, state.walls, dyn, row)
     if stop.kinetic_energy_below is not None:
         return row[1] < stop.kinetic_energy_below
     names = [wall.name for wall in model.scenario.walls]
-    column = 1 + len(SCALARS) + 3 * names.index(stop.wall_force_above.wall)
+    column = WALL_FORCES + 3 * names.index(stop.wall_force_above.wall)
     return float(np.linalg.norm(row[column : column + 3])) > stop.wall_force_above.force
 
 

@@ -16,6 +16,9 @@ SCALARS = (
 """Scalar columns of an observables row after its leading step column; then 3 columns (the
 force on it, N) per wall."""
 
+WALL_FORCES = 1 + len(SCALARS)
+"""Column of an observables row where the first wall's force begins."""
+
 
 @jit
 def observe(p, pairs, walls, dyn, row):
@@ -41,7 +44,7 @@ def observe(p, pairs, walls, dyn, row):
             max_shear = max(max_shear, math.sqrt(max(f2 - pairs.normal[k] ** 2, 0.0)))
     nwalls = walls.force.shape[1]
     for b in range(nwalls):
-        row[8 + 3 * b : 11 + 3 * b] = 0.0
+        row[WALL_FORCES + 3 * b : WALL_FORCES + 3 * b + 3] = 0.0
     for q in range(p.x.shape[0]):
         for b in range(nwalls):
             if walls.energy[q, b] > 0.0:
@@ -51,7 +54,7 @@ def observe(p, pairs, walls, dyn, row):
                 max_normal = max(max_normal, abs(walls.normal[q, b]))
                 max_shear = max(max_shear, math.sqrt(max(f2 - walls.normal[q, b] ** 2, 0.0)))
                 for d in range(3):
-                    row[8 + 3 * b + d] -= f[d]
+                    row[WALL_FORCES + 3 * b + d] -= f[d]
     row[1] = kinetic
     row[2] = elastic
     row[3] = potential

@@ -128,8 +128,7 @@ def engine_is_stable(scenario, dt: float) -> bool:
     model = Model.of(scenario)
     state = initial_state(scenario)
     start = _kinetic_energy(state.particles)
-    width = 1 + sum(columns for _, columns in model.observables())
-    obs = np.zeros((STEPS, width))
+    obs = np.zeros((STEPS, model.observables_row))
     run = np.array([dt, model.skin, 0, STEPS, 1], dtype=float)
     status, _, rows = advance(
         state.particles,
