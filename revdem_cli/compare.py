@@ -19,8 +19,8 @@ def _max_norm(a: np.ndarray, b: np.ndarray) -> float:
 
 def tolerances_of(trajectory) -> Reversal:
     """The reversal tolerances of the scenario a trajectory was run from."""
-    text = trajectory["parameters/revdem"].attrs.get("scenario_json")
-    return Scenario.model_validate_json(text).reversal if text else Reversal()
+    scenario = _scenario_of(trajectory)
+    return scenario.reversal if scenario else Reversal()
 
 
 def compare_trajectories(first: str | Path, second: str | Path, tolerance: Reversal | None = None):
@@ -52,18 +52,9 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
                 identical &= bool(np.array_equal(va, vb))
                 errors.append(_max_norm(va, vb))
             rows.append((int(common[k]), errors[0] / diameter, errors[0], errors[1], errors[2]))
-        causes = divergence_causes(a, first_divergence_of(rows, tolerance))
+        first_divergence = first_divergence_of(rows, tolerance)
+        causes = divergence_causes(a, first_divergence)
     table = np.array([r[1:] for r in rows])
-    limits = np.array(
-        [
-            tolerance.position_tolerance_rel,
-            np.inf,
-            tolerance.velocity_tolerance,
-            tolerance.angular_velocity_tolerance,
-        ]
-    )
-    exceeded = (table > limits).any(axis=1)
-    first_divergence = int(rows[int(np.argmax(exceeded))][0]) if exceeded.any() else None
     return {
         "frames_compared": len(rows),
         "max_position_error": float(table[:, 1].max()),
