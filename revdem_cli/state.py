@@ -128,6 +128,12 @@ _PAIR_SCALARS = ("normal", "energy", "slip", "lost")
 _PAIR_INDICES = ("i", "j", "new_i", "new_j")
 
 
+def pair_capacity(n_particles: int, at_least: int = 0) -> int:
+    """Room for the pairs of a new list: 8 per particle (a dense packing lists about 7 with
+    the default skin), and at least `at_least`."""
+    return max(8 * n_particles + 16, at_least)
+
+
 def empty_pairs(n_particles: int, capacity: int) -> Pairs:
     arrays = {name: np.zeros((capacity, 3)) for name in _PAIR_VECTORS}
     arrays |= {name: np.zeros(capacity) for name in _PAIR_SCALARS}
@@ -181,7 +187,7 @@ def initial_state(scenario: Scenario) -> State:
     """The state at step 0 with its pair list and the forces at the initial positions."""
     p = particles(scenario)
     state = State(
-        p, empty_pairs(len(p.x), 8 * len(p.x) + 16), wall_arrays(scenario, len(p.x)), step=0
+        p, empty_pairs(len(p.x), pair_capacity(len(p.x))), wall_arrays(scenario, len(p.x)), step=0
     )
     state.rebuild_pairs(default_skin(scenario))
     compute_forces(

@@ -15,7 +15,7 @@ from revdem_cli.errors import InputError
 from revdem_cli.io import SCHEMA_VERSION, open_hdf5
 from revdem_cli.kernels.arrays import Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
-from revdem_cli.state import State, empty_pairs
+from revdem_cli.state import State, empty_pairs, pair_capacity
 
 PAIR_FIELDS = ("i", "j", "history", "force", "torque_i", "torque_j", "normal", "energy")
 """The per-pair arrays that carry state from one step to the next."""
@@ -75,7 +75,7 @@ def read_restart(path: str | Path) -> Restart:
         particles = Particles(*(f[f"particles/{name}"][:] for name in Particles._fields))
         walls = Walls(*(f[f"walls/{name}"][:] for name in Walls._fields))
         n = f["pairs/i"].shape[0]
-        pairs: Pairs = empty_pairs(len(particles.x), max(8 * len(particles.x) + 16, n))
+        pairs: Pairs = empty_pairs(len(particles.x), pair_capacity(len(particles.x), n))
         for name in PAIR_FIELDS:
             getattr(pairs, name)[:n] = f[f"pairs/{name}"][:]
         pairs.x_built[:] = f["pairs/x_built"][:]
