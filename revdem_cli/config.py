@@ -217,6 +217,13 @@ class WallForce(_Model):
     force: float = Field(gt=0, description="magnitude of the force on the wall, N")
 
 
+class WallTravel(_Model):
+    """A wall and a distance."""
+
+    wall: str = Field(description="wall name")
+    distance: float = Field(gt=0, description="distance the wall has moved in this stage, m")
+
+
 class StopWhen(_Model):
     """A condition that ends a stage at the first output frame where it holds; the stage's
     `steps` is then the most it may run. Exactly one condition is given."""
@@ -227,12 +234,33 @@ class StopWhen(_Model):
     wall_force_above: WallForce | None = Field(
         default=None, description="the force on a wall above a magnitude"
     )
+    wall_travel_above: WallTravel | None = Field(
+        default=None, description="a wall has moved further than a distance since the stage began"
+    )
+    solid_fraction_above: float | None = Field(
+        default=None, gt=0, lt=1, description="the solid fraction of [solid_fraction] above this"
+    )
 
     @model_validator(mode="after")
     def _one(self) -> StopWhen:
-        if (self.kinetic_energy_below is None) == (self.wall_force_above is None):
-            raise ValueError("give exactly one of kinetic_energy_below, wall_force_above")
+        if sum(getattr(self, name) is not None for name in type(self).model_fields) != 1:
+            raise ValueError(f"give exactly one of {', '.join(type(self).model_fields)}")
         return self
+
+    @property
+    def wall(self) -> str | None:
+        """The wall the condition watches, if any."""
+        watched = self.wall_force_above or self.wall_travel_above
+        return watched.wall if watched else None
+
+
+class SolidFraction(_Model):
+    """Solid fraction of a container closed by a cylinder and two planes across its axis:
+    the spheres' volume over pi R^2 times the distance between the planes (caps cut off by
+    the walls are not subtracted: they are below 1 % at the overlaps of a packing at rest)."""
+
+    cylinder: str = Field(description="name of the cylinder wall")
+    planes: tuple[str, str] = Field(description="names of the two plane walls closing it")
 
 
 class Stage(_Model):
@@ -318,6 +346,9 @@ class Scenario(_Model):
     integrator: Integrator
     neighbours: Neighbours = Field(default_factory=Neighbours)
     stages: list[Stage] = Field(min_length=1, description="stages run in order")
+    solid_fraction: SolidFraction | None = Field(
+        default=None, description="record the solid fraction of a container as an observable"
+    )
     reversal: Reversal = Field(default_factory=Reversal)
     output: Output = Field(default_factory=Output)
 
@@ -335,12 +366,18 @@ class Scenario(_Model):
                         f"unknown material '{item.material}' (known: {', '.join(self.materials)})",
                     )
         wall_names = [w.name for w in self.walls]
+        self._check_solid_fraction()
         for i, stage in enumerate(self.stages):
             stop = stage.stop_when
-            if stop and stop.wall_force_above and stop.wall_force_above.wall not in wall_names:
+            if stop and stop.wall is not None and stop.wall not in wall_names:
+                condition = "wall_force_above" if stop.wall_force_above else "wall_travel_above"
                 raise _FieldError(
-                    f"stages[{i}].stop_when.wall_force_above.wall",
-                    f"no wall is named '{stop.wall_force_above.wall}'",
+                    f"stages[{i}].stop_when.{condition}.wall", f"no wall is named '{stop.wall}'"
+                )
+            if stop and stop.solid_fraction_above and self.solid_fraction is None:
+                raise _FieldError(
+                    f"stages[{i}].stop_when.solid_fraction_above",
+                    "needs a [solid_fraction] table saying which walls close the container",
                 )
             for name in stage.wall_velocities:
                 if name not in wall_names:
@@ -367,6 +404,31 @@ class Scenario(_Model):
         self._generate()
         self._check_overlaps()
         return self
+
+    def _check_solid_fraction(self) -> None:
+        """The container of [solid_fraction]: a cylinder and two planes across its axis."""
+        if self.solid_fraction is None:
+            return
+        walls = {w.name: w for w in self.walls}
+        wanted = [("cylinder", self.solid_fraction.cylinder, "cylinder")] + [
+            (f"planes[{k}]", name, "plane") for k, name in enumerate(self.solid_fraction.planes)
+        ]
+        for field, name, kind in wanted:
+            if name not in walls or walls[name].type != kind:
+                raise _FieldError(f"solid_fraction.{field}", f"no {kind} wall is named '{name}'")
+        axis = walls[self.solid_fraction.cylinder].normal
+        for k, name in enumerate(self.solid_fraction.planes):
+            normal = walls[name].normal
+            cross = math.hypot(
+                axis[1] * normal[2] - axis[2] * normal[1],
+                axis[2] * normal[0] - axis[0] * normal[2],
+                axis[0] * normal[1] - axis[1] * normal[0],
+            )
+            if cross > 1e-9 * math.hypot(*axis) * math.hypot(*normal):
+                raise _FieldError(
+                    f"solid_fraction.planes[{k}]",
+                    f"plane '{name}' is not perpendicular to the axis of the cylinder",
+                )
 
     def _generate(self) -> None:
         from revdem_cli.build.packing import PackingError

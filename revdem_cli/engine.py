@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import OK, advance
-from revdem_cli.kernels.observables import SCALARS, WALL_FORCES, observe
+from revdem_cli.kernels.observables import SCALARS, observe
 from revdem_cli.state import (
     State,
     contact_law,
@@ -71,15 +72,56 @@ class Model:
         ).reshape(-1, 3)
 
     def observables(self) -> list[tuple[str, int]]:
-        """Observable names and widths, in the column order of `kernels.observables.observe`."""
-        return [(name, 1) for name in SCALARS] + [
-            (f"wall_force/{wall.name}", 3) for wall in self.scenario.walls
-        ]
+        """Observable names and widths, in the column order of `kernels.observables.observe`,
+        then the ones derived from those (`complete`)."""
+        walls = [wall.name for wall in self.scenario.walls]
+        return (
+            [(name, 1) for name in SCALARS]
+            + [(f"wall_force/{name}", 3) for name in walls]
+            + [(f"wall_position/{name}", 3) for name in walls]
+            + ([("solid_fraction", 1)] if self.scenario.solid_fraction else [])
+        )
 
     @property
     def observables_row(self) -> int:
         """Length of an observables row: the step, then every observable's columns."""
         return 1 + sum(columns for _, columns in self.observables())
+
+    @cached_property
+    def solid_volume(self) -> float:
+        """Volume of all the spheres, m^3."""
+        return float(sum(4.0 / 3.0 * np.pi * sphere.radius**3 for sphere in self.scenario.spheres))
+
+    def wall_index(self, name: str) -> int:
+        return [wall.name for wall in self.scenario.walls].index(name)
+
+    def column(self, name: str) -> int:
+        """Column of an observables row where observable `name` begins."""
+        widths = self.observables()
+        k = [n for n, _ in widths].index(name)
+        return 1 + sum(columns for _, columns in widths[:k])
+
+    def observe(self, state: State, dyn: Dynamics) -> np.ndarray:
+        """An observables row of the state as it is."""
+        row = np.zeros((1, self.observables_row))
+        row[0, 0] = state.step
+        observe(state.particles, state.pairs, state.walls, dyn, row[0])
+        return self.complete(row)[0]
+
+    def complete(self, rows: np.ndarray) -> np.ndarray:
+        """Fill the derived columns of observables rows from the others: the solid fraction,
+        spheres' volume / (pi R^2 x distance between the planes along the cylinder axis)."""
+        container = self.scenario.solid_fraction
+        if container is None:
+            return rows
+        walls = {wall.name: wall for wall in self.scenario.walls}
+        cylinder = walls[container.cylinder]
+        axis = np.asarray(cylinder.normal) / np.linalg.norm(cylinder.normal)
+        a, b = (self.column(f"wall_position/{name}") for name in container.planes)
+        height = np.abs((rows[:, a : a + 3] - rows[:, b : b + 3]) @ axis)
+        area = np.pi * cylinder.radius**2
+        rows[:, self.column("solid_fraction")] = self.solid_volume / (area * height)
+        return rows
 
 
 @dataclass(frozen=True)
@@ -139,7 +181,7 @@ def run_stage(
     buffer = np.zeros((clock.stage.output_every // every + 2, model.observables_row))
     run = np.array([clock.dt, model.skin, clock.first_step, clock.last_step, every], dtype=float)
     events = empty_events()
-    _record_now(state, dyn, clock, writer, buffer, events)
+    _record_now(state, model, dyn, clock, writer, events)
     label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
     total = abs(frames[-1] - frames[0])
     for target in frames[1:]:
@@ -147,7 +189,7 @@ def run_stage(
             status, state.step, rows = advance(
                 *_system(state, model, dyn), events, run, state.step, target, buffer
             )
-            _write_observables(writer, clock, buffer[:rows])
+            _write_observables(writer, model, clock, buffer[:rows])
             if status != OK:
                 state.grow_pairs()
         writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
@@ -161,13 +203,20 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
     """Whether a stage's stop condition holds in the state as it is."""
     if stop is None:
         return False
-    row = np.zeros(model.observables_row)
-    observe(state.particles, state.pairs, state.walls, dyn, row)
+    row = model.observe(state, dyn)
+
+    def vector(name: str) -> np.ndarray:
+        return row[model.column(name) : model.column(name) + 3]
+
     if stop.kinetic_energy_below is not None:
-        return row[1] < stop.kinetic_energy_below
-    names = [wall.name for wall in model.scenario.walls]
-    column = WALL_FORCES + 3 * names.index(stop.wall_force_above.wall)
-    return float(np.linalg.norm(row[column : column + 3])) > stop.wall_force_above.force
+        return row[model.column("kinetic_energy")] < stop.kinetic_energy_below
+    if stop.solid_fraction_above is not None:
+        return row[model.column("solid_fraction")] > stop.solid_fraction_above
+    if stop.wall_force_above is not None:
+        force = vector(f"wall_force/{stop.wall}")
+        return float(np.linalg.norm(force)) > stop.wall_force_above.force
+    travel = vector(f"wall_position/{stop.wall}") - state.walls.origin[model.wall_index(stop.wall)]
+    return float(np.linalg.norm(travel)) > stop.wall_travel_above.distance
 
 
 def _system(state: State, model: Model, dyn: Dynamics) -> tuple:
@@ -175,17 +224,17 @@ def _system(state: State, model: Model, dyn: Dynamics) -> tuple:
     return state.particles, state.pairs, state.walls, model.law, model.moduli, dyn
 
 
-def _record_now(state, dyn, clock, writer, buffer, events) -> None:
+def _record_now(state, model, dyn, clock, writer, events) -> None:
     """Write the frame and observables of the state as it is (the start of a stage)."""
     writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
-    if writer.last_observable_step() == state.step:
-        return
-    buffer[0, 0] = state.step
-    observe(state.particles, state.pairs, state.walls, dyn, buffer[0])
-    _write_observables(writer, clock, buffer[:1])
+    if writer.last_observable_step() != state.step:
+        _write_observables(writer, model, clock, model.observe(state, dyn)[None, :])
 
 
-def _write_observables(writer: TrajectoryWriter, clock: StageClock, rows: np.ndarray) -> None:
+def _write_observables(
+    writer: TrajectoryWriter, model: Model, clock: StageClock, rows: np.ndarray
+) -> None:
+    model.complete(rows)
     steps = rows[:, 0].astype(np.int64)
     writer.observables(steps, clock.time(steps), rows[:, 1:])
 

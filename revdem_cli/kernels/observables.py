@@ -13,16 +13,18 @@ SCALARS = (
     "max_shear_force",  # largest shear force magnitude over all contacts, N
     "coordination_number",  # 2 x particle-particle contacts / particles
 )
-"""Scalar columns of an observables row after its leading step column; then 3 columns (the
-force on it, N) per wall."""
+"""Scalar columns of an observables row after its leading step column; then 3 columns per
+wall (the force on it, N), then 3 per wall (its reference point, m)."""
 
 WALL_FORCES = 1 + len(SCALARS)
-"""Column of an observables row where the first wall's force begins."""
+"""Column of an observables row where the first wall's force begins; the wall positions
+follow the forces of all walls."""
 
 
 @jit
 def observe(p, pairs, walls, dyn, row):
-    """Fill row[1:] with SCALARS, then each wall's force (row[0] holds the step)."""
+    """Fill row[1:] with SCALARS, each wall's force, then each wall's position (row[0] holds
+    the step)."""
     g = dyn.gravity
     kinetic = 0.0
     potential = 0.0
@@ -55,6 +57,9 @@ def observe(p, pairs, walls, dyn, row):
                 max_shear = max(max_shear, math.sqrt(max(f2 - walls.normal[q, b] ** 2, 0.0)))
                 for d in range(3):
                     row[WALL_FORCES + 3 * b + d] -= f[d]
+    for b in range(nwalls):
+        for d in range(3):
+            row[WALL_FORCES + 3 * (nwalls + b) + d] = walls.point[b, d]
     row[1] = kinetic
     row[2] = elastic
     row[3] = potential
