@@ -225,8 +225,9 @@ class WallTravel(_Model):
 
 
 class StopWhen(_Model):
-    """A condition that ends a stage at the first output frame where it holds; the stage's
-    `steps` is then the most it may run. Exactly one condition is given."""
+    """A condition that ends a stage at the first observables row (every `observables_every`
+    steps) where it holds, with a trajectory frame there; the stage's `steps` is then the
+    most it may run. Exactly one condition is given."""
 
     kinetic_energy_below: float | None = Field(
         default=None, gt=0, description="total kinetic energy below this, J"
@@ -287,7 +288,8 @@ class Stage(_Model):
         default=None, description="damping during this stage; default: [damping]"
     )
     stop_when: StopWhen | None = Field(
-        default=None, description="end the stage early, at the first frame where this holds"
+        default=None,
+        description="end the stage early, at the first observables row where this holds",
     )
     wall_velocities: dict[str, Vector3] = Field(
         default_factory=dict,
@@ -315,11 +317,12 @@ class Reversal(_Model):
 class Output(_Model):
     """What is written besides the trajectories."""
 
-    figures: list[Literal["speed", "forces", "velocity_z"]] = Field(
+    figures: list[Literal["speed", "forces", "velocity_z", "wall_forces"]] = Field(
         default_factory=list,
         description="figures written beside the trajectories, forward and reversed overlaid: "
         "'speed' = |v| of each particle, 'forces' = largest normal and shear contact force, "
-        "'velocity_z' = vertical velocity of each particle, all against time",
+        "'velocity_z' = vertical velocity of each particle, all against time; 'wall_forces' "
+        "= z force on each plane wall against the solid fraction (or against time)",
     )
 
 

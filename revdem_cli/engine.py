@@ -184,7 +184,12 @@ def run_stage(
     _record_now(state, model, dyn, clock, writer, events)
     label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
     total = abs(frames[-1] - frames[0])
-    for target in frames[1:]:
+    stop = clock.stage.stop_when if direction > 0 else None
+    pauses = frames  # a stop condition is checked at every observables row, and ends the
+    if stop is not None:  # stage there with a frame
+        pauses = sorted(set(frames) | set(range(frames[0], frames[-1], every)))
+    frame_steps = set(frames)
+    for target in pauses[1:]:
         while state.step != target:
             status, state.step, rows = advance(
                 *_system(state, model, dyn), events, run, state.step, target, buffer
@@ -192,10 +197,12 @@ def run_stage(
             _write_observables(writer, model, clock, buffer[:rows])
             if status != OK:
                 state.grow_pairs()
-        writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
-        if progress is not None:
-            progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
-        if direction > 0 and _stop_reached(state, model, dyn, clock.stage.stop_when):
+        stopped = _stop_reached(state, model, dyn, stop)
+        if target in frame_steps or stopped:
+            writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
+            if progress is not None:
+                progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
+        if stopped:
             return
 
 

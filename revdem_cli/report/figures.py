@@ -22,8 +22,15 @@ def _observable(path: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
         return read_observable(f, name)
 
 
-def _figure(forward: Path, reverse: Path | None, png: Path, series, ylabel: str) -> Path:
-    """Plot series(path) -> [(label, time, values)] for both runs: forward solid, reversed
+def _figure(
+    forward: Path,
+    reverse: Path | None,
+    png: Path,
+    series,
+    ylabel: str,
+    xlabel: str = "time (ms)",
+) -> Path:
+    """Plot series(path) -> [(label, x, values)] for both runs: forward solid, reversed
     dashed, same colour per series."""
     import matplotlib
 
@@ -39,15 +46,13 @@ def _figure(forward: Path, reverse: Path | None, png: Path, series, ylabel: str)
     ):
         if path is None:
             continue
-        for k, (label, time, values) in enumerate(series(path)):
-            ax.plot(
-                time * 1e3, values, color=colours[k % len(colours)], label=f"{label} {run}", **style
-            )
+        for k, (label, x, values) in enumerate(series(path)):
+            ax.plot(x, values, color=colours[k % len(colours)], label=f"{label} {run}", **style)
             if run == "forward":
                 span += [values.min(), values.max()]
     margin = 0.15 * (max(span) - min(span)) or 1.0
     ax.set_ylim(min(span) - margin, max(span) + margin)  # a runaway reversal goes off scale
-    ax.set_xlabel("time (ms)")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
@@ -63,7 +68,7 @@ def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     def series(path):
         time, v = _frames(path, "velocity")
         speed = np.linalg.norm(v, axis=2)
-        return [(f"particle {q}", time, speed[:, q]) for q in range(min(speed.shape[1], 8))]
+        return [(f"particle {q}", time * 1e3, speed[:, q]) for q in range(min(speed.shape[1], 8))]
 
     return _figure(forward, reverse, png, series, "|v| (m/s)")
 
@@ -73,7 +78,7 @@ def velocity_z_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
 
     def series(path):
         time, v = _frames(path, "velocity")
-        return [(f"particle {q}", time, v[:, q, 2]) for q in range(min(v.shape[1], 8))]
+        return [(f"particle {q}", time * 1e3, v[:, q, 2]) for q in range(min(v.shape[1], 8))]
 
     return _figure(forward, reverse, png, series, "v_z (m/s)")
 
@@ -83,12 +88,52 @@ def forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
 
     def series(path):
         return [
-            (label, *_observable(path, name))
+            (label, time * 1e3, values)
             for label, name in (("normal", "max_normal_force"), ("shear", "max_shear_force"))
+            for time, values in [_observable(path, name)]
         ]
 
     return _figure(forward, reverse, png, series, "force (N)")
 
 
-FIGURES = {"speed": speed_figure, "velocity_z": velocity_z_figure, "forces": forces_figure}
+def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """z component of the force on each plane wall against the solid fraction (Hanley 2020
+    Figure 3), or against time if none is recorded; the forward run over the steps that the
+    reversed run covers."""
+    import json
+
+    from revdem_cli.io.h5md import open_trajectory
+
+    with open_trajectory(forward) as f:
+        scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])
+    planes = [wall["name"] for wall in scenario["walls"] if wall["type"] == "plane"]
+    by_fraction = scenario.get("solid_fraction") is not None
+    window = None
+    if reverse is not None:
+        with open_trajectory(reverse) as f:
+            steps = f["observables/kinetic_energy/step"][:]
+            window = (steps.min(), steps.max())
+
+    def series(path):
+        with open_trajectory(path) as f:
+            steps = f["observables/kinetic_energy/step"][:]
+            keep = slice(None) if window is None else (steps >= window[0]) & (steps <= window[1])
+            if by_fraction:
+                x = f["observables/solid_fraction/value"][:][keep]
+            else:
+                x = f["observables/kinetic_energy/time"][:][keep] * 1e3
+            return [
+                (name, x, f[f"observables/wall_force/{name}/value"][:, 2][keep]) for name in planes
+            ]
+
+    xlabel = "solid fraction" if by_fraction else "time (ms)"
+    return _figure(forward, reverse, png, series, "force on the wall, z (N)", xlabel)
+
+
+FIGURES = {
+    "speed": speed_figure,
+    "velocity_z": velocity_z_figure,
+    "forces": forces_figure,
+    "wall_forces": wall_forces_figure,
+}
 """Figure kinds a scenario can ask for in [output] figures."""

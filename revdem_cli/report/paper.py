@@ -20,7 +20,7 @@ import numpy as np
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import open_trajectory, read_observable
 
-ABOUT = {"config", "section", "claim", "relative_tolerance"}
+ABOUT = {"config", "section", "claim", "relative_tolerance", "lower_wall", "upper_wall"}
 """Entries of a case that describe it rather than report a number."""
 
 
@@ -57,6 +57,37 @@ def _velocity_before_contact(run) -> float:
         return float(f["particles/all/velocity/value"][before[-1], 0, 2])
 
 
+def _observable_at(run, moment: str, name: str) -> np.ndarray:
+    """An observable of the reversed stage at `moment`: 'start' (forward run, where the
+    reversed run ends), 'end' (forward run, last row: the restart) or 'reversed' (reversed
+    run, last row)."""
+    with open_trajectory(run.reverse) as f:
+        first = int(f[f"observables/{name}/step"][:].min())
+    with open_trajectory(run.reverse if moment == "reversed" else run.forward) as f:
+        steps = f[f"observables/{name}/step"][:]
+        values = f[f"observables/{name}/value"][:]
+    return values[-1] if moment != "start" else values[np.nonzero(steps == first)[0][0]]
+
+
+def _stage_measures() -> dict[str, tuple[str, Callable]]:
+    """Solid fraction and z force on the case's lower and upper walls at the start and end
+    of the reversed stage and at the end of its reversal (Hanley 2020 §3.2.2)."""
+    measures = {}
+    for moment in ("start", "end", "reversed"):
+        measures[f"solid_fraction_{moment}"] = (
+            "close",
+            lambda run, m=moment: float(_observable_at(run, m, "solid_fraction")),
+        )
+        for wall in ("lower_wall", "upper_wall"):
+            measures[f"{wall}_force_{moment}"] = (
+                "close",
+                lambda run, m=moment, w=wall: float(
+                    _observable_at(run, m, f"wall_force/{run.case[w]}")[2]
+                ),
+            )
+    return measures
+
+
 MEASURES: dict[str, tuple[str, Callable]] = {
     "max_position_error_rel": ("at most", _verdict("max_position_error_rel")),
     "max_velocity_error": ("at most", _verdict("max_velocity_error")),
@@ -64,14 +95,17 @@ MEASURES: dict[str, tuple[str, Callable]] = {
     "max_shear_force": ("close", _max_shear_force),
     "shear_force_at_separation": ("close", _shear_force_at_separation),
     "terminal_velocity": ("close", _velocity_before_contact),
+    **_stage_measures(),
 }
 """quantity -> (how revdem's value is judged against the paper's, how it is measured)."""
 
 
 class _Run:
-    def __init__(self, directory: Path, name: str):
+    def __init__(self, directory: Path, name: str, case: dict):
         self.forward = directory / f"{name}.forward.h5"
+        self.reverse = directory / f"{name}.reverse.h5"
         self.comparison = directory / f"{name}.compare.json"
+        self.case = case
 
     def verdict(self) -> dict:
         if not self.comparison.exists():
@@ -97,7 +131,7 @@ def _show(value) -> str:
 
 def case_rows(name: str, case: dict, directory: Path) -> list[tuple[str, str, str, str]]:
     """(quantity, paper, revdem, agrees) for each number the case reports."""
-    run = _Run(directory, name)
+    run = _Run(directory, name, case)
     rows = []
     for key, paper in case.items():
         if key in ABOUT or key.endswith("_relative_tolerance"):
