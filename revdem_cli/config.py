@@ -8,15 +8,40 @@ must be greater than 0``.
 from __future__ import annotations
 
 import math
+import os
+import re
+import sys
 import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    model_validator,
+)
 
 from revdem_cli.errors import InputError
 
-Vector3 = Annotated[tuple[float, float, float], Field(description="three components (x, y, z)")]
+
+def _number(value):
+    """A number as the file wrote it: true/false and text are not numbers (pydantic would
+    read true as 1 and "0.005" as 0.005)."""
+    if isinstance(value, bool):
+        raise ValueError(f"Input should be a valid number, not {str(value).lower()}")
+    if isinstance(value, str):
+        raise ValueError(f"Input should be a valid number, not the text {value[:40]!r}")
+    return value
+
+
+Float = Annotated[float, BeforeValidator(_number)]
+FloatOrInf = Annotated[float, Field(allow_inf_nan=True), BeforeValidator(_number)]
+Int = Annotated[int, BeforeValidator(_number)]
+Vector3 = Annotated[tuple[Float, Float, Float], Field(description="three components (x, y, z)")]
 
 
 class _Model(BaseModel):
@@ -28,9 +53,9 @@ class _Model(BaseModel):
 class Material(_Model):
     """An elastic material; Young's modulus follows as E = 2G(1 + nu)."""
 
-    density: float = Field(gt=0, description="mass density, kg/m^3")
-    shear_modulus: float = Field(gt=0, description="shear modulus G, Pa")
-    poisson_ratio: float = Field(gt=-1, lt=0.5, description="Poisson's ratio nu, -")
+    density: Float = Field(gt=0, description="mass density, kg/m^3")
+    shear_modulus: Float = Field(gt=0, description="shear modulus G, Pa")
+    poisson_ratio: Float = Field(gt=-1, lt=0.5, description="Poisson's ratio nu, -")
 
 
 class ContactLaw(_Model):
@@ -40,7 +65,7 @@ class ContactLaw(_Model):
         description="normal law: 'hertz', F = 4/3 E* sqrt(R*) d^1.5 from the materials; "
         "'linear', F = kn d"
     )
-    kn: float | None = Field(
+    kn: Float | None = Field(
         default=None, gt=0, description="normal spring stiffness for the linear law, N/m"
     )
     tangential: Literal["none", "linear", "mindlin"] = Field(
@@ -48,19 +73,18 @@ class ContactLaw(_Model):
         description="shear force with history: 'linear' with ks, 'mindlin' with "
         "k_s = 8 G* sqrt(R* d); 'none' for frictionless spheres",
     )
-    ks: float | None = Field(
+    ks: Float | None = Field(
         default=None, gt=0, description="shear spring stiffness for tangential='linear', N/m"
     )
-    friction: float | None = Field(
+    friction: FloatOrInf | None = Field(
         default=None,
         ge=0,
-        allow_inf_nan=True,
         description="Coulomb friction coefficient mu, -; inf for no sliding",
     )
-    normal_damping: float = Field(
+    normal_damping: Float = Field(
         default=0.0, ge=0, description="viscous normal damping, fraction of critical, -"
     )
-    tangential_damping: float = Field(
+    tangential_damping: Float = Field(
         default=0.0, ge=0, description="viscous tangential damping, fraction of critical, -"
     )
 
@@ -86,8 +110,8 @@ class ContactLaw(_Model):
 class Damping(_Model):
     """Damping of particle motion (Hanley 2020 §3.1, §5.2)."""
 
-    local: float = Field(default=0.0, ge=0, lt=1, description="local damping gamma_l of Eq 21, -")
-    drag: float = Field(
+    local: Float = Field(default=0.0, ge=0, lt=1, description="local damping gamma_l of Eq 21, -")
+    drag: Float = Field(
         default=1.0,
         gt=0,
         le=1,
@@ -105,13 +129,19 @@ class Wall(_Model):
     normal: Vector3 = Field(
         description="plane: normal pointing into the domain; cylinder: axis direction (-)"
     )
-    radius: float | None = Field(default=None, gt=0, description="cylinder radius, m")
+    radius: Float | None = Field(default=None, gt=0, description="cylinder radius, m")
     velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="wall velocity, m/s")
 
     @model_validator(mode="after")
     def _shape(self) -> Wall:
         if math.hypot(*self.normal) == 0:
             raise ValueError("normal must not be zero")
+        squared = sum(c * c for c in self.normal)  # as the engine normalises it
+        if not sys.float_info.min <= squared < math.inf:
+            raise ValueError(
+                f"normal {list(self.normal)} is too {'short' if squared < 1 else 'long'} to "
+                "normalise in floating point; give a direction such as [0, 0, 1]"
+            )
         if (self.type == "cylinder") != (self.radius is not None):
             raise ValueError("a cylinder needs a radius, a plane has none")
         return self
@@ -121,7 +151,7 @@ class Particle(_Model):
     """One sphere given explicitly."""
 
     material: str = Field(description="name of a material in [materials]")
-    radius: float = Field(gt=0, description="radius, m")
+    radius: Float = Field(gt=0, description="radius, m")
     position: Vector3 = Field(description="centre position, m")
     velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="velocity, m/s")
     angular_velocity: Vector3 = Field(
@@ -134,8 +164,8 @@ class Region(_Model):
 
     shape: Literal["cylinder", "box"] = Field(description="'cylinder' or 'box'")
     origin: Vector3 = Field(description="cylinder: centre of its base; box: lower corner, m")
-    radius: float | None = Field(default=None, gt=0, description="cylinder radius, m")
-    height: float | None = Field(default=None, gt=0, description="cylinder height, m")
+    radius: Float | None = Field(default=None, gt=0, description="cylinder radius, m")
+    height: Float | None = Field(default=None, gt=0, description="cylinder height, m")
     size: Vector3 | None = Field(default=None, description="box edge lengths, m")
 
     @model_validator(mode="after")
@@ -156,12 +186,12 @@ class Packing(_Model):
     """Spheres with radii drawn uniformly from [radius_min, radius_max], placed at random
     without overlap inside a region (random sequential addition), from a seeded generator."""
 
-    count: int = Field(gt=0, le=5_000_000, description="number of spheres")
+    count: Int = Field(gt=0, le=5_000_000, description="number of spheres")
     material: str = Field(description="name of a material in [materials]")
-    radius_min: float = Field(gt=0, description="smallest radius, m")
-    radius_max: float = Field(gt=0, description="largest radius, m")
+    radius_min: Float = Field(gt=0, description="smallest radius, m")
+    radius_max: Float = Field(gt=0, description="largest radius, m")
     region: Region
-    seed: int = Field(default=0, ge=0, description="seed of the random generator")
+    seed: Int = Field(default=0, ge=0, description="seed of the random generator")
     velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="initial velocity, m/s")
 
     @model_validator(mode="after")
@@ -194,7 +224,7 @@ class Packing(_Model):
 class Integrator(_Model):
     """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
 
-    dt: float = Field(gt=0, description="time step, s")
+    dt: Float = Field(gt=0, description="time step, s")
     arithmetic: Literal["float"] = Field(
         default="float", description="number representation of the state: 'float' (float64)"
     )
@@ -203,7 +233,7 @@ class Integrator(_Model):
 class Neighbours(_Model):
     """Verlet pair list built from cell lists."""
 
-    skin: float | None = Field(
+    skin: Float | None = Field(
         default=None,
         gt=0,
         description="extra search distance beyond contact, m; default: 10 % of the largest radius",
@@ -214,14 +244,14 @@ class WallForce(_Model):
     """A wall and a force magnitude."""
 
     wall: str = Field(description="wall name")
-    force: float = Field(gt=0, description="magnitude of the force on the wall, N")
+    force: Float = Field(gt=0, description="magnitude of the force on the wall, N")
 
 
 class WallTravel(_Model):
     """A wall and a distance."""
 
     wall: str = Field(description="wall name")
-    distance: float = Field(gt=0, description="distance the wall has moved in this stage, m")
+    distance: Float = Field(gt=0, description="distance the wall has moved in this stage, m")
 
 
 class StopWhen(_Model):
@@ -229,7 +259,7 @@ class StopWhen(_Model):
     steps) where it holds, with a trajectory frame there; the stage's `steps` is then the
     most it may run. Exactly one condition is given."""
 
-    kinetic_energy_below: float | None = Field(
+    kinetic_energy_below: Float | None = Field(
         default=None, gt=0, description="total kinetic energy below this, J"
     )
     wall_force_above: WallForce | None = Field(
@@ -238,7 +268,7 @@ class StopWhen(_Model):
     wall_travel_above: WallTravel | None = Field(
         default=None, description="a wall has moved further than a distance since the stage began"
     )
-    solid_fraction_above: float | None = Field(
+    solid_fraction_above: Float | None = Field(
         default=None, gt=0, lt=1, description="the solid fraction of [solid_fraction] above this"
     )
 
@@ -268,20 +298,21 @@ class Stage(_Model):
     """A named stretch of the run with its own step count and output intervals."""
 
     name: str = Field(min_length=1, description="stage name, used in output and progress")
-    steps: int = Field(gt=0, description="number of time steps")
-    output_every: int = Field(
+    steps: Int = Field(gt=0, description="number of time steps")
+    output_every: Int = Field(
         default=100, gt=0, description="write a trajectory frame every this many steps"
     )
-    observables_every: int | None = Field(
+    observables_every: Int | None = Field(
         default=None,
         gt=0,
         description="record observables every this many steps; default: output_every",
     )
     reverse: bool = Field(
+        strict=True,
         default=False,
         description="save the end of this stage as the restart and run it backwards in time",
     )
-    dt: float | None = Field(
+    dt: Float | None = Field(
         default=None, gt=0, description="time step of this stage, s; default: integrator.dt"
     )
     damping: Damping | None = Field(
@@ -305,11 +336,11 @@ class Stage(_Model):
 class Reversal(_Model):
     """Tolerances that decide whether a reversed run reproduced the forward one."""
 
-    position_tolerance_rel: float = Field(
+    position_tolerance_rel: Float = Field(
         default=1e-10, gt=0, description="largest position error divided by the smallest diameter"
     )
-    velocity_tolerance: float = Field(default=1e-9, gt=0, description="largest velocity error, m/s")
-    angular_velocity_tolerance: float = Field(
+    velocity_tolerance: Float = Field(default=1e-9, gt=0, description="largest velocity error, m/s")
+    angular_velocity_tolerance: Float = Field(
         default=1e-6, gt=0, description="largest angular velocity error, rad/s"
     )
 
@@ -404,9 +435,59 @@ class Scenario(_Model):
             raise _FieldError(
                 f"stages[{reversed_stages[0]}].reverse", "the reversed stage must be the last stage"
             )
+        self._check_step_counts()
+        self._check_memory()
         self._generate()
         self._check_overlaps()
+        self._check_walls()
         return self
+
+    def _check_step_counts(self) -> None:
+        """Steps are counted exactly (the engine carries them as float64 too); the steps of a
+        stage's frames are listed, and the observables recorded between two frames buffered,
+        in memory."""
+        total = 0
+        for i, stage in enumerate(self.stages):
+            total += stage.steps
+            if total > MAX_STEPS:
+                raise _FieldError(
+                    f"stages[{i}].steps",
+                    f"the stages add up to {total} steps, more than {MAX_STEPS} (2^53), the "
+                    "most a step counter holds exactly",
+                )
+            frames = stage.steps // stage.output_every + 2
+            if frames * BYTES_PER_FRAME > memory_bytes() // 2:
+                raise _FieldError(
+                    f"stages[{i}].output_every",
+                    f"{stage.steps} steps with a frame every {stage.output_every} make {frames} "
+                    f"frames, whose list alone needs {_size(frames * BYTES_PER_FRAME)} of memory, "
+                    f"more than half of the {_size(memory_bytes())} here; write frames less often",
+                )
+            rows = stage.output_every // stage.observable_interval + 2
+            needed = rows * 8 * (OBSERVABLE_COLUMNS + 6 * len(self.walls))
+            if needed > memory_bytes() // 2:
+                field = "observables_every" if stage.observables_every else "output_every"
+                raise _FieldError(
+                    f"stages[{i}].{field}",
+                    f"{rows} rows of observables between two frames (output_every / "
+                    f"observables_every) need {_size(needed)} of memory, more than half of the "
+                    f"{_size(memory_bytes())} here; record observables less often or write "
+                    "frames more often",
+                )
+
+    def _check_memory(self) -> None:
+        """Refuse, before generating anything, more spheres than this machine's memory holds."""
+        per_sphere = BYTES_PER_SPHERE + BYTES_PER_SPHERE_AND_WALL * len(self.walls)
+        memory = memory_bytes()
+        count = len(self.particles)
+        for k, packing in enumerate(self.packings):
+            count += packing.count
+            if count * per_sphere > memory:
+                raise _FieldError(
+                    f"packings[{k}].count",
+                    f"{count} spheres would need about {_size(count * per_sphere)} of memory "
+                    f"({per_sphere} bytes each), more than the {_size(memory)} of this machine",
+                )
 
     def _check_solid_fraction(self) -> None:
         """The container of [solid_fraction]: a cylinder and two planes across its axis."""
@@ -462,12 +543,96 @@ class Scenario(_Model):
         for i, j in sorted(cKDTree(x).query_pairs(2.0 * r.max())):
             gap = float(np.linalg.norm(x[j] - x[i])) - r[i] - r[j]
             if gap < -1e-2 * min(r[i], r[j]):
-                where = f"particles[{j}].position" if j < len(self.particles) else "packings"
-                raise _FieldError(where, f"sphere {j} overlaps sphere {i} by {-gap:.3g} m")
+                where, sphere = self._where(j)
+                raise _FieldError(where, f"{sphere} overlaps {self._where(i)[1]} by {-gap:.3g} m")
+
+    def _check_walls(self) -> None:
+        """Every sphere starts inside the walls: its centre on the inner side of every plane
+        and inside every cylinder, reaching past a wall by at most 1 % of its radius."""
+        import numpy as np
+
+        if not self.walls:
+            return
+        x = np.array([p.position for p in self._spheres])
+        r = np.array([p.radius for p in self._spheres])
+        for wall in self.walls:
+            normal = np.array(wall.normal) / max(abs(c) for c in wall.normal)
+            axis = normal / np.linalg.norm(normal)
+            with np.errstate(all="ignore"):
+                along = (x - np.array(wall.point)) @ axis
+                if wall.type == "plane":
+                    past = r - along
+                else:
+                    rho = np.linalg.norm(x - np.array(wall.point) - along[:, None] * axis, axis=1)
+                    past = r - (wall.radius - rho)
+                outside = np.nonzero(~(past <= 1e-2 * r))[0]
+            if len(outside):
+                j = int(outside[0])
+                where, sphere = self._where(j)
+                side = (
+                    "on the inner side of every plane (where its normal points)"
+                    if wall.type == "plane"
+                    else "inside every cylinder"
+                )
+                raise _FieldError(
+                    where,
+                    f"{sphere} (radius {r[j]:.3g} m) reaches {past[j]:.3g} m past the {wall.type} "
+                    f"wall '{wall.name}', more than 1 % of its radius: spheres must start {side}",
+                )
+
+    def _where(self, index: int) -> tuple[str, str]:
+        """(field path, name) of sphere `index` of `spheres`: particles[i].position and
+        'sphere i', or packings[k] and 'sphere m of packings[k]'."""
+        if index < len(self.particles):
+            return f"particles[{index}].position", f"sphere {index}"
+        index -= len(self.particles)
+        for k, packing in enumerate(self.packings):
+            if index < packing.count:
+                return f"packings[{k}]", f"sphere {index} of packings[{k}]"
+            index -= packing.count
+        raise IndexError(index)
 
     @property
     def reversed_stage(self) -> Stage | None:
         return next((stage for stage in self.stages if stage.reverse), None)
+
+
+MAX_STEPS = 2**53
+"""Most steps of a run: the step counter is exact in float64 up to here."""
+
+BYTES_PER_FRAME = 128
+"""Memory the engine takes to list the step of a frame (a Python int in a list and a set)."""
+
+OBSERVABLE_COLUMNS = 9
+"""Columns of an observables row besides its 6 per wall: the step, 7 scalars and the solid
+fraction (kernels.observables)."""
+
+BYTES_PER_SPHERE = 4096
+"""Memory a sphere takes in a run, bytes: its Particle (about 0.7 kB), its arrays (0.2 kB),
+its share of the pair list (8 pairs, 1.9 kB, which may double as it grows) and working room;
+3.1 kB measured after the initial state of a 20 000-sphere packing."""
+
+BYTES_PER_SPHERE_AND_WALL = 160
+"""Memory of the contact history of a sphere with a wall, bytes (5 vectors and 4 scalars)."""
+
+
+def memory_bytes() -> int:
+    """Physical memory of this machine, or the memory limit of its control group if that is
+    lower, bytes."""
+    memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+    except OSError:
+        return memory
+    return min(memory, int(limit)) if limit.isdigit() else memory
+
+
+def _size(nbytes: float) -> str:
+    """A byte count for people: 3.2 GB, 512 MB, 64 kB."""
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{nbytes:.0f} bytes"
 
 
 class _FieldError(ValueError):
@@ -501,13 +666,29 @@ def describe_validation_error(error: ValidationError) -> str:
     return text + (f" (and {more} more problem{'s' * (more > 1)})" if more else "")
 
 
+_YAML_FLOAT = re.compile(r"^(?:[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+|[-+]?inf)$", re.I)
+"""A float with an exponent and no dot, 1e-7, and inf as TOML writes it: PyYAML (YAML 1.1)
+reads them as text."""
+
+
+def _yaml_loader():
+    """PyYAML's safe loader, reading 1e-7 as the number YAML 1.2 says it is."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", _YAML_FLOAT, list("-+0123456789iI"))
+    return Loader
+
+
 def parse_text(text: str, suffix: str, origin: str) -> dict:
     """Parse scenario text as TOML or YAML, chosen by the file suffix."""
     if suffix in (".yaml", ".yml"):
         import yaml
 
         try:
-            data = yaml.safe_load(text)
+            data = yaml.load(text, Loader=_yaml_loader())
         except yaml.YAMLError as exc:
             mark = getattr(exc, "problem_mark", None)
             where = f" at line {mark.line + 1}" if mark else ""
