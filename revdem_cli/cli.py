@@ -126,8 +126,13 @@ def reverse(
     Example: revdem reverse out/collision.restart.h5
     """
     from revdem_cli.engine import reverse_run
+    from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.io.restart import restart_scenario
     from revdem_cli.report.summary import print_summary
 
+    _, forward = restart_scenario(restart)
+    if forward.is_file():  # compared with, and drawn beside, the reversed run
+        open_trajectory(forward).close()  # checked before the reversal, not after it
     with _progress(quiet) or _nothing() as progress:
         outputs = reverse_run(restart, out, steps, progress)
     print_summary(outputs)

@@ -8,7 +8,8 @@
 /observables/<name>                 step, time, value [F] or [F, 3]
 /observables/events                 value [F, kinds, columns] at each frame: the log of
                                     information-destroying mechanisms (kernels/events.py)
-/parameters/revdem                  attrs: direction, dt, arithmetic, scenario, source restart
+/parameters/revdem                  attrs: schema_version (revdem_cli.io.SCHEMA_VERSION, checked on
+                                    reading), direction, dt, arithmetic, scenario, source restart
 Rows are written in blocks at least every two seconds, so an interrupted run keeps what it
 wrote up to then.
 """
@@ -24,9 +25,7 @@ import numpy as np
 
 from revdem_cli import __version__
 from revdem_cli.errors import InputError
-from revdem_cli.io import SCHEMA_VERSION, open_hdf5
-
-FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
+from revdem_cli.io import DAMAGE, FRAME_FIELDS, SCHEMA_VERSION, one_line, open_hdf5
 
 
 def _series(group: h5py.Group, name: str, shape: tuple, clock: h5py.Group | None) -> h5py.Group:
@@ -202,24 +201,47 @@ class TrajectoryWriter:
 
 
 def open_trajectory(path: str | Path) -> h5py.File:
-    """Open a revdem trajectory for reading, with a clear error for anything else."""
+    """Open a revdem trajectory for reading, checked by `open_hdf5` (schema version, layout,
+    stored scenario), with a clear error for anything else."""
     path = Path(path)
     f = open_hdf5(path)
-    if "particles/all/position" not in f or "parameters/revdem" not in f:
+    if "parameters/revdem" not in f:
+        what = _what_else(f)
         f.close()
-        raise InputError(f"{path}: not a revdem trajectory (no /particles/all/position)")
+        raise InputError(f"{path}: not a revdem trajectory ({what})")
     return f
 
 
+def _what_else(f: h5py.File) -> str:
+    """What an HDF5 file that is not a revdem trajectory is, in a few words."""
+    meta = f.get("revdem")
+    if meta is not None and meta.attrs.get("kind") == "restart":
+        return "a revdem restart file"
+    creator = f.get("h5md/creator")
+    if creator is not None and "particles/all/position" in f:
+        return f"an H5MD file written by {creator.attrs.get('name', 'another program')}"
+    return "no /parameters/revdem"
+
+
+def _read(f: h5py.File, name: str, index=slice(None)) -> np.ndarray:
+    """Rows of a dataset; InputError naming the file if they cannot be read."""
+    try:
+        return f[name][index]
+    except DAMAGE as exc:
+        raise InputError(
+            f"{f.filename}: damaged revdem trajectory: cannot read {name} ({one_line(exc)})"
+        ) from None
+
+
 def frame_steps(f: h5py.File) -> np.ndarray:
-    return f["particles/all/position/step"][:]
+    return _read(f, "particles/all/position/step")
 
 
 def read_frame(f: h5py.File, field: str, index: int) -> np.ndarray:
-    return f[f"particles/all/{field}/value"][index]
+    return _read(f, f"particles/all/{field}/value", index)
 
 
 def read_observable(f: h5py.File, name: str) -> tuple[np.ndarray, np.ndarray]:
     """(time, value) of an observable."""
-    g = f[f"observables/{name}"]
-    return g["time"][:], g["value"][:]
+    rows = slice(len(_read(f, f"observables/{name}/step")))
+    return _read(f, f"observables/{name}/time", rows), _read(f, f"observables/{name}/value", rows)

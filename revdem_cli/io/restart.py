@@ -12,7 +12,14 @@ from pathlib import Path
 import h5py
 
 from revdem_cli.errors import InputError
-from revdem_cli.io import SCHEMA_VERSION, open_hdf5
+from revdem_cli.io import (
+    DAMAGE,
+    SCHEMA_VERSION,
+    get_dataset,
+    one_line,
+    open_hdf5,
+    stored_scenario,
+)
 from revdem_cli.kernels.arrays import Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
 from revdem_cli.state import State, empty_pairs, pair_capacity
@@ -61,33 +68,55 @@ def write_restart(path: Path, restart: Restart) -> None:
 
 
 def read_restart(path: str | Path) -> Restart:
+    """A restart file, checked by `open_hdf5` (schema version, layout, stored scenario);
+    InputError naming the file for anything else."""
     path = Path(path)
     f = open_hdf5(path)
     with f:
         meta = f.get("revdem")
         if meta is None or meta.attrs.get("kind") != "restart":
-            raise InputError(f"{path}: not a revdem restart file")
-        version = int(meta.attrs.get("schema_version", -1))
-        if version != SCHEMA_VERSION:
-            raise InputError(
-                f"{path}: restart schema version {version}, this revdem reads {SCHEMA_VERSION}"
-            )
-        particles = Particles(*(f[f"particles/{name}"][:] for name in Particles._fields))
-        walls = Walls(*(f[f"walls/{name}"][:] for name in Walls._fields))
-        n = f["pairs/i"].shape[0]
-        pairs: Pairs = empty_pairs(len(particles.x), pair_capacity(len(particles.x), n))
-        for name in PAIR_FIELDS:
-            getattr(pairs, name)[:n] = f[f"pairs/{name}"][:]
-        pairs.x_built[:] = f["pairs/x_built"][:]
-        pairs.count[:] = n
-        index_by_particle(pairs.i, pairs.j, n, pairs.start, pairs.slots)
-        return Restart(
-            state=State(particles, pairs, walls, step=int(meta.attrs["step"])),
-            scenario_json=str(meta.attrs["scenario_json"]),
-            scenario_text=str(meta.attrs["scenario_text"]),
-            scenario_suffix=str(meta.attrs["scenario_suffix"]),
-            stage=str(meta.attrs["stage"]),
-            trajectory=str(meta.attrs["trajectory"]),
-            stage_first_step=int(meta.attrs["stage_first_step"]),
-            stage_first_time=float(meta.attrs["stage_first_time"]),
+            what = "a revdem trajectory" if "parameters/revdem" in f else "no /revdem group"
+            raise InputError(f"{path}: not a revdem restart file ({what})")
+        try:
+            return _read(f, meta, path)
+        except DAMAGE as exc:
+            raise InputError(f"{path}: damaged revdem restart file ({one_line(exc)})") from None
+
+
+def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
+    def read(name: str):
+        return get_dataset(f, path, name)[:]
+
+    particles = Particles(*(read(f"particles/{name}") for name in Particles._fields))
+    walls = Walls(*(read(f"walls/{name}") for name in Walls._fields))
+    n = f["pairs/i"].shape[0]
+    pairs: Pairs = empty_pairs(len(particles.x), pair_capacity(len(particles.x), n))
+    for name in PAIR_FIELDS:
+        getattr(pairs, name)[:n] = read(f"pairs/{name}")
+    pairs.x_built[:] = read("pairs/x_built")
+    pairs.count[:] = n
+    index_by_particle(pairs.i, pairs.j, n, pairs.start, pairs.slots)
+    return Restart(
+        state=State(particles, pairs, walls, step=int(meta.attrs["step"])),
+        scenario_json=str(meta.attrs["scenario_json"]),
+        scenario_text=str(meta.attrs["scenario_text"]),
+        scenario_suffix=str(meta.attrs["scenario_suffix"]),
+        stage=str(meta.attrs["stage"]),
+        trajectory=str(meta.attrs["trajectory"]),
+        stage_first_step=int(meta.attrs["stage_first_step"]),
+        stage_first_time=float(meta.attrs["stage_first_time"]),
+    )
+
+
+def restart_scenario(path: str | Path):
+    """The scenario a restart file stores and the forward trajectory it names, checked as
+    `read_restart` checks them, without reading its arrays."""
+    path = Path(path)
+    with open_hdf5(path) as f:
+        meta = f.get("revdem")
+        if meta is None or meta.attrs.get("kind") != "restart":
+            what = "a revdem trajectory" if "parameters/revdem" in f else "no /revdem group"
+            raise InputError(f"{path}: not a revdem restart file ({what})")
+        return stored_scenario(meta.attrs["scenario_json"], path), Path(
+            str(meta.attrs.get("trajectory", ""))
         )

@@ -46,11 +46,11 @@ def export_vtk(trajectory: str | Path, out_dir: str | Path) -> list[Path]:
     out_dir/STEM.pvd (STEM: the trajectory's name without .h5); returns the .pvd first."""
     trajectory, out_dir = Path(trajectory), Path(out_dir)
     stem = trajectory.stem
-    out_dir.mkdir(parents=True, exist_ok=True)
     root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
     collection = ET.SubElement(root, "Collection")
     written = []
-    with open_trajectory(trajectory) as f:
+    with open_trajectory(trajectory) as f:  # checked before anything is written
+        out_dir.mkdir(parents=True, exist_ok=True)
         particles = f["particles/all"]
         constant = {"radius": particles["radius"][:], "id": particles["id"][:]}
         times = particles["position/time"][:]
