@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/revdem run configs/collision.toml --out $(OUT)
+	$(BIN)/revdem run configs/collision.toml --out $(OUT) --force
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
@@ -27,9 +27,9 @@ PAPER_CASES := collision collision_shear drop_A drop_B drop_C
 
 paper: $(STAMP)
 	mkdir -p scenarios/report
-	for case in $(PAPER_CASES); do $(BIN)/revdem run configs/$$case.toml --out $(OUT)/paper -q || exit 1; done
+	for case in $(PAPER_CASES); do $(BIN)/revdem run configs/$$case.toml --out $(OUT)/paper -q --force || exit 1; done
 	$(BIN)/revdem report $(OUT)/paper --out scenarios/report/hanley2020.md
-	$(BIN)/revdem run configs/ellipsoid_dt.toml --out scenarios/report -q
+	$(BIN)/revdem run configs/ellipsoid_dt.toml --out scenarios/report -q --force
 
 clean:
 	rm -rf $(OUT) .pytest_cache

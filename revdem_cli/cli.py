@@ -83,10 +83,14 @@ def run(
         bool,
         typer.Option("--allow-unstable-dt", help="Run even if dt exceeds the critical estimate."),
     ] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="Overwrite the outputs of an earlier run in --out.")
+    ] = False,
 ) -> None:
     """Run a scenario forward; if a stage is marked reverse, run it backwards and compare.
 
     A file with kind = "critical_time_step" is a time-step study: its figures go to --out.
+    Outputs already in --out are kept: the run refuses to start unless --force.
 
     Example: revdem run configs/collision.toml --out out
     """
@@ -94,15 +98,22 @@ def run(
 
     study = read_study(scenario, overrides or [])
     if study is not None:
+        stems = [f"{study.name}.figure{number}" for number in study.figures]
+        _keep_outputs([out / f"{stem}.{ext}" for stem in stems for ext in ("csv", "png")], force)
         for path in run_study(study, out):
             typer.echo(f"wrote {path}")
         return
 
     from revdem_cli.config import load_scenario
-    from revdem_cli.engine import run_scenario
+    from revdem_cli.engine import _paths, run_scenario
     from revdem_cli.report.summary import print_summary
 
     spec, text = load_scenario(scenario, overrides or [])
+    paths = _paths(out, spec.name)
+    written = [paths["forward"], paths["restart"]]
+    if not no_reverse and spec.reversed_stage is not None:
+        written += [paths["reverse"], paths["compare"]]
+    _keep_outputs(written + _figure_paths(out, spec), force)
     with _progress(quiet) or _nothing() as progress:
         outputs = run_scenario(
             spec, text, scenario.suffix.lower(), out, not no_reverse, progress, allow_unstable_dt
@@ -120,19 +131,30 @@ def reverse(
         int | None, typer.Option("--steps", help="Reverse only this many steps.")
     ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="Overwrite the outputs of an earlier reversal.")
+    ] = False,
 ) -> None:
     """Run the stage that ended at RESTART backwards and compare with its forward trajectory.
 
+    Outputs already in the output directory are kept: the reversal refuses to start unless
+    --force.
+
     Example: revdem reverse out/collision.restart.h5
     """
-    from revdem_cli.engine import reverse_run
+    from revdem_cli.engine import _paths, reverse_run
     from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.io.restart import restart_scenario
     from revdem_cli.report.summary import print_summary
 
-    _, forward = restart_scenario(restart)
+    spec, forward = restart_scenario(restart)
+    folder = out if out is not None else restart.parent
+    paths = _paths(folder, spec.name)
+    written = [paths["reverse"]]
     if forward.is_file():  # compared with, and drawn beside, the reversed run
         open_trajectory(forward).close()  # checked before the reversal, not after it
+        written += [paths["compare"], *_figure_paths(folder, spec)]
+    _keep_outputs(written, force)
     with _progress(quiet) or _nothing() as progress:
         outputs = reverse_run(restart, out, steps, progress)
     print_summary(outputs)
@@ -314,6 +336,20 @@ def report(
 
 
 app.command("dt")(_dt)
+
+
+def _figure_paths(out: Path, spec) -> list[Path]:
+    """The figures a run of `spec` writes into `out`."""
+    return [out / f"{spec.name}.{kind}.png" for kind in spec.output.figures]
+
+
+def _keep_outputs(paths: list[Path], force: bool) -> None:
+    """Refuse to overwrite outputs of an earlier run unless forced, naming the first one."""
+    existing = [path for path in paths if path.exists()]
+    if existing and not force:
+        more = len(existing) - 1
+        others = f" (and {more} more output{'s' * (more > 1)} of this run)" if more else ""
+        raise InputError(f"{existing[0]}: exists{others}; use --force to overwrite")
 
 
 class _nothing:

@@ -1,0 +1,128 @@
+"""No overwrites by accident: `revdem run` and `revdem reverse` keep the outputs of an earlier
+run (trajectories, restart, comparison, figures) unless --force, and say so in one line before
+doing any work."""
+
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+from tests.conftest import CONFIGS, assert_one_line_error
+
+runner = CliRunner()
+SMOKE = CONFIGS / "smoke" / "collision.yaml"
+SHORT = ["--set", "stages.0.steps=200", "-q"]
+NAME = "collision_smoke"
+OUTPUTS = ("forward.h5", "restart.h5", "reverse.h5", "compare.json")
+
+
+def invoke(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def snapshot(folder: Path) -> dict[str, tuple[int, bytes]]:
+    """Every file in `folder`: its modification time (ns) and contents."""
+    return {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in sorted(folder.iterdir())}
+
+
+@pytest.fixture(scope="module")
+def earlier(tmp_path_factory) -> Path:
+    """The outputs of an earlier run of the YAML collision, 200 steps each way."""
+    out = tmp_path_factory.mktemp("earlier")
+    result = invoke("run", SMOKE, "--out", out, *SHORT)
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in out.iterdir()) == sorted(f"{NAME}.{o}" for o in OUTPUTS)
+    return out
+
+
+@pytest.fixture
+def out(earlier, tmp_path) -> Path:
+    """A copy of the earlier run's folder."""
+    return Path(shutil.copytree(earlier, tmp_path / "out"))
+
+
+def test_a_second_run_into_the_same_folder_is_refused_and_keeps_the_files(out):
+    before = snapshot(out)
+    result = invoke("run", SMOKE, "--out", out, *SHORT)
+    assert_one_line_error(
+        result,
+        f"error: {out / NAME}.forward.h5: exists (and 3 more outputs of this run); "
+        "use --force to overwrite",
+    )
+    assert snapshot(out) == before
+
+
+def test_force_overwrites(out):
+    before = snapshot(out)
+    result = invoke(
+        "run", SMOKE, "--out", out, *SHORT, "--set", "stages.0.output_every=100", "--force"
+    )
+    assert result.exit_code == 0, result.output
+    after = snapshot(out)
+    assert after.keys() == before.keys()
+    assert all(after[name][0] > before[name][0] for name in before)
+    assert after[f"{NAME}.forward.h5"][1] != before[f"{NAME}.forward.h5"][1]
+
+
+@pytest.mark.parametrize("kept", OUTPUTS)
+def test_any_one_output_left_is_kept(out, kept):
+    for name in OUTPUTS:
+        if name != kept:
+            (out / f"{NAME}.{name}").unlink()
+    result = invoke("run", SMOKE, "--out", out, *SHORT)
+    assert_one_line_error(result, f"error: {out / NAME}.{kept}: exists; use --force")
+
+
+def test_only_what_the_run_writes_counts(out):
+    """Forward only, the run writes no reversed trajectory and no comparison: those may stay."""
+    (out / f"{NAME}.forward.h5").unlink()
+    (out / f"{NAME}.restart.h5").unlink()
+    result = invoke("run", SMOKE, "--out", out, *SHORT, "--no-reverse")
+    assert result.exit_code == 0, result.output
+    refused = invoke("run", SMOKE, "--out", out, *SHORT, "--no-reverse")
+    assert_one_line_error(refused, f"{out / NAME}.forward.h5: exists (and 1 more output")
+
+
+def test_a_figure_is_kept(tmp_path):
+    scenario = tmp_path / "speed.yaml"
+    scenario.write_text(SMOKE.read_text() + "output: {figures: [speed]}\n")
+    figure = tmp_path / "out" / f"{NAME}.speed.png"
+    figure.parent.mkdir()
+    figure.write_bytes(b"a figure kept from before")
+    result = invoke("run", scenario, "--out", tmp_path / "out", *SHORT)
+    assert_one_line_error(result, f"error: {figure}: exists; use --force to overwrite")
+    assert figure.read_bytes() == b"a figure kept from before"
+    assert [p.name for p in figure.parent.iterdir()] == [figure.name]
+
+
+def test_a_time_step_study_keeps_its_figures(tmp_path):
+    study = tmp_path / "study.toml"
+    study.write_text('kind = "critical_time_step"\nname = "tiny"\nfigures = [3]\n')
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "tiny.figure3.csv").write_text("kept\n")
+    result = invoke("run", study, "--out", tmp_path / "out")
+    assert_one_line_error(result, f"error: {tmp_path / 'out' / 'tiny.figure3.csv'}: exists")
+
+
+def test_a_second_reversal_is_refused_unless_forced(out):
+    restart = out / f"{NAME}.restart.h5"
+    before = snapshot(out)
+    result = invoke("reverse", restart, "-q", "--steps", "100")
+    assert_one_line_error(
+        result,
+        f"error: {out / NAME}.reverse.h5: exists (and 1 more output of this run); use --force",
+    )
+    assert snapshot(out) == before
+    forced = invoke("reverse", restart, "-q", "--steps", "100", "--force")
+    assert forced.exit_code == 0, forced.output
+    after = snapshot(out)
+    assert after[f"{NAME}.reverse.h5"] != before[f"{NAME}.reverse.h5"]
+    assert after[f"{NAME}.forward.h5"] == before[f"{NAME}.forward.h5"]
+
+
+def test_a_reversal_into_another_folder_needs_no_force(out, tmp_path):
+    result = invoke("reverse", out / f"{NAME}.restart.h5", "--out", tmp_path / "again", "-q")
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "again" / f"{NAME}.compare.json").exists()
