@@ -215,7 +215,7 @@ def stored_scenario(text, path):
         raise InputError(f"{path}: stored scenario: {describe_validation_error(exc)}") from None
 
 
-@lru_cache(maxsize=4)
+@lru_cache(maxsize=2)
 def _validated(text: str):
     """Scenarios validated from their JSON; a run reads the same one several times (restart,
     trajectories, figures), and validating a packing generates it."""

@@ -564,3 +564,32 @@ def test_yaml_numbers_are_read_as_yaml_1_2_reads_them():
     )
     scenario = config.scenario_from_text(text, ".yaml", "smoke.yaml")
     assert scenario.integrator.dt == 1e-7 and scenario.contact.friction == math.inf
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "message"),
+    [
+        (
+            ("particles", 0, "radius"),
+            True,
+            "particles[0].radius: Input should be a valid number, not true",
+        ),
+        (
+            ("particles", 0, "radius"),
+            "0.005",
+            "particles[0].radius: Input should be a valid number, not the text '0.005'",
+        ),
+        (
+            ("stages", 0, "steps"),
+            "200",
+            "stages[0].steps: Input should be a valid number, not the text",
+        ),
+        (("stages", 0, "reverse"), 1, "stages[0].reverse: Input should be a valid boolean"),
+        (("stages", 0, "reverse"), "yes", "stages[0].reverse: Input should be a valid boolean"),
+    ],
+)
+def test_what_pydantic_would_read_leniently_is_refused(path, value, message):
+    """pydantic alone reads true as 1, "0.005" as 0.005 and 1 or "yes" as true."""
+    scenario = copy.deepcopy(COLLISION)
+    _set(scenario, path, value)
+    refused({}, "written by hand", scenario, ".toml", message)  # not counted as generated
