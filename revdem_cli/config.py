@@ -294,6 +294,70 @@ class SolidFraction(_Model):
     planes: tuple[str, str] = Field(description="names of the two plane walls closing it")
 
 
+class Cell(_Model):
+    """A periodic box [0, Lx) x [0, Ly) x [0, Lz), repeated in x, y and z: a sphere leaving
+    through a face comes back through the opposite one, and contacts reach across faces to
+    the nearest image. Stages may move its edges (`stages[].cell`), carrying the spheres
+    with them affinely."""
+
+    size: Vector3 = Field(description="edge lengths Lx, Ly, Lz of the box, m")
+    servo: Literal["inertial", "proportional"] = Field(
+        default="inertial",
+        description="how an edge holds a stress: 'inertial', the edge is a mass driven by "
+        "(stress - target) x face area, stepped with the spheres (exactly reversible); "
+        "'proportional', dL/dt = gain (stress - target) / target L (Hanley 2020 §3.2.3)",
+    )
+    servo_mass: Float | None = Field(
+        default=None, gt=0, description="inertial servo: mass of each moving edge, kg"
+    )
+    servo_gain: Float | None = Field(
+        default=None,
+        gt=0,
+        description="proportional servo: strain rate per relative stress error, 1/s",
+    )
+
+    @model_validator(mode="after")
+    def _positive(self) -> Cell:
+        if min(self.size) <= 0:
+            raise ValueError("size: the three edge lengths must be positive")
+        return self
+
+
+class AxisMotion(_Model):
+    """How one edge of the periodic cell moves during a stage: at a prescribed strain rate,
+    or holding a normal stress with the servo of [cell]. Exactly one is given."""
+
+    strain_rate: Float | None = Field(
+        default=None,
+        description="dL/dt divided by L at the start of the stage, 1/s (< 0 compresses)",
+    )
+    stress: Float | None = Field(
+        default=None, gt=0, description="normal stress to hold, Pa (compression positive)"
+    )
+
+    @model_validator(mode="after")
+    def _one(self) -> AxisMotion:
+        if (self.strain_rate is None) == (self.stress is None):
+            raise ValueError("give exactly one of strain_rate, stress")
+        return self
+
+
+class CellMotion(_Model):
+    """Motion of the periodic cell's edges during a stage; an edge not given stays fixed."""
+
+    x: AxisMotion | None = None
+    y: AxisMotion | None = None
+    z: AxisMotion | None = None
+
+    def axes(self) -> list[AxisMotion | None]:
+        return [self.x, self.y, self.z]
+
+    def moving(self) -> bool:
+        return any(
+            a is not None and (a.stress is not None or a.strain_rate != 0.0) for a in self.axes()
+        )
+
+
 class Stage(_Model):
     """A named stretch of the run with its own step count and output intervals."""
 
@@ -326,6 +390,9 @@ class Stage(_Model):
         default_factory=dict,
         description="velocity of named walls during this stage, m/s; the others move at the "
         "velocity given in [[walls]]",
+    )
+    cell: CellMotion | None = Field(
+        default=None, description="motion of the periodic cell's edges; default: all fixed"
     )
 
     @property
@@ -373,6 +440,7 @@ class Scenario(_Model):
         default_factory=list, description="spheres generated at random in regions"
     )
     walls: list[Wall] = Field(default_factory=list, description="walls")
+    cell: Cell | None = Field(default=None, description="periodic boundaries in x, y and z")
     gravity: Vector3 = Field(
         default=(0.0, 0.0, 0.0), description="gravitational acceleration, m/s^2"
     )
@@ -435,12 +503,58 @@ class Scenario(_Model):
             raise _FieldError(
                 f"stages[{reversed_stages[0]}].reverse", "the reversed stage must be the last stage"
             )
+        self._check_cell()
         self._check_step_counts()
         self._check_memory()
         self._generate()
+        self._check_inside_cell()
         self._check_overlaps()
         self._check_walls()
         return self
+
+    def _check_cell(self) -> None:
+        """Stages move the cell only if there is one, and hold a stress only with the
+        parameter of its servo; walls and a periodic cell do not go together."""
+        if self.cell is not None and self.walls:
+            raise _FieldError("walls", "walls cannot be combined with a periodic [cell]")
+        for i, stage in enumerate(self.stages):
+            if stage.cell is None:
+                continue
+            if self.cell is None:
+                raise _FieldError(f"stages[{i}].cell", "needs a periodic [cell] to move")
+            holds = any(a is not None and a.stress is not None for a in stage.cell.axes())
+            needed = "servo_mass" if self.cell.servo == "inertial" else "servo_gain"
+            if holds and getattr(self.cell, needed) is None:
+                raise _FieldError(
+                    f"cell.{needed}",
+                    f"stages[{i}] holds a stress with the {self.cell.servo} servo, which "
+                    f"needs {needed}",
+                )
+
+    def _check_inside_cell(self) -> None:
+        """Every sphere starts inside the periodic box, which is more than twice as wide as
+        the contact reach (2 r_max + skin), so that two spheres touch through one image."""
+        import numpy as np
+
+        if self.cell is None:
+            return
+        x = np.array([p.position for p in self._spheres])
+        size = np.array(self.cell.size)
+        outside = np.nonzero(((x < 0.0) | (x >= size)).any(axis=1))[0]
+        if len(outside):
+            where, sphere = self._where(int(outside[0]))
+            raise _FieldError(
+                where, f"{sphere} starts outside the cell [0, L) of size {list(size)}"
+            )
+        r_max = max(p.radius for p in self._spheres)
+        reach = 2.0 * r_max + (self.neighbours.skin or 0.1 * r_max)
+        for axis, edge in zip("xyz", size, strict=True):
+            if edge <= 2.0 * reach:
+                raise _FieldError(
+                    "cell.size",
+                    f"edge {axis} = {edge:.4g} m is not more than twice the contact reach "
+                    f"2 r_max + skin = {reach:.4g} m",
+                )
 
     def _check_step_counts(self) -> None:
         """Steps are counted exactly (the engine carries them as float64 too); the steps of a
@@ -534,14 +648,18 @@ class Scenario(_Model):
 
     def _check_overlaps(self) -> None:
         """Spheres may touch, or overlap by up to 1 % of the smaller radius (a contact already
-        loaded), no more."""
+        loaded), no more; in a periodic cell, through the nearest image."""
         import numpy as np
         from scipy.spatial import cKDTree
 
         x = np.array([p.position for p in self._spheres])
         r = np.array([p.radius for p in self._spheres])
-        for i, j in sorted(cKDTree(x).query_pairs(2.0 * r.max())):
-            gap = float(np.linalg.norm(x[j] - x[i])) - r[i] - r[j]
+        size = np.array(self.cell.size) if self.cell else None
+        for i, j in sorted(cKDTree(x, boxsize=size).query_pairs(2.0 * r.max())):
+            d = x[j] - x[i]
+            if size is not None:
+                d -= size * np.round(d / size)
+            gap = float(np.linalg.norm(d)) - r[i] - r[j]
             if gap < -1e-2 * min(r[i], r[j]):
                 where, sphere = self._where(j)
                 raise _FieldError(where, f"{sphere} overlaps {self._where(i)[1]} by {-gap:.3g} m")

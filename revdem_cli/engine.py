@@ -20,13 +20,15 @@ from revdem_cli.config import Scenario, Stage
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, read_restart, write_restart
-from revdem_cli.kernels.arrays import ContactLaw, Dynamics, Moduli
+from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Moduli
+from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
 from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.forces import compute_forces
-from revdem_cli.kernels.integrate import OK, advance
+from revdem_cli.kernels.integrate import CELL_TOO_SMALL, OK, advance
 from revdem_cli.kernels.observables import SCALARS, observe
 from revdem_cli.state import (
+    CellTooSmall,
     State,
     contact_law,
     default_skin,
@@ -71,21 +73,24 @@ class Model:
             dtype=np.float64,
         ).reshape(-1, 3)
 
-    def observables(self) -> list[tuple[str, int]]:
-        """Observable names and widths, in the column order of `kernels.observables.observe`,
-        then the ones derived from those (`complete`)."""
+    def observables(self) -> list[tuple[str, tuple[int, ...]]]:
+        """Observable names and shapes, in the column order of
+        `kernels.observables.observe`, then the ones derived from those (`complete`)."""
         walls = [wall.name for wall in self.scenario.walls]
+        periodic = self.scenario.cell is not None
         return (
-            [(name, 1) for name in SCALARS]
-            + [(f"wall_force/{name}", 3) for name in walls]
-            + [(f"wall_position/{name}", 3) for name in walls]
-            + ([("solid_fraction", 1)] if self.scenario.solid_fraction else [])
+            [(name, ()) for name in SCALARS]
+            + [(f"wall_force/{name}", (3,)) for name in walls]
+            + [(f"wall_position/{name}", (3,)) for name in walls]
+            + ([("stress", (3, 3)), ("cell_length", (3,))] if periodic else [])
+            + ([("solid_fraction", ())] if self.scenario.solid_fraction else [])
+            + ([("principal_stress", (3,))] if periodic else [])
         )
 
     @property
     def observables_row(self) -> int:
         """Length of an observables row: the step, then every observable's columns."""
-        return 1 + sum(columns for _, columns in self.observables())
+        return 1 + sum(_columns(shape) for _, shape in self.observables())
 
     @cached_property
     def solid_volume(self) -> float:
@@ -97,20 +102,28 @@ class Model:
 
     def column(self, name: str) -> int:
         """Column of an observables row where observable `name` begins."""
-        widths = self.observables()
-        k = [n for n, _ in widths].index(name)
-        return 1 + sum(columns for _, columns in widths[:k])
+        shapes = self.observables()
+        k = [n for n, _ in shapes].index(name)
+        return 1 + sum(_columns(shape) for _, shape in shapes[:k])
 
     def observe(self, state: State, dyn: Dynamics) -> np.ndarray:
         """An observables row of the state as it is."""
         row = np.zeros((1, self.observables_row))
         row[0, 0] = state.step
-        observe(state.particles, state.pairs, state.walls, dyn, row[0])
+        observe(*_system(state, self, dyn), row[0])
         return self.complete(row)[0]
 
     def complete(self, rows: np.ndarray) -> np.ndarray:
-        """Fill the derived columns of observables rows from the others: the solid fraction,
-        spheres' volume / (pi R^2 x distance between the planes along the cylinder axis)."""
+        """Fill the derived columns of observables rows from the others: the principal
+        stresses (eigenvalues of the stress's symmetric part, largest first), and the solid
+        fraction, spheres' volume / (pi R^2 x distance between the planes along the
+        cylinder axis)."""
+        if self.scenario.cell is not None:
+            at = self.column("stress")
+            sigma = rows[:, at : at + 9].reshape(-1, 3, 3)
+            principal = np.linalg.eigvalsh(0.5 * (sigma + sigma.transpose(0, 2, 1)))[:, ::-1]
+            at = self.column("principal_stress")
+            rows[:, at : at + 3] = principal
         container = self.scenario.solid_fraction
         if container is None:
             return rows
@@ -122,6 +135,10 @@ class Model:
         area = np.pi * cylinder.radius**2
         rows[:, self.column("solid_fraction")] = self.solid_volume / (area * height)
         return rows
+
+
+def _columns(shape: tuple[int, ...]) -> int:
+    return int(np.prod(shape, dtype=np.int64))
 
 
 @dataclass(frozen=True)
@@ -174,9 +191,12 @@ def run_stage(
         )
     state.walls.velocity[:] = model.stage_wall_velocities(clock.stage)
     dyn = model.stage_dynamics(clock.stage)
+    set_cell_motion(state.cell, clock.stage, forward=direction > 0)
     if direction > 0:
         state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
-        compute_forces(*_system(state, model, dyn), STATIC, clock.dt)  # under the stage's settings
+        compute_forces(  # under the stage's settings
+            *_system(state, model, dyn), STATIC, clock.dt, 0.0, empty_events(), state.step
+        )
     every = clock.stage.observable_interval
     buffer = np.zeros((clock.stage.output_every // every + 2, model.observables_row))
     run = np.array([clock.dt, model.skin, clock.first_step, clock.last_step, every], dtype=float)
@@ -195,11 +215,15 @@ def run_stage(
                 *_system(state, model, dyn), events, run, state.step, target, buffer
             )
             _write_observables(writer, model, clock, buffer[:rows])
+            if status == CELL_TOO_SMALL:
+                raise CellTooSmall(state.step, state.cell.length)
             if status != OK:
                 state.grow_pairs()
         stopped = _stop_reached(state, model, dyn, stop)
         if target in frame_steps or stopped:
-            writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
+            writer.frame(
+                state.step, float(clock.time(state.step)), state.particles, events, _box(state)
+            )
             if progress is not None:
                 progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
         if stopped:
@@ -227,13 +251,39 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
 
 
 def _system(state: State, model: Model, dyn: Dynamics) -> tuple:
-    """The bundles the kernels step: particles, pairs, walls, contact law, moduli, dynamics."""
-    return state.particles, state.pairs, state.walls, model.law, model.moduli, dyn
+    """The bundles the kernels step: particles, pairs, walls, cell, contact law, moduli,
+    dynamics."""
+    return state.particles, state.pairs, state.walls, state.cell, model.law, model.moduli, dyn
+
+
+def set_cell_motion(cell: Cell, stage: Stage, forward: bool) -> None:
+    """How the cell's edges move during a stage. Going forward, each edge starts from where
+    the stage finds it: a strain-rate edge at rate x its length, a servo edge with the rate
+    it has, a fixed edge at rest. Reversed, lengths and rates come from the restart."""
+    motions = stage.cell.axes() if stage.cell else [None, None, None]
+    for a, motion in enumerate(motions):
+        if motion is None:
+            cell.control[a], cell.target[a] = FIXED, 0.0
+        elif motion.stress is not None:
+            cell.control[a], cell.target[a] = STRESS, motion.stress
+        else:
+            cell.control[a], cell.target[a] = STRAIN_RATE, 0.0
+        if forward:
+            cell.start[a] = cell.length[a]
+            if motion is None:
+                cell.rate[a] = 0.0
+            elif motion.strain_rate is not None:
+                cell.rate[a] = motion.strain_rate * cell.length[a]
+
+
+def _box(state: State) -> np.ndarray | None:
+    """Edges of the periodic cell, or None where the boundaries are open."""
+    return state.cell.length.copy() if state.cell.periodic.any() else None
 
 
 def _record_now(state, model, dyn, clock, writer, events) -> None:
     """Write the frame and observables of the state as it is (the start of a stage)."""
-    writer.frame(state.step, float(clock.time(state.step)), state.particles, events)
+    writer.frame(state.step, float(clock.time(state.step)), state.particles, events, _box(state))
     if writer.last_observable_step() != state.step:
         _write_observables(writer, model, clock, model.observe(state, dyn)[None, :])
 
@@ -276,6 +326,7 @@ def _writer(
         path,
         state.particles.radius,
         state.particles.mass,
+        scenario.cell is not None,
         model.observables(),
         (len(KINDS), len(COLUMNS)),
         {

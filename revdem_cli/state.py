@@ -8,11 +8,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from revdem_cli.config import Damping, Material, Scenario
-from revdem_cli.kernels import contact, walls
-from revdem_cli.kernels.arrays import ContactLaw, Dynamics, Moduli, Pairs, Particles, Walls
+from revdem_cli.kernels import cell, contact, walls
+from revdem_cli.kernels.arrays import (
+    Cell,
+    ContactLaw,
+    Dynamics,
+    Moduli,
+    Pairs,
+    Particles,
+    Walls,
+)
 from revdem_cli.kernels.events import COLUMNS, KINDS
-from revdem_cli.kernels.forces import compute_forces
-from revdem_cli.kernels.integrate import rebuild_pairs
+from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces
+from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, rebuild_pairs
+from revdem_cli.kernels.neighbours import build_pairs
 
 
 def youngs_modulus(material: Material) -> float:
@@ -68,6 +77,17 @@ def dynamics(scenario: Scenario, damping: Damping | None = None) -> Dynamics:
     return Dynamics(np.array(scenario.gravity, dtype=np.float64), damping.local, damping.drag)
 
 
+def uses_drag(scenario: Scenario) -> bool:
+    """Whether drag acts in some stage (then each particle keeps its last drift velocity)."""
+    dampings = [scenario.damping] + [s.damping for s in scenario.stages if s.damping]
+    return any(d.drag != 1.0 for d in dampings)
+
+
+def cell_deforms(scenario: Scenario) -> bool:
+    """Whether an edge of the periodic cell moves in some stage."""
+    return any(stage.cell is not None and stage.cell.moving() for stage in scenario.stages)
+
+
 def particles(scenario: Scenario) -> Particles:
     names = list(scenario.materials)
     ps = scenario.spheres
@@ -76,10 +96,13 @@ def particles(scenario: Scenario) -> Particles:
     density = np.array([scenario.materials[p.material].density for p in ps])
     mass = 4.0 / 3.0 * np.pi * radius**3 * density
     inertia = 0.4 * mass * radius**2  # solid sphere, I = 2/5 m r^2 (Hanley 2020 §2)
+    x = np.array([p.position for p in ps], dtype=np.float64).reshape(n, 3)
+    in_cell = scenario.cell is not None and cell_deforms(scenario)
     return Particles(
-        x=np.array([p.position for p in ps], dtype=np.float64),
-        v=np.array([p.velocity for p in ps], dtype=np.float64),
-        omega=np.array([p.angular_velocity for p in ps], dtype=np.float64),
+        x=x,
+        s=x / np.array(scenario.cell.size) if in_cell else np.zeros((0, 3)),
+        v=np.array([p.velocity for p in ps], dtype=np.float64).reshape(n, 3),
+        omega=np.array([p.angular_velocity for p in ps], dtype=np.float64).reshape(n, 3),
         f=np.zeros((n, 3)),
         torque=np.zeros((n, 3)),
         radius=radius,
@@ -88,19 +111,18 @@ def particles(scenario: Scenario) -> Particles:
         inv_mass=1.0 / mass,
         inv_inertia=1.0 / inertia,
         material=np.array([names.index(p.material) for p in ps], dtype=np.int64),
-        v_drift=np.full((n, 3), np.nan),
+        v_drift=np.full((n if uses_drag(scenario) else 0, 3), np.nan),
     )
 
 
-def wall_arrays(scenario: Scenario, n_particles: int) -> Walls:
+def wall_arrays(scenario: Scenario, n_particles: int, reversing: bool = False) -> Walls:
     names = list(scenario.materials)
     ws = scenario.walls
     count = len(ws)
     axis = np.array([w.normal for w in ws], dtype=np.float64).reshape(count, 3)
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     point = np.array([w.point for w in ws], dtype=np.float64).reshape(count, 3)
-    per_contact = np.zeros((n_particles, count, 3))
-    per_contact_scalar = np.zeros((n_particles, count))
+    unwinding = reversing and scenario.contact.tangential != "none"
     return Walls(
         kind=np.array(
             [walls.CYLINDER if w.type == "cylinder" else walls.PLANE for w in ws], dtype=np.int64
@@ -111,51 +133,89 @@ def wall_arrays(scenario: Scenario, n_particles: int) -> Walls:
         radius=np.array([w.radius or 0.0 for w in ws], dtype=np.float64),
         velocity=np.array([w.velocity for w in ws], dtype=np.float64).reshape(count, 3),
         material=np.array([names.index(w.material) for w in ws], dtype=np.int64),
-        history=per_contact.copy(),
-        force=per_contact.copy(),
-        torque=per_contact.copy(),
-        normal=per_contact_scalar.copy(),
-        energy=per_contact_scalar.copy(),
-        slip=per_contact_scalar.copy(),
-        lost=per_contact_scalar.copy(),
-        pending=per_contact.copy(),
-        normal_new=per_contact.copy(),
+        force=np.zeros((n_particles, count, 3)),
+        torque=np.zeros((n_particles, count, 3)),
+        overlap=np.zeros((n_particles, count)),
+        history=np.zeros((n_particles, count, 3)),
+        destroyed=np.zeros((n_particles, count)),
+        normal_new=np.zeros((n_particles if unwinding else 0, count, 3)),
     )
 
 
-_PAIR_VECTORS = ("history", "force", "torque_i", "torque_j", "pending", "normal_new", "new_history")
-_PAIR_SCALARS = ("normal", "energy", "slip", "lost")
-_PAIR_INDICES = ("i", "j", "new_i", "new_j")
+_SERVO = {"proportional": cell.PROPORTIONAL, "inertial": cell.INERTIAL}
 
 
-def pair_capacity(n_particles: int, at_least: int = 0) -> int:
-    """Room for the pairs of a new list: 8 per particle (a dense packing lists about 7 with
-    the default skin), and at least `at_least`."""
-    return max(8 * n_particles + 16, at_least)
+def cell_arrays(scenario: Scenario) -> Cell:
+    """The periodic cell of the scenario, its edges fixed until a stage moves them; without
+    a [cell], a cell with no periodic axis (edges of 1 m, never used)."""
+    spec = scenario.cell
+    length = np.array(spec.size if spec else (1.0, 1.0, 1.0), dtype=np.float64)
+    return Cell(
+        periodic=np.full(3, 1 if spec else 0, dtype=np.int64),
+        length=length,
+        start=length.copy(),
+        rate=np.zeros(3),
+        mid=length.copy(),
+        force=np.zeros(3),
+        control=np.full(3, cell.FIXED, dtype=np.int64),
+        target=np.zeros(3),
+        built=length.copy(),
+        stress=np.zeros((3, 3)),
+        servo=_SERVO[spec.servo] if spec else cell.PROPORTIONAL,
+        mass=float(spec.servo_mass or 0.0) if spec else 0.0,
+        gain=float(spec.servo_gain or 0.0) if spec else 0.0,
+    )
 
 
-def empty_pairs(n_particles: int, capacity: int) -> Pairs:
-    arrays = {name: np.zeros((capacity, 3)) for name in _PAIR_VECTORS}
-    arrays |= {name: np.zeros(capacity) for name in _PAIR_SCALARS}
-    arrays |= {name: np.zeros(capacity, dtype=np.int64) for name in _PAIR_INDICES}
+_PAIR_SHEAR_VECTORS = ("history", "moment")
+_PAIR_SHEAR_SCALARS = ("overlap", "destroyed")
+
+
+def pair_capacity(needed: int) -> int:
+    """Room for a list of `needed` pairs: an eighth more, so that a few new contacts fit."""
+    return needed + needed // 8 + 16
+
+
+def empty_pairs(n_particles: int, capacity: int, shear: bool, reversing: bool) -> Pairs:
+    """A pair list with room for `capacity` pairs; shear state only with a tangential law,
+    and the unwinding normal only in a reversed run with one."""
+    per_shear = capacity if shear else 0
     return Pairs(
         count=np.zeros(2, dtype=np.int64),
+        i=np.zeros(capacity, dtype=np.int32),
+        j=np.zeros(capacity, dtype=np.int32),
+        force=np.zeros((capacity, 3)),
+        history=np.zeros((per_shear, 3)),
+        moment=np.zeros((per_shear, 3)),
+        overlap=np.zeros(per_shear),
+        destroyed=np.zeros(per_shear),
+        normal_new=np.zeros((per_shear if reversing else 0, 3)),
+        first=np.zeros(n_particles + 1, dtype=np.int64),
         start=np.zeros(n_particles + 1, dtype=np.int64),
-        slots=np.zeros(2 * capacity, dtype=np.int64),
+        slots=np.zeros(capacity, dtype=np.int32),
         x_built=np.zeros((n_particles, 3)),
-        **arrays,
+        new_i=np.zeros(capacity, dtype=np.int32),
+        new_j=np.zeros(capacity, dtype=np.int32),
     )
 
 
 def grown(pairs: Pairs, capacity: int) -> Pairs:
-    """A copy of `pairs` with room for `capacity` pairs; the listed pairs and history kept."""
-    bigger = empty_pairs(pairs.start.shape[0] - 1, capacity)
+    """A copy of `pairs` with room for `capacity` pairs; the listed pairs, their history and
+    the particle index kept. (A list always has room for some pairs, so its shear arrays
+    are empty only without a tangential law.)"""
+    shear = pairs.history.shape[0] > 0
+    bigger = empty_pairs(
+        pairs.start.shape[0] - 1, capacity, shear, reversing=pairs.normal_new.shape[0] > 0
+    )
     n = int(pairs.count[0])
-    for name in _PAIR_VECTORS + _PAIR_SCALARS + _PAIR_INDICES:
+    for name in ("i", "j", "force") + (
+        (_PAIR_SHEAR_VECTORS + _PAIR_SHEAR_SCALARS) if shear else ()
+    ):
         getattr(bigger, name)[:n] = getattr(pairs, name)[:n]
     bigger.count[:] = pairs.count
+    bigger.first[:] = pairs.first
     bigger.start[:] = pairs.start
-    bigger.slots[: 2 * n] = pairs.slots[: 2 * n]
+    bigger.slots[:n] = pairs.slots[:n]
     bigger.x_built[:] = pairs.x_built
     return bigger
 
@@ -166,39 +226,70 @@ def empty_events() -> np.ndarray:
 
 @dataclass
 class State:
-    """Everything that evolves: particles, pair list with history, walls, step counter."""
+    """Everything that evolves: particles, pair list with history, walls, cell, step."""
 
     particles: Particles
     pairs: Pairs
     walls: Walls
+    cell: Cell
     step: int
 
     def rebuild_pairs(self, skin: float) -> None:
         """Rebuild the pair list now, growing it until it fits."""
-        while not rebuild_pairs(self.particles, self.pairs, skin):
+        while (status := rebuild_pairs(self.particles, self.pairs, self.cell, skin)) != OK:
+            if status != PAIR_OVERFLOW:
+                raise CellTooSmall(self.step, self.cell.length)
             self.grow_pairs()
 
     def grow_pairs(self) -> None:
         needed = int(self.pairs.count[1])
-        self.pairs = grown(self.pairs, max(2 * self.pairs.i.shape[0], needed + needed // 4 + 16))
+        self.pairs = grown(self.pairs, max(self.pairs.i.shape[0] + 16, pair_capacity(needed)))
+
+
+class CellTooSmall(RuntimeError):
+    """A periodic edge shrank to twice the contact reach or less: spheres could then touch
+    through two images."""
+
+    def __init__(self, step: int, length: np.ndarray):
+        edges = ", ".join(f"{edge:.4g}" for edge in length)
+        super().__init__(
+            f"step {step}: the periodic cell ({edges} m) is no longer more than twice the "
+            "contact reach 2 r_max + skin on every axis; compress it less or start bigger"
+        )
 
 
 def initial_state(scenario: Scenario) -> State:
     """The state at step 0 with its pair list and the forces at the initial positions."""
     p = particles(scenario)
-    state = State(
-        p, empty_pairs(len(p.x), pair_capacity(len(p.x))), wall_arrays(scenario, len(p.x)), step=0
+    shear = scenario.contact.tangential != "none"
+    cell_now = cell_arrays(scenario)
+    skin = default_skin(scenario)
+    nothing = np.zeros(0, dtype=np.int32)
+    parallel = len(p.x) >= PARALLEL_FROM
+    needed = build_pairs(
+        p.x, p.radius, skin, cell_now.periodic, cell_now.length, nothing, nothing, parallel
     )
-    state.rebuild_pairs(default_skin(scenario))
+    state = State(
+        p,
+        empty_pairs(len(p.x), pair_capacity(needed), shear, reversing=False),
+        wall_arrays(scenario, len(p.x)),
+        cell_now,
+        step=0,
+    )
+    state.rebuild_pairs(skin)
     compute_forces(
         state.particles,
         state.pairs,
         state.walls,
+        state.cell,
         contact_law(scenario),
         moduli(scenario),
         dynamics(scenario),
         contact.STATIC,
         scenario.integrator.dt,
+        0.0,
+        empty_events(),
+        0,
     )
     return state
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 """Version of revdem's layout inside H5MD trajectories and restart files."""
 
 FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
@@ -149,8 +149,11 @@ def _check_restart(f, path) -> None:
             f"{path}: particles/x: {n} spheres, but the stored scenario has {len(scenario.spheres)}"
         )
     for name, dataset in f["particles"].items():
-        if dataset.shape[:1] != (n,):
+        optional = name in ("s", "v_drift")  # arrays a run may not need: then empty
+        if dataset.shape[:1] != (n,) and not (optional and dataset.shape[:1] == (0,)):
             raise InputError(f"{path}: damaged revdem restart (particles/{name} is not {n} long)")
+    for name in ("length", "rate", "stress"):
+        get_dataset(f, path, f"cell/{name}")
     walls = len(scenario.walls)
     for name, expected in (("kind", (walls,)), ("history", (n, walls))):
         shape = get_dataset(f, path, f"walls/{name}").shape

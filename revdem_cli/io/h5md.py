@@ -3,9 +3,10 @@
 /h5md                               version [1, 1]; author; creator revdem
 /particles/all/{position,velocity,angular_velocity,force}   step [F], time [F], value [F, N, 3]
 /particles/all/{radius,mass,id}     time-independent [N]
-/particles/all/box                  boundary "none"; edges: step, time, value [F, 3], the
-                                    bounding box of the spheres at each frame
-/observables/<name>                 step, time, value [F] or [F, 3]
+/particles/all/box                  boundary "periodic" (edges: the cell's at each frame) or
+                                    "none" (edges: the bounding box of the spheres); positions
+                                    are unwrapped across periodic boundaries
+/observables/<name>                 step, time, value [F], [F, 3] or [F, 3, 3]
 /observables/events                 value [F, kinds, columns] at each frame: the log of
                                     information-destroying mechanisms (kernels/events.py)
 /parameters/revdem                  attrs: schema_version (revdem_cli.io.SCHEMA_VERSION, checked on
@@ -79,7 +80,7 @@ class _Appender:
 class TrajectoryWriter:
     """Appends frames and observables to a new H5MD file.
 
-    `observables` lists (name, columns): a scalar observable has 1 column, a vector 3. Rows
+    `observables` lists (name, shape): () for a scalar, (3,) a vector, (3, 3) a tensor. Rows
     are gathered in memory and written in blocks, at least every FLUSH_SECONDS and whenever
     FLUSH_BYTES are waiting, so an interrupted run keeps all but its last moments.
     """
@@ -92,7 +93,8 @@ class TrajectoryWriter:
         path: Path,
         radius,
         mass,
-        observables: list[tuple[str, int]],
+        periodic: bool,
+        observables: list[tuple[str, tuple[int, ...]]],
         events_shape: tuple[int, int],
         parameters: dict,
     ):
@@ -109,7 +111,7 @@ class TrajectoryWriter:
         everything = f.create_group("particles/all")
         box = everything.create_group("box")
         box.attrs["dimension"] = 3
-        box.attrs["boundary"] = np.array([b"none"] * 3)
+        box.attrs["boundary"] = np.array([b"periodic" if periodic else b"none"] * 3)
         clock = None
         frame_groups = []
         for name in FRAME_FIELDS:
@@ -124,9 +126,9 @@ class TrajectoryWriter:
         self.frame_rows += [_Appender(g["value"]) for g in frame_groups + [events, edges]]
         clock = None
         widths = []
-        for name, columns in observables:
-            clock = _series(f, f"observables/{name}", () if columns == 1 else (columns,), clock)
-            widths.append((_Appender(clock["value"]), columns))
+        for name, shape in observables:
+            clock = _series(f, f"observables/{name}", shape, clock)
+            widths.append((_Appender(clock["value"]), shape))
         self.observable_clock = [_Appender(clock["step"]), _Appender(clock["time"])]
         self.observable_rows = widths
         revdem = f.create_group("parameters/revdem")
@@ -142,8 +144,9 @@ class TrajectoryWriter:
         yield from self.observable_clock
         yield from (appender for appender, _ in self.observable_rows)
 
-    def frame(self, step: int, time: float, particles, events: np.ndarray) -> None:
-        """Append one frame; a frame at the step already written last is skipped."""
+    def frame(self, step: int, time: float, particles, events: np.ndarray, box=None) -> None:
+        """Append one frame; a frame at the step already written last is skipped. `box`: the
+        edges of the periodic cell; None, the bounding box of the spheres."""
         if step == self.last_step:
             return
         self.last_step = step
@@ -155,7 +158,7 @@ class TrajectoryWriter:
             particles.omega[None],
             particles.f[None],
             events[None],
-            bounding_box(particles.x, particles.radius)[None],
+            (bounding_box(particles.x, particles.radius) if box is None else box)[None],
         )
         for appender, value in zip(self.frame_rows, values, strict=True):
             appender.add(np.array(value))
@@ -172,8 +175,9 @@ class TrajectoryWriter:
         self.observable_clock[0].add(steps)
         self.observable_clock[1].add(times)
         column = 0
-        for appender, columns in self.observable_rows:
-            block = values[:, column] if columns == 1 else values[:, column : column + columns]
+        for appender, shape in self.observable_rows:
+            columns = int(np.prod(shape, dtype=np.int64))
+            block = values[:, column : column + columns].reshape(-1, *shape)
             appender.add(block.copy())
             column += columns
 

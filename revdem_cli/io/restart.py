@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
+import numpy as np
 
 from revdem_cli.errors import InputError
 from revdem_cli.io import (
@@ -20,12 +21,19 @@ from revdem_cli.io import (
     open_hdf5,
     stored_scenario,
 )
-from revdem_cli.kernels.arrays import Pairs, Particles, Walls
+from revdem_cli.kernels.arrays import Cell, Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
 from revdem_cli.state import State, empty_pairs, pair_capacity
 
-PAIR_FIELDS = ("i", "j", "history", "force", "torque_i", "torque_j", "normal", "energy")
-"""The per-pair arrays that carry state from one step to the next."""
+PAIR_FIELDS = ("i", "j", "force", "history")
+"""The per-pair arrays a restart keeps: the list, the contact forces of its step (which its
+observables read) and, with a tangential law, the contact history."""
+
+WALL_FIELDS = tuple(name for name in Walls._fields if name != "normal_new")
+"""The wall arrays a restart keeps; the reversed step's scratch is allocated on reading."""
+
+CELL_ARRAYS = tuple(name for name in Cell._fields if name not in ("servo", "mass", "gain"))
+"""The cell's arrays; its servo parameters come from the stored scenario."""
 
 
 @dataclass
@@ -58,10 +66,13 @@ def write_restart(path: Path, restart: Restart) -> None:
         meta.attrs["stage_first_time"] = restart.stage_first_time
         for name in Particles._fields:
             f.create_dataset(f"particles/{name}", data=getattr(s.particles, name))
-        for name in Walls._fields:
+        for name in WALL_FIELDS:
             f.create_dataset(f"walls/{name}", data=getattr(s.walls, name))
+        for name in CELL_ARRAYS:
+            f.create_dataset(f"cell/{name}", data=getattr(s.cell, name))
         n = int(s.pairs.count[0])
-        for name in PAIR_FIELDS:
+        shear = s.pairs.history.shape[0] > 0
+        for name in PAIR_FIELDS[: 4 if shear else 3]:
             f.create_dataset(f"pairs/{name}", data=getattr(s.pairs, name)[:n])
         f.create_dataset("pairs/x_built", data=s.pairs.x_built)
     os.replace(tmp, path)
@@ -84,20 +95,31 @@ def read_restart(path: str | Path) -> Restart:
 
 
 def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
+    """The state of a restart, with the arrays a reversed step needs."""
+    from revdem_cli.state import cell_arrays
+
     def read(name: str):
         return get_dataset(f, path, name)[:]
 
+    scenario = stored_scenario(meta.attrs["scenario_json"], path)
+    shear = scenario.contact.tangential != "none"
     particles = Particles(*(read(f"particles/{name}") for name in Particles._fields))
-    walls = Walls(*(read(f"walls/{name}") for name in Walls._fields))
+    n_particles = len(particles.x)
+    stored = {name: read(f"walls/{name}") for name in WALL_FIELDS}
+    unwinding = n_particles if shear else 0
+    walls = Walls(**stored, normal_new=np.zeros((unwinding, len(stored["kind"]), 3)))
+    cell = cell_arrays(scenario)
+    for name in CELL_ARRAYS:
+        getattr(cell, name)[...] = read(f"cell/{name}")
     n = f["pairs/i"].shape[0]
-    pairs: Pairs = empty_pairs(len(particles.x), pair_capacity(len(particles.x), n))
-    for name in PAIR_FIELDS:
+    pairs: Pairs = empty_pairs(n_particles, pair_capacity(n), shear, reversing=True)
+    for name in PAIR_FIELDS[: 4 if shear else 3]:
         getattr(pairs, name)[:n] = read(f"pairs/{name}")
     pairs.x_built[:] = read("pairs/x_built")
     pairs.count[:] = n
-    index_by_particle(pairs.i, pairs.j, n, pairs.start, pairs.slots)
+    index_by_particle(pairs.i, pairs.j, n, pairs.first, pairs.start, pairs.slots)
     return Restart(
-        state=State(particles, pairs, walls, step=int(meta.attrs["step"])),
+        state=State(particles, pairs, walls, cell, step=int(meta.attrs["step"])),
         scenario_json=str(meta.attrs["scenario_json"]),
         scenario_text=str(meta.attrs["scenario_text"]),
         scenario_suffix=str(meta.attrs["scenario_suffix"]),

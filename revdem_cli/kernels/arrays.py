@@ -1,12 +1,18 @@
-"""The array bundles the kernels work on. Built and reallocated in Python, updated compiled."""
+"""The array bundles the kernels work on. Built and reallocated in Python, updated compiled.
+
+Arrays a run does not need have length 0: the shear state of a frictionless law, the
+cell coordinates of a run whose cell never deforms, the drift record of a run without drag,
+and what only the reversed step needs, in a forward run.
+"""
 
 from collections import namedtuple
 
 Particles = namedtuple(
     "Particles",
     [
-        "x",  # positions, m, (N, 3)
-        "v",  # velocities, m/s, (N, 3)
+        "x",  # positions, m, (N, 3); unwrapped across periodic boundaries
+        "s",  # cell coordinates x / L of a deforming periodic cell, (N, 3) or (0, 3)
+        "v",  # velocities, m/s, (N, 3); in a deforming cell, relative to its affine motion
         "omega",  # angular velocities, rad/s, (N, 3)
         "f",  # net forces at the current full step, N, (N, 3)
         "torque",  # net moments at the current full step, N m, (N, 3)
@@ -16,7 +22,7 @@ Particles = namedtuple(
         "inv_mass",  # 1/kg, (N,)
         "inv_inertia",  # 1/(kg m^2), (N,)
         "material",  # material index, (N,) int64
-        "v_drift",  # velocity of the last drift, m/s, (N, 3): finds drag fixed points
+        "v_drift",  # velocity of the last drift under drag, m/s, (N, 3) or (0, 3)
     ],
 )
 
@@ -24,26 +30,24 @@ Pairs = namedtuple(
     "Pairs",
     [
         "count",  # [pairs in the list, pairs the last build needed], int64 (2,)
-        "i",  # first particle of each pair (i < j), sorted by (i, j), (P,)
-        "j",  # second particle, (P,)
-        "history",  # elastic shear force on i, N, (P, 3): the contact history
+        "i",  # first particle of each pair (i < j), sorted by (i, j), int32 (P,)
+        "j",  # second particle, int32 (P,)
         "force",  # contact force on i from j at the current step, N, (P, 3)
-        "torque_i",  # moment of the contact force about i's centre, N m, (P, 3)
-        "torque_j",  # moment of the reaction about j's centre, N m, (P, 3)
-        "normal",  # normal force magnitude (repulsive > 0), N, (P,)
-        "energy",  # elastic energy stored in the contact, J, (P,)
-        "slip",  # shear force removed by the Coulomb cap this step, N, (P,)
-        "lost",  # shear force zeroed at separation this step, N, (P,)
-        "pending",  # reversed step: shear force with Eq 10 and 9 undone, N, (P, 3)
-        "normal_new",  # reversed step: the contact normal that `pending` lies across, (P, 3)
-        "start",  # CSR offsets of each particle's pair slots, (N + 1,)
-        "slots",  # pair slots of each particle, ascending, (2P,)
+        "history",  # elastic shear force on i, N, (P, 3): the contact history
+        "moment",  # n x force: the moment about i's centre over its lever arm, N, (P, 3)
+        "overlap",  # overlap at the current step (< 0: apart), m, (P,)
+        "destroyed",  # shear force destroyed this step: Coulomb cap or separation, N, (P,)
+        "normal_new",  # reversed step: the contact normal the unwound history lies across
+        "first",  # the pairs (q, j) of particle q are slots first[q] to first[q + 1], (N + 1,)
+        "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, (N + 1,)
+        "slots",  # the slots of the pairs (p, q) of each particle q, ascending in p, int32 (P,)
         "x_built",  # positions at the last build, m, (N, 3)
-        "new_i",  # scratch for rebuilding, (P,)
-        "new_j",  # scratch for rebuilding, (P,)
-        "new_history",  # scratch for rebuilding, (P, 3)
+        "new_i",  # the next list while it is built, int32 (P,)
+        "new_j",  # int32 (P,)
     ],
 )
+"""history, moment, overlap and destroyed have length P with a tangential law, else 0;
+normal_new has length P in a reversed run with a tangential law, else 0."""
 
 Walls = namedtuple(
     "Walls",
@@ -55,15 +59,31 @@ Walls = namedtuple(
         "radius",  # cylinder radius, m, (W,)
         "velocity",  # m/s, (W, 3)
         "material",  # material index, (W,)
-        "history",  # elastic shear force on the particle, N, (N, W, 3)
         "force",  # force on the particle from the wall, N, (N, W, 3)
         "torque",  # moment of that force about the particle's centre, N m, (N, W, 3)
-        "normal",  # normal force magnitude, N, (N, W)
-        "energy",  # elastic energy, J, (N, W)
-        "slip",  # shear force removed by the Coulomb cap this step, N, (N, W)
-        "lost",  # shear force zeroed at separation this step, N, (N, W)
-        "pending",  # reversed step, as in Pairs, (N, W, 3)
+        "overlap",  # m, (N, W)
+        "history",  # elastic shear force on the particle, N, (N, W, 3)
+        "destroyed",  # shear force destroyed this step, N, (N, W)
         "normal_new",  # reversed step, as in Pairs, (N, W, 3)
+    ],
+)
+
+Cell = namedtuple(
+    "Cell",
+    [
+        "periodic",  # 1 for each periodic axis, int64 (3,)
+        "length",  # edge lengths L of the periodic box [0, L), m, (3,)
+        "start",  # L at the start of the stage, m, (3,)
+        "rate",  # dL/dt over the current step, m/s, (3,)
+        "mid",  # L at the middle of the current step, m, (3,)
+        "force",  # inertial servo: the force on each edge at the current step, N, (3,)
+        "control",  # cell.FIXED, STRAIN_RATE or STRESS for each axis, int64 (3,)
+        "target",  # stress axes: the stress to hold, Pa (compression > 0), (3,)
+        "built",  # L at the last pair-list build, m, (3,)
+        "stress",  # average stress (Hanley 2020 Eq 23) at the current step, Pa, (3, 3)
+        "servo",  # cell.PROPORTIONAL or cell.INERTIAL
+        "mass",  # inertial servo: mass of an edge, kg
+        "gain",  # proportional servo: strain rate per relative stress error, 1/s
     ],
 )
 

@@ -20,10 +20,6 @@ FORWARD = 0  # shear history advanced by the step (Eq 7-10)
 REVERSE = 1  # shear history mapped back (the inverse of Eq 7-10)
 STATIC = 2  # shear history used as it is: forces of a state that is not stepping
 
-NO_EVENT = 0
-CONTACT_LOST = 1
-COULOMB_SLIP = 2
-
 
 @jit
 def dot(a, b):
@@ -57,11 +53,11 @@ def normal_law(law, overlap, rstar, estar):
     if law.model == LINEAR:
         force = law.kn * overlap  # Hanley 2020 Eq 6, linear
         return force, law.kn, 0.5 * force * overlap
-    # Hanley 2020 Eq 6, Hertz: F = H d^1.5 with H = 4/3 E* sqrt(R*) (= 4G/(3(1-nu)) sqrt(R*))
-    h = 4.0 / 3.0 * estar * math.sqrt(rstar)
-    root = math.sqrt(overlap)
-    force = h * overlap * root
-    return force, 1.5 * h * root, 0.4 * force * overlap  # U = 2/5 H d^2.5
+    # Hanley 2020 Eq 6, Hertz: F = H d^1.5 with H = 4/3 E* sqrt(R*) (= 4G/(3(1-nu)) sqrt(R*)),
+    # written F = 4/3 E* d sqrt(R* d): the root Mindlin's k_s takes too
+    root = math.sqrt(rstar * overlap)
+    force = 4.0 / 3.0 * estar * overlap * root
+    return force, 2.0 * estar * root, 0.4 * force * overlap  # dF/dd = 2 E* sqrt(R* d), U = 2/5 F d
 
 
 @jit
@@ -72,11 +68,25 @@ def shear_stiffness(law, overlap, rstar, gstar):
     return 8.0 * gstar * math.sqrt(rstar * overlap)
 
 
+SMALL_ANGLE = 1e-3
+"""Below this (rad) cos and sin are their Taylor series to the 6th order, exact to well under
+an ulp (the first term left out, a^6/720 or a^7/5040, is below 2e-21), and cheaper."""
+
+
+@jit
+def cos_sin(angle):
+    """(cos angle, sin angle); even and odd in the angle exactly, so a rotation by -angle
+    uses the same numbers as one by +angle."""
+    if abs(angle) >= SMALL_ANGLE:
+        return math.cos(angle), math.sin(angle)
+    a2 = angle * angle
+    return 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0)), angle * (1.0 - a2 * (1.0 / 6.0 - a2 / 120.0))
+
+
 @jit
 def rotate_about(b, n, angle):
     """Rotate b (in the plane normal to n) by `angle` about n: the spin correction R (Eq 9)."""
-    c = math.cos(angle)
-    s = math.sin(angle)
+    c, s = cos_sin(angle)
     return axpy(s, cross(n, b), scaled(c, b))
 
 
@@ -84,75 +94,89 @@ def rotate_about(b, n, angle):
 def remap(shear, n):
     """Project the old shear force onto the plane normal to n and restore its magnitude
     (Hanley 2020 Eq 7-8)."""
-    size = norm(shear)
-    if size == 0.0:
+    size2 = dot(shear, shear)
+    if size2 == 0.0:
         return (0.0, 0.0, 0.0)
     projected = axpy(-dot(n, shear), n, shear)  # Eq 7
-    length = norm(projected)
-    if length == 0.0:
+    length2 = dot(projected, projected)
+    if length2 == 0.0:
         return (0.0, 0.0, 0.0)
-    return scaled(size / length, projected)  # Eq 8
+    return scaled(math.sqrt(size2 / length2), projected)  # Eq 8
 
 
 @jit
 def unmap(mapped, n_new, n_old):
     """Exact inverse of `remap`: the vector in the plane normal to n_old whose projection
     along n_new is parallel to `mapped`, with the magnitude of `mapped`."""
-    size = norm(mapped)
-    if size == 0.0:
+    size2 = dot(mapped, mapped)
+    if size2 == 0.0:
         return (0.0, 0.0, 0.0)
     lifted = axpy(-dot(n_old, mapped) / dot(n_old, n_new), n_new, mapped)
-    return scaled(size / norm(lifted), lifted)
+    return scaled(math.sqrt(size2 / dot(lifted, lifted)), lifted)
 
 
 @jit
 def coulomb_cap(shear, limit):
     """Limit |f_s| to mu |f_n| (Hanley 2020 §2); returns (force, amount removed)."""
-    size = norm(shear)
-    if size <= limit:
+    size2 = dot(shear, shear)
+    if size2 <= limit * limit:
         return shear, 0.0
+    size = math.sqrt(size2)
     return scaled(limit / size, shear), size - limit
 
 
 @jit
 def relative_velocity(n, arm_i, arm_j, v_i, w_i, v_j, w_j):
-    """Velocity of j relative to i at the contact point; branch vectors arm_i n and -arm_j n."""
-    at_i = axpy(1.0, cross(w_i, scaled(arm_i, n)), v_i)
-    at_j = axpy(1.0, cross(w_j, scaled(-arm_j, n)), v_j)
-    return axpy(-1.0, at_i, at_j)
+    """Velocity of j relative to i at the contact point, branch vectors arm_i n and -arm_j n:
+    (v_j + w_j x (-arm_j n)) - (v_i + w_i x arm_i n) = v_j - v_i - (arm_i w_i + arm_j w_j) x n."""
+    spin = axpy(arm_i, w_i, scaled(arm_j, w_j))
+    return axpy(-1.0, cross(spin, n), axpy(-1.0, v_i, v_j))
 
 
 @jit
 def contact_force(
-    law, mode, dt, overlap, n, rstar, mstar, moduli, vrel, spin, history, pending, normal_new
+    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, spin, history, n_new
 ):
     """Force on i at one contact in overlap > 0, and the new shear history.
 
     FORWARD: remap the history onto the new contact plane (Eq 7-8), correct for spin (Eq 9),
     add the increment -k_s dU_s with dU_s = -v_t dt, the displacement of i relative to j
-    (Eq 10), cap at mu |f_n|. REVERSE: the history is the exact inverse of those steps,
-    `unmap(pending)` (see `unwind_shear`), capped the same way. STATIC: the history as is.
-    Returns (force on i, normal force, stored energy, slip amount, history).
+    (Eq 10), cap at mu |f_n|. REVERSE: `history` is the shear force with Eq 10 and 9 undone
+    across the contact normal `n_new` of the later positions (`unwind_shear`); mapping it
+    onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
+    the history as is. Returns (force on i, history, amount the Coulomb cap removed).
     """
-    elastic, stiffness, energy = normal_law(law, overlap, rstar, moduli[0])
+    elastic, stiffness, _ = normal_law(law, overlap, rstar, estar)
     vn = dot(vrel, n)
-    normal = elastic - 2.0 * law.beta_n * math.sqrt(mstar * stiffness) * vn  # viscous, normal
+    normal = elastic
+    if law.beta_n > 0.0:
+        normal -= 2.0 * law.beta_n * math.sqrt(mstar * stiffness) * vn  # viscous, normal
     force = scaled(-normal, n)
     if law.tangential == NO_SHEAR:
-        return force, normal, energy, 0.0, history
+        return force, history, 0.0
     vt = axpy(-vn, n, vrel)
-    ks = shear_stiffness(law, overlap, rstar, moduli[1])
+    ks = shear_stiffness(law, overlap, rstar, gstar)
     if mode == FORWARD:
         rotated = rotate_about(remap(history, n), n, spin * dt)  # Eq 7-9
         shear = axpy(ks * dt, vt, rotated)  # Eq 10
     elif mode == REVERSE:
-        shear = unmap(pending, normal_new, n)
+        shear = unmap(history, n_new, n)
     else:
         shear = history
     shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
-    energy += 0.5 * dot(shear, shear) / ks
-    damping = 2.0 * law.beta_t * math.sqrt(mstar * ks)  # viscous, tangential
-    return axpy(1.0, axpy(damping, vt, shear), force), normal, energy, slip, shear
+    if law.beta_t > 0.0:
+        shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), vt, shear)  # viscous
+        return axpy(1.0, shear_total, force), shear, slip
+    return axpy(1.0, shear, force), shear, slip
+
+
+@jit
+def contact_energy(law, overlap, rstar, estar, gstar, shear):
+    """Elastic energy stored in a contact in overlap > 0: normal spring and shear spring."""
+    energy = normal_law(law, overlap, rstar, estar)[2]
+    if law.tangential == NO_SHEAR:
+        return energy
+    return energy + 0.5 * dot(shear, shear) / shear_stiffness(law, overlap, rstar, gstar)
 
 
 @jit

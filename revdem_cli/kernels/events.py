@@ -22,10 +22,11 @@ COUNT, FIRST, LAST, PARTICLE, PARTNER, AMOUNT = range(len(COLUMNS))
 
 
 @jit
-def note(events, kind, step, particle, partner, amount):
+def note(events, kind, step, particle, partner, amount, times):
+    """`kind` acted `times` times at `step`, last on (particle, partner) by `amount`."""
     if events[kind, COUNT] == 0:
         events[kind, FIRST] = step
-    events[kind, COUNT] += 1
+    events[kind, COUNT] += times
     events[kind, LAST] = step
     events[kind, PARTICLE] = particle
     events[kind, PARTNER] = partner
@@ -33,23 +34,33 @@ def note(events, kind, step, particle, partner, amount):
 
 
 @jit
-def note_contact_events(pairs, walls, law, dyn, step, events):
-    """Scan the contacts of this step, in a fixed order, for lost shear force and slip."""
-    for k in range(pairs.count[0]):
-        if pairs.lost[k] > 0.0:
-            note(events, CONTACT_LOST, step, pairs.i[k], pairs.j[k], pairs.lost[k])
-        if pairs.slip[k] > 0.0:
-            note(events, COULOMB_SLIP, step, pairs.i[k], pairs.j[k], pairs.slip[k])
-    for q in range(walls.lost.shape[0]):
-        for b in range(walls.lost.shape[1]):
-            if walls.lost[q, b] > 0.0:
-                note(events, CONTACT_LOST, step, q, -1 - b, walls.lost[q, b])
-            if walls.slip[q, b] > 0.0:
-                note(events, COULOMB_SLIP, step, q, -1 - b, walls.slip[q, b])
+def note_destroyed(events, step, pairs, walls, pair_counts, wall_counts):
+    """Log the shear force destroyed at `step`, as the force loops counted it: (slips, last
+    pair that slipped, losses, last pair that lost its shear force) for the pairs, and the
+    same for the wall contacts, numbered q W + b. The last occurrence is the one a scan of
+    the pairs in order, then of the wall contacts, would meet last."""
+    walls_per_particle = walls.destroyed.shape[1]
+    for kind, offset in ((COULOMB_SLIP, 0), (CONTACT_LOST, 2)):
+        pair_count, last_pair = pair_counts[offset], pair_counts[offset + 1]
+        wall_count, last_wall = wall_counts[offset], wall_counts[offset + 1]
+        if pair_count + wall_count == 0:
+            continue
+        if wall_count > 0:
+            q, b = last_wall // walls_per_particle, last_wall % walls_per_particle
+            particle, partner, amount = q, -1 - b, walls.destroyed[q, b]
+        else:
+            particle, partner = pairs.i[last_pair], pairs.j[last_pair]
+            amount = pairs.destroyed[last_pair]
+        note(events, kind, step, particle, partner, amount, pair_count + wall_count)
+
+
+@jit
+def note_damping(events, step, law, dyn):
+    """Log the damping that acted at `step`."""
     if dyn.local_damping > 0.0:
-        note(events, LOCAL_DAMPING, step, -1, -1, dyn.local_damping)
+        note(events, LOCAL_DAMPING, step, -1, -1, dyn.local_damping, 1)
     if law.beta_n > 0.0 or law.beta_t > 0.0:
-        note(events, VISCOUS_DAMPING, step, -1, -1, max(law.beta_n, law.beta_t))
+        note(events, VISCOUS_DAMPING, step, -1, -1, max(law.beta_n, law.beta_t), 1)
 
 
 @jit
@@ -57,5 +68,5 @@ def note_fixed_points(v, v_drift, step, events):
     """Particles whose drift velocity is bit for bit that of the previous step, under drag."""
     for q in range(v.shape[0]):
         if v[q, 0] == v_drift[q, 0] and v[q, 1] == v_drift[q, 1] and v[q, 2] == v_drift[q, 2]:
-            note(events, FIXED_POINT, step, q, -1, abs(v[q, 0]) + abs(v[q, 1]) + abs(v[q, 2]))
+            note(events, FIXED_POINT, step, q, -1, abs(v[q, 0]) + abs(v[q, 1]) + abs(v[q, 2]), 1)
         v_drift[q, 0], v_drift[q, 1], v_drift[q, 2] = v[q, 0], v[q, 1], v[q, 2]

@@ -1,9 +1,11 @@
-"""Contact forces and net forces on particles.
+"""Contact forces, net forces on particles, and the stress they carry.
 
 Three loops, each writing only its own slots: pairs (each pair's force computed once), wall
 contacts (each particle's, wall by wall), and the gather (each particle sums its weight,
-its pairs in the order of its partners' indices, and its walls in order), so sums do not
-depend on the thread count.
+its pairs in the order of its partners' indices, and its walls in order, then takes its
+half kick), so sums do not depend on the thread count. The pair and wall loops also count
+the contacts whose shear force was destroyed (integer sums and maxima, which do not depend
+on the order either), so the event log is scanned only when something happened.
 
 The loops take plain arrays and do each item's work in the loop body, with helpers over
 scalars and 3-tuples: a compiled call that receives array bundles pays an atomic
@@ -11,9 +13,20 @@ reference-count update per array, which would dominate the cost per item. Each l
 built serial and parallel; small systems step serially, without waking threads.
 """
 
+import math
+
 import numba
 
 from revdem_cli.kernels import jit, serial_and_parallel
+from revdem_cli.kernels.cell import (
+    affine_velocity,
+    deforms,
+    holds_stress,
+    images,
+    nearest_image,
+    servo_forces,
+    volume,
+)
 from revdem_cli.kernels.contact import (
     FORWARD,
     NO_SHEAR,
@@ -26,6 +39,7 @@ from revdem_cli.kernels.contact import (
     scaled,
     unwind_shear,
 )
+from revdem_cli.kernels.events import note_destroyed
 from revdem_cli.kernels.walls import wall_overlap
 
 ZERO = (0.0, 0.0, 0.0)
@@ -33,6 +47,10 @@ ZERO = (0.0, 0.0, 0.0)
 PARALLEL_FROM = 256
 """Systems of at least this many particles step with parallel loops; smaller ones serially.
 Results are the same either way."""
+
+APART = 1.0 + 1e-12
+"""Pairs farther apart than (1 + 1e-12) (r_i + r_j) are certainly not touching, so their
+distance needs no square root."""
 
 
 @jit
@@ -52,7 +70,7 @@ def put(a, k, vector):
 
 
 @jit
-def cell(a, q, b):
+def cell_of(a, q, b):
     """Entry (q, b) of an (n, m, 3) array as a 3-tuple."""
     return (a[q, b, 0], a[q, b, 1], a[q, b, 2])
 
@@ -63,19 +81,35 @@ def place(a, q, b, vector):
 
 
 @jit
-def pair_kinematics(i, j, x, v, w, radius):
-    """(overlap, normal n from i to j, lever arms of i and j, velocity of j relative to i at
-    the contact, mean spin about n) of the pair (i, j)."""
-    d = axpy(-1.0, row(x, i), row(x, j))
-    dist = norm(d)
-    overlap = radius[i] + radius[j] - dist
-    n = scaled(1.0 / dist, d)
-    arm_i = radius[i] - 0.5 * overlap
-    arm_j = radius[j] - 0.5 * overlap
+def separation(x, i, j, image):
+    """x_j - x_i, across periodic boundaries to the nearest image (`cell.nearest_image`)."""
+    return nearest_image(axpy(-1.0, row(x, i), row(x, j)), image)
+
+
+@jit
+def pair_velocity(i, j, d, n, overlap, v, w, radius, rate, length, deforming):
+    """(velocity of j relative to i at the contact, mean spin about n) of the pair (i, j)
+    with separation d and normal n; in a deforming cell the relative velocity includes the
+    cell's affine motion."""
     w_i = row(w, i)
     w_j = row(w, j)
+    arm_i = radius[i] - 0.5 * overlap
+    arm_j = radius[j] - 0.5 * overlap
     vrel = relative_velocity(n, arm_i, arm_j, row(v, i), w_i, row(v, j), w_j)
-    return overlap, n, arm_i, arm_j, vrel, 0.5 * (dot(w_i, n) + dot(w_j, n))
+    if deforming:
+        vrel = axpy(1.0, affine_velocity(d, rate, length), vrel)
+    return vrel, 0.5 * (dot(w_i, n) + dot(w_j, n))
+
+
+@jit
+def pair_overlap(d, reach):
+    """(overlap, distance) of a pair with separation d and reach r_i + r_j; pairs certainly
+    apart (by more than APART) get overlap -1 without a square root."""
+    dist2 = dot(d, d)
+    if dist2 > (APART * reach) ** 2:
+        return -1.0, 0.0
+    dist = math.sqrt(dist2)
+    return reach - dist, dist
 
 
 @jit
@@ -100,65 +134,87 @@ def _pair_loop(
     material,
     estar,
     gstar,
+    image,
+    rate,
+    length,
+    deforming,
     pi,
     pj,
     n_pairs,
-    history,
-    pending,
-    normal_new,
     force,
-    torque_i,
-    torque_j,
-    normal,
-    energy,
-    slip,
-    lost,
+    history,
+    moment,
+    overlaps,
+    destroyed,
+    normal_new,
     law,
     mode,
     dt,
 ):
-    """Force on i from j and the moments about both centres, for every listed pair
-    (Hanley 2020 Eq 4-10); contact history zeroed on separation."""
+    """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
+    law, n x force, the overlap and the shear force destroyed: by the Coulomb cap, or at
+    separation, where the history is zeroed. Returns (slips, last pair that slipped, losses,
+    last pair that lost its shear force)."""
+    shear_law = law.tangential != NO_SHEAR
+    moving = shear_law or law.beta_n > 0.0  # the force depends on the relative velocity
+    unwound = normal_new.shape[0] > 0
+    slips = 0
+    last_slip = -1
+    losses = 0
+    last_loss = -1
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
-        overlap, n, arm_i, arm_j, vrel, spin = pair_kinematics(i, j, x, v, w, radius)
-        shear = row(history, k)
+        reach = radius[i] + radius[j]
+        d = separation(x, i, j, image)
+        overlap, dist = pair_overlap(d, reach)
         if overlap > 0.0:
+            n = scaled(1.0 / dist, d)
+            vrel = ZERO
+            spin = 0.0
+            if moving:
+                vrel, spin = pair_velocity(
+                    i, j, d, n, overlap, v, w, radius, rate, length, deforming
+                )
             a, b = material[i], material[j]
-            f, fn, u, slipped, shear = contact_force(
+            f, shear, slipped = contact_force(
                 law,
                 mode,
                 dt,
                 overlap,
                 n,
-                radius[i] * radius[j] / (radius[i] + radius[j]),
-                mass[i] * mass[j] / (mass[i] + mass[j]),
-                (estar[a, b], gstar[a, b]),
+                radius[i] * radius[j] / reach,
+                mass[i] * mass[j] / (mass[i] + mass[j])
+                if law.beta_n > 0.0 or law.beta_t > 0.0
+                else 0.0,
+                estar[a, b],
+                gstar[a, b],
                 vrel,
                 spin,
-                shear,
-                row(pending, k),
-                row(normal_new, k),
+                row(history, k) if shear_law else ZERO,
+                row(normal_new, k) if unwound else ZERO,
             )
-            put(torque_i, k, cross(scaled(arm_i, n), f))  # Hanley 2020 Eq 5
-            put(torque_j, k, cross(scaled(arm_j, n), f))
-            dropped = 0.0
+            put(force, k, f)
+            if shear_law:
+                put(history, k, shear)
+                put(moment, k, cross(n, f))
+                overlaps[k] = overlap
+                if slipped > 0.0:  # `destroyed` is read only where something was
+                    destroyed[k] = slipped
+                    slips += 1
+                    last_slip = max(last_slip, k)
         else:
-            f = ZERO
-            fn = 0.0
-            u = 0.0
-            slipped = 0.0
-            dropped = norm(shear) if mode == FORWARD else 0.0
-            shear = ZERO
-            put(torque_i, k, ZERO)
-            put(torque_j, k, ZERO)
-        put(history, k, shear)
-        put(force, k, f)
-        normal[k] = fn
-        energy[k] = u
-        slip[k] = slipped
-        lost[k] = dropped
+            put(force, k, ZERO)
+            if shear_law:
+                lost = norm(row(history, k)) if mode == FORWARD else 0.0
+                put(history, k, ZERO)
+                put(moment, k, ZERO)
+                overlaps[k] = overlap
+                if lost > 0.0:
+                    destroyed[k] = lost
+                    losses += 1
+                    last_loss = max(last_loss, k)
+    return slips, last_slip, losses, last_loss
 
 
 def _wall_loop(
@@ -176,29 +232,35 @@ def _wall_loop(
     wall_radius,
     wall_velocity,
     wall_material,
-    history,
-    pending,
-    normal_new,
     force,
     torque,
-    normal,
-    energy,
-    slip,
-    lost,
+    overlaps,
+    history,
+    destroyed,
+    normal_new,
     law,
     mode,
     dt,
 ):
-    """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r)."""
+    """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r).
+    Returns (slips, last contact q W + b that slipped, losses, last that lost its shear)."""
+    shear_law = law.tangential != NO_SHEAR
+    walls = kind.shape[0]
+    slips = 0
+    last_slip = -1
+    losses = 0
+    last_loss = -1
     for q in numba.prange(x.shape[0]):
-        for b in range(kind.shape[0]):
+        for b in range(walls):
             overlap, n, arm, vrel, spin = wall_kinematics(
                 q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_velocity
             )
-            shear = cell(history, q, b)
+            overlaps[q, b] = overlap
+            shear = cell_of(history, q, b)
             if overlap > 0.0:
                 m = wall_material[b]
-                f, fn, u, slipped, shear = contact_force(
+                n_new = cell_of(normal_new, q, b) if normal_new.shape[0] > 0 else ZERO
+                f, shear, slipped = contact_force(
                     law,
                     mode,
                     dt,
@@ -206,82 +268,115 @@ def _wall_loop(
                     n,
                     radius[q],
                     mass[q],
-                    (estar[material[q], m], gstar[material[q], m]),
+                    estar[material[q], m],
+                    gstar[material[q], m],
                     vrel,
                     spin,
                     shear,
-                    cell(pending, q, b),
-                    cell(normal_new, q, b),
+                    n_new,
                 )
-                t = cross(scaled(arm, n), f)
+                t = cross(scaled(arm, n), f) if shear_law else ZERO
                 dropped = 0.0
             else:
                 f = ZERO
                 t = ZERO
-                fn = 0.0
-                u = 0.0
                 slipped = 0.0
                 dropped = norm(shear) if mode == FORWARD else 0.0
                 shear = ZERO
             place(history, q, b, shear)
             place(force, q, b, f)
             place(torque, q, b, t)
-            normal[q, b] = fn
-            energy[q, b] = u
-            slip[q, b] = slipped
-            lost[q, b] = dropped
+            destroyed[q, b] = slipped + dropped
+            if slipped > 0.0:
+                slips += 1
+                last_slip = max(last_slip, q * walls + b)
+            if dropped > 0.0:
+                losses += 1
+                last_loss = max(last_loss, q * walls + b)
+    return slips, last_slip, losses, last_loss
 
 
 def _gather_loop(
     mass,
+    inv_mass,
+    inv_inertia,
+    radius,
     v,
     w,
     gravity,
     local,
-    pi,
+    first,
     start,
     slots,
     pair_force,
-    torque_i,
-    torque_j,
+    moment,
+    overlaps,
     wall_force,
     wall_torque,
     f_out,
     t_out,
+    h,
 ):
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
-    (Hanley 2020 Eq 4-5), then local damping of each component, f - gamma_l |f| sgn(v)
-    (Eq 21)."""
+    (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21);
+    then the half kick v += h f / m, w += h t / I (Eq 11-12; h = 0: none). Without a
+    tangential law (no `moment`) every moment is zero."""
+    torques = moment.shape[0] > 0
     for q in numba.prange(f_out.shape[0]):
         f = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
         t = ZERO
-        for s in range(start[q], start[q + 1]):
+        for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
             k = slots[s]
-            if pi[k] == q:
-                f = axpy(1.0, row(pair_force, k), f)
-                t = axpy(1.0, row(torque_i, k), t)
-            else:
-                f = axpy(-1.0, row(pair_force, k), f)
-                t = axpy(1.0, row(torque_j, k), t)
+            f = axpy(-1.0, row(pair_force, k), f)
+            if torques:  # Hanley 2020 Eq 5: the lever arm r - overlap / 2 times n x f
+                t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
+        for k in range(first[q], first[q + 1]):  # partners j > q
+            f = axpy(1.0, row(pair_force, k), f)
+            if torques:
+                t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
         for b in range(wall_force.shape[1]):
-            f = axpy(1.0, cell(wall_force, q, b), f)
-            t = axpy(1.0, cell(wall_torque, q, b), t)
+            f = axpy(1.0, cell_of(wall_force, q, b), f)
+            t = axpy(1.0, cell_of(wall_torque, q, b), t)
         for d in range(3):
             f_out[q, d] = f[d] - local * abs(f[d]) * sign(v[q, d])  # Hanley 2020 Eq 21
-            t_out[q, d] = t[d] - local * abs(t[d]) * sign(w[q, d])
+            v[q, d] += h * f_out[q, d] * inv_mass[q]
+        if torques:  # else the moments stay zero
+            for d in range(3):
+                t_out[q, d] = t[d] - local * abs(t[d]) * sign(w[q, d])
+                w[q, d] += h * t_out[q, d] * inv_inertia[q]
 
 
 def _unwind_pair_loop(
-    x, v, w, radius, material, gstar, pi, pj, n_pairs, history, pending, normal_new, law, dt
+    x,
+    v,
+    w,
+    radius,
+    material,
+    gstar,
+    image,
+    rate,
+    length,
+    deforming,
+    pi,
+    pj,
+    n_pairs,
+    history,
+    normal_new,
+    law,
+    dt,
 ):
-    """Reversed step, before drifting back: undo Eq 10 and 9 for every pair."""
+    """Reversed step, before drifting back: undo Eq 10 and 9 for every pair, in place."""
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
-        overlap, n, _, _, vrel, spin = pair_kinematics(i, j, x, v, w, radius)
+        d = separation(x, i, j, image)
+        dist = norm(d)
+        overlap = radius[i] + radius[j] - dist
+        n = scaled(1.0 / dist, d)
+        vrel, spin = pair_velocity(i, j, d, n, overlap, v, w, radius, rate, length, deforming)
         rstar = radius[i] * radius[j] / (radius[i] + radius[j])
         gs = gstar[material[i], material[j]]
-        put(pending, k, unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, row(history, k)))
+        put(history, k, unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, row(history, k)))
         put(normal_new, k, n)
 
 
@@ -299,7 +394,6 @@ def _unwind_wall_loop(
     wall_velocity,
     wall_material,
     history,
-    pending,
     normal_new,
     law,
     dt,
@@ -312,9 +406,9 @@ def _unwind_wall_loop(
             )
             gs = gstar[material[q], wall_material[b]]
             shear = unwind_shear(
-                law, dt, overlap, n, radius[q], gs, vrel, spin, cell(history, q, b)
+                law, dt, overlap, n, radius[q], gs, vrel, spin, cell_of(history, q, b)
             )
-            place(pending, q, b, shear)
+            place(history, q, b, shear)
             place(normal_new, q, b, n)
 
 
@@ -326,31 +420,25 @@ unwind_wall_loop, unwind_wall_loop_parallel = serial_and_parallel(_unwind_wall_l
 
 
 @jit
-def compute_forces(p, pairs, walls, law, moduli, dyn, mode, dt):
-    """Forces at the current positions: Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed."""
-    parallel = p.x.shape[0] >= PARALLEL_FROM
+def compute_forces(p, pairs, walls, cell, law, moduli, dyn, mode, dt, h, events, step):
+    """Forces at the current positions (Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed),
+    the half kick h that follows them, and the stress a servo needs; the shear force the
+    step destroyed goes into the event log at `step`."""
+    deforming = deforms(cell)
+    particle_args = (p.x, p.v, p.omega, p.radius, p.mass, p.material, moduli.estar, moduli.gstar)
     pair_args = (
-        p.x,
-        p.v,
-        p.omega,
-        p.radius,
-        p.mass,
-        p.material,
-        moduli.estar,
-        moduli.gstar,
+        cell.rate,
+        cell.length,
+        deforming,
         pairs.i,
         pairs.j,
         pairs.count[0],
-        pairs.history,
-        pairs.pending,
-        pairs.normal_new,
         pairs.force,
-        pairs.torque_i,
-        pairs.torque_j,
-        pairs.normal,
-        pairs.energy,
-        pairs.slip,
-        pairs.lost,
+        pairs.history,
+        pairs.moment,
+        pairs.overlap,
+        pairs.destroyed,
+        pairs.normal_new,
         law,
         mode,
         dt,
@@ -370,48 +458,122 @@ def compute_forces(p, pairs, walls, law, moduli, dyn, mode, dt):
         walls.radius,
         walls.velocity,
         walls.material,
-        walls.history,
-        walls.pending,
-        walls.normal_new,
         walls.force,
         walls.torque,
-        walls.normal,
-        walls.energy,
-        walls.slip,
-        walls.lost,
+        walls.overlap,
+        walls.history,
+        walls.destroyed,
+        walls.normal_new,
         law,
         mode,
         dt,
     )
     gather_args = (
         p.mass,
+        p.inv_mass,
+        p.inv_inertia,
+        p.radius,
         p.v,
         p.omega,
         dyn.gravity,
         dyn.local_damping,
-        pairs.i,
+        pairs.first,
         pairs.start,
         pairs.slots,
         pairs.force,
-        pairs.torque_i,
-        pairs.torque_j,
+        pairs.moment,
+        pairs.overlap,
         walls.force,
         walls.torque,
         p.f,
         p.torque,
+        h,
     )
-    if parallel:
-        pair_loop_parallel(*pair_args)
-        wall_loop_parallel(*wall_args)
+    periodic = cell.periodic[0] or cell.periodic[1] or cell.periodic[2]
+    if p.x.shape[0] >= PARALLEL_FROM:
+        if periodic:  # an open system's pairs skip the nearest image: a build of its own
+            pair_events = pair_loop_parallel(*particle_args, images(cell), *pair_args)
+        else:
+            pair_events = pair_loop_parallel(*particle_args, None, *pair_args)
+        wall_events = wall_loop_parallel(*wall_args)
+        if holds_stress(cell):
+            stress_of(p, pairs, cell)
         gather_loop_parallel(*gather_args)
     else:
-        pair_loop(*pair_args)
-        wall_loop(*wall_args)
+        if periodic:
+            pair_events = pair_loop(*particle_args, images(cell), *pair_args)
+        else:
+            pair_events = pair_loop(*particle_args, None, *pair_args)
+        wall_events = wall_loop(*wall_args)
+        if holds_stress(cell):
+            stress_of(p, pairs, cell)
         gather_loop(*gather_args)
+    servo_forces(cell, dyn.local_damping)
+    note_destroyed(events, step, pairs, walls, pair_events, wall_events)
 
 
 @jit
-def unwind_shear_history(p, pairs, walls, law, moduli, dt):
+def stress_of(p, pairs, cell):
+    """Average stress in the cell, -1/V sum over contacts of d (x) f with d the branch vector
+    from i to j and f the force on i (Hanley 2020 Eq 22-23 summed over the particles;
+    compression positive), summed over the pair list in order."""
+    sigma = cell.stress
+    sigma[:, :] = 0.0
+    image = images(cell)
+    for k in range(pairs.count[0]):
+        f = row(pairs.force, k)
+        if f[0] != 0.0 or f[1] != 0.0 or f[2] != 0.0:
+            d = separation(p.x, pairs.i[k], pairs.j[k], image)
+            for a in range(3):
+                for b in range(3):
+                    sigma[a, b] -= d[a] * f[b]
+    scale = 1.0 / volume(cell)
+    for a in range(3):
+        for b in range(3):
+            sigma[a, b] *= scale
+
+
+@jit
+def particle_stress(p, pairs, walls, cell, out):
+    """Stress of each particle, -1/V_p sum over its contacts of x_c (x) f_c with x_c from its
+    centre to the contact point (Hanley 2020 Eq 22; compression positive), Pa, (N, 3, 3).
+
+    A pair's force f on i acts on j as -f at -arm_j n: both particles get arm n (x) f."""
+    out[:] = 0.0
+    image = images(cell)
+    for k in range(pairs.count[0]):
+        f = row(pairs.force, k)
+        if f[0] == 0.0 and f[1] == 0.0 and f[2] == 0.0:
+            continue
+        i, j = pairs.i[k], pairs.j[k]
+        d = separation(p.x, i, j, image)
+        dist = norm(d)
+        overlap = p.radius[i] + p.radius[j] - dist
+        for q in (i, j):
+            arm = p.radius[q] - 0.5 * overlap
+            for a in range(3):
+                for b in range(3):
+                    out[q, a, b] -= arm * d[a] / dist * f[b]
+    for q in range(p.x.shape[0]):
+        for b in range(walls.force.shape[1]):
+            if walls.overlap[q, b] > 0.0:
+                _, n = wall_overlap(
+                    walls.kind[b],
+                    row(walls.point, b),
+                    row(walls.axis, b),
+                    walls.radius[b],
+                    row(p.x, q),
+                    p.radius[q],
+                )
+                arm = p.radius[q] - 0.5 * walls.overlap[q, b]
+                for a in range(3):
+                    for c in range(3):
+                        out[q, a, c] -= arm * n[a] * walls.force[q, b, c]
+        out[q] *= 3.0 / (4.0 * math.pi * p.radius[q] ** 3)
+
+
+@jit
+def unwind_shear_history(p, pairs, walls, cell, law, moduli, dt):
     """Undo the shear update of the forward step (inverse of Eq 10, 9) at the later positions."""
     if law.tangential == NO_SHEAR:
         return
@@ -422,11 +584,14 @@ def unwind_shear_history(p, pairs, walls, law, moduli, dt):
         p.radius,
         p.material,
         moduli.gstar,
+        images(cell),
+        cell.rate,
+        cell.length,
+        deforms(cell),
         pairs.i,
         pairs.j,
         pairs.count[0],
         pairs.history,
-        pairs.pending,
         pairs.normal_new,
         law,
         dt,
@@ -445,7 +610,6 @@ def unwind_shear_history(p, pairs, walls, law, moduli, dt):
         walls.velocity,
         walls.material,
         walls.history,
-        walls.pending,
         walls.normal_new,
         law,
         dt,

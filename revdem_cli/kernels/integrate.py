@@ -1,146 +1,257 @@
 """Velocity-Verlet stepping, forward and reversed, and the compiled loop of a stage."""
 
-from revdem_cli.kernels import jit
-from revdem_cli.kernels.contact import FORWARD, REVERSE
-from revdem_cli.kernels.events import MOTION_LOST, note, note_contact_events, note_fixed_points
-from revdem_cli.kernels.forces import compute_forces, unwind_shear_history
+import numba
+
+from revdem_cli.kernels import jit, serial_and_parallel
+from revdem_cli.kernels.cell import kick_cell, move_cell
+from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE
+from revdem_cli.kernels.events import MOTION_LOST, note, note_damping, note_fixed_points
+from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces, unwind_shear_history
 from revdem_cli.kernels.neighbours import (
     build_pairs,
     carry_history,
     index_by_particle,
     largest_reach,
+    largest_reach_parallel,
 )
 from revdem_cli.kernels.observables import observe
 from revdem_cli.kernels.walls import place_walls
 
 OK = 0
 PAIR_OVERFLOW = 1
+CELL_TOO_SMALL = 2
 
 
-@jit
-def kick(v, f, inv_m, h):
+def _kick(v, f, inv_m, h):
     """v += h f / m: a half kick, h = +dt/2 (Hanley 2020 Eq 1-2, 11-12) or -dt/2 (Eq 17, 20)."""
-    for q in range(v.shape[0]):
+    for q in numba.prange(v.shape[0]):
         for d in range(3):
             v[q, d] += h * f[q, d] * inv_m[q]
 
 
-@jit
-def drift(x, v, h, events, step):
-    """x += h v with the half-step velocity, h = +dt (Hanley 2020 Eq 3) or -dt (Eq 18).
-
-    A nonzero displacement too small to change a position is lost to round-off: logged.
-    """
-    for q in range(x.shape[0]):
-        lost = 0.0
-        for d in range(3):
-            moved = x[q, d] + h * v[q, d]
-            if moved == x[q, d] and v[q, d] != 0.0:
-                lost = max(lost, abs(h * v[q, d]))
-            x[q, d] = moved
-        if lost > 0.0:
-            note(events, MOTION_LOST, step, q, -1, lost)
-
-
-@jit
-def scale(v, factor):
+def _scale(v, factor):
     """v *= factor: drag, factor gamma_d (Hanley 2020 Eq 25), undone with 1/gamma_d (Eq 28)."""
-    for q in range(v.shape[0]):
+    for q in numba.prange(v.shape[0]):
         for d in range(3):
             v[q, d] *= factor
 
 
+def _drift(x, v, h):
+    """x += h v with the half-step velocity, h = +dt (Hanley 2020 Eq 3) or -dt (Eq 18).
+
+    Returns (particles whose nonzero displacement was too small to change a position, the
+    last of them)."""
+    lost = 0
+    last = -1
+    for q in numba.prange(x.shape[0]):
+        below = False
+        for d in range(3):
+            moved = x[q, d] + h * v[q, d]
+            if moved == x[q, d] and v[q, d] != 0.0:
+                below = True
+            x[q, d] = moved
+        if below:
+            lost += 1
+            last = max(last, q)
+    return lost, last
+
+
+def _drift_in_cell(x, s, v, h, mid, length):
+    """s += h v / L_mid, x = s L: the drift of Hanley 2020 Eq 3 in the cell coordinates of a
+    deforming cell, L_mid its edges halfway through the step. Returns as `_drift`."""
+    lost = 0
+    last = -1
+    for q in numba.prange(x.shape[0]):
+        below = False
+        for d in range(3):
+            moved = s[q, d] + h * v[q, d] / mid[d]
+            if moved == s[q, d] and v[q, d] != 0.0:
+                below = True
+            s[q, d] = moved
+            x[q, d] = moved * length[d]
+        if below:
+            lost += 1
+            last = max(last, q)
+    return lost, last
+
+
+kick_serial, kick_parallel = serial_and_parallel(_kick)
+scale_serial, scale_parallel = serial_and_parallel(_scale)
+drift_serial, drift_parallel = serial_and_parallel(_drift)
+drift_in_cell_serial, drift_in_cell_parallel = serial_and_parallel(_drift_in_cell)
+
+
 @jit
-def forward_step(p, pairs, walls, law, moduli, dyn, events, dt, step, wall_time):
-    """One forward step from `step` (Hanley 2020 Eq 1-12, with drag Eq 25-26)."""
-    kick(p.v, p.f, p.inv_mass, 0.5 * dt)
-    kick(p.omega, p.torque, p.inv_inertia, 0.5 * dt)
+def kick(v, f, inv_m, h):
+    if v.shape[0] >= PARALLEL_FROM:
+        kick_parallel(v, f, inv_m, h)
+    else:
+        kick_serial(v, f, inv_m, h)
+
+
+@jit
+def scale(v, factor):
+    if v.shape[0] >= PARALLEL_FROM:
+        scale_parallel(v, factor)
+    else:
+        scale_serial(v, factor)
+
+
+@jit
+def drift(p, cell, h, events, step):
+    """The drift of every particle; a nonzero displacement too small to change a position
+    (or a cell coordinate) is lost to round-off, and logged with the largest such
+    displacement of the last particle it happened to."""
+    parallel = p.x.shape[0] >= PARALLEL_FROM
+    in_cell = p.s.shape[0] > 0
+    if in_cell:
+        pos = p.s
+        if parallel:
+            lost, last = drift_in_cell_parallel(p.x, p.s, p.v, h, cell.mid, cell.length)
+        else:
+            lost, last = drift_in_cell_serial(p.x, p.s, p.v, h, cell.mid, cell.length)
+    else:
+        pos = p.x
+        if parallel:
+            lost, last = drift_parallel(p.x, p.v, h)
+        else:
+            lost, last = drift_serial(p.x, p.v, h)
+    if lost > 0:
+        amount = 0.0
+        for d in range(3):
+            increment = h * p.v[last, d] / cell.mid[d] if in_cell else h * p.v[last, d]
+            if p.v[last, d] != 0.0 and pos[last, d] + increment == pos[last, d]:
+                amount = max(amount, abs(h * p.v[last, d]))
+        note(events, MOTION_LOST, step, last, -1, amount, lost)
+
+
+@jit
+def forward_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elapsed):
+    """One forward step from `step` (Hanley 2020 Eq 1-12, with drag Eq 25-26); `elapsed`
+    is the stage's time at its end."""
+    h = 0.5 * dt
+    kick(p.v, p.f, p.inv_mass, h)
+    if law.tangential != NO_SHEAR:  # without shear forces the moments are zero
+        kick(p.omega, p.torque, p.inv_inertia, h)
+    kick_cell(cell, h)
     if dyn.drag != 1.0:
         scale(p.v, dyn.drag)
         note_fixed_points(p.v, p.v_drift, step + 1, events)
-    drift(p.x, p.v, dt, events, step + 1)
-    place_walls(walls, wall_time)
-    compute_forces(p, pairs, walls, law, moduli, dyn, FORWARD, dt)
-    note_contact_events(pairs, walls, law, dyn, step + 1, events)
-    kick(p.v, p.f, p.inv_mass, 0.5 * dt)
-    kick(p.omega, p.torque, p.inv_inertia, 0.5 * dt)
+    move_cell(cell, dt, elapsed)
+    drift(p, cell, dt, events, step + 1)
+    place_walls(walls, elapsed)
+    compute_forces(p, pairs, walls, cell, law, moduli, dyn, FORWARD, dt, h, events, step + 1)
+    note_damping(events, step + 1, law, dyn)
+    kick_cell(cell, h)
 
 
 @jit
-def reverse_step(p, pairs, walls, law, moduli, dyn, events, dt, step, wall_time):
+def reverse_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elapsed):
     """One reversed step from `step`: the forward step's operations undone in reverse order.
 
     Kick back with the stored force (Eq 17, 27); undo the shear increment and spin
-    correction at the later positions (inverse of Eq 10, 9); drift back with the velocity
-    the forward step drifted with (Eq 18); undo drag (Eq 28); forces at the earlier
-    positions, the shear history mapped back onto their contact planes (Eq 19, inverse of
-    Eq 7-8); kick back (Eq 20). Mechanisms that destroy information (Coulomb cap, local and
-    viscous damping, shear force lost at separation) run mirrored and are logged.
+    correction at the later positions (inverse of Eq 10, 9); move the cell and drift back
+    with the velocities the forward step moved with (Eq 18); undo drag (Eq 28); forces at
+    the earlier positions, the shear history mapped back onto their contact planes (Eq 19,
+    inverse of Eq 7-8), and the kick back (Eq 20). Mechanisms that destroy information
+    (Coulomb cap, local and viscous damping, shear force lost at separation) run mirrored
+    and are logged.
     """
-    kick(p.v, p.f, p.inv_mass, -0.5 * dt)
-    kick(p.omega, p.torque, p.inv_inertia, -0.5 * dt)
-    unwind_shear_history(p, pairs, walls, law, moduli, dt)
-    drift(p.x, p.v, -dt, events, step - 1)
-    place_walls(walls, wall_time)
+    h = -0.5 * dt
+    kick(p.v, p.f, p.inv_mass, h)
+    if law.tangential != NO_SHEAR:
+        kick(p.omega, p.torque, p.inv_inertia, h)
+    kick_cell(cell, h)
+    unwind_shear_history(p, pairs, walls, cell, law, moduli, dt)
+    move_cell(cell, -dt, elapsed)
+    drift(p, cell, -dt, events, step - 1)
+    place_walls(walls, elapsed)
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)
         scale(p.v, 1.0 / dyn.drag)
-    compute_forces(p, pairs, walls, law, moduli, dyn, REVERSE, dt)
-    note_contact_events(pairs, walls, law, dyn, step - 1, events)
-    kick(p.v, p.f, p.inv_mass, -0.5 * dt)
-    kick(p.omega, p.torque, p.inv_inertia, -0.5 * dt)
+    compute_forces(p, pairs, walls, cell, law, moduli, dyn, REVERSE, dt, h, events, step - 1)
+    note_damping(events, step - 1, law, dyn)
+    kick_cell(cell, h)
 
 
 @jit
-def rebuild_pairs(p, pairs, skin):
+def rebuild_pairs(p, pairs, cell, skin):
     """Rebuild the pair list at the current positions, carrying contact history.
 
-    Returns False, leaving the list as it was, when the new list does not fit; the number
-    needed is then in pairs.count[1].
+    Returns PAIR_OVERFLOW, leaving the list as it was, when the new list does not fit (the
+    number needed is then in pairs.count[1]), and CELL_TOO_SMALL when a periodic edge is no
+    longer twice the contact reach, so that a pair could touch through two images.
     """
-    needed = build_pairs(p.x, p.radius, skin, pairs.new_i, pairs.new_j)
+    cutoff = 2.0 * p.radius.max() + skin
+    for d in range(3):
+        if cell.periodic[d] and cell.length[d] <= 2.0 * cutoff:
+            return CELL_TOO_SMALL
+    parallel = p.x.shape[0] >= PARALLEL_FROM
+    needed = build_pairs(
+        p.x, p.radius, skin, cell.periodic, cell.length, pairs.new_i, pairs.new_j, parallel
+    )
     pairs.count[1] = needed
     if needed > pairs.i.shape[0]:
-        return False
+        return PAIR_OVERFLOW
     old = pairs.count[0]
-    carry_history(
-        pairs.i, pairs.j, pairs.history, old, pairs.new_i, pairs.new_j, pairs.new_history, needed
-    )
+    if pairs.history.shape[0] > 0:
+        carry_history(pairs.i, pairs.j, old, pairs.new_i, pairs.new_j, needed, pairs.history)
     pairs.i[:needed] = pairs.new_i[:needed]
     pairs.j[:needed] = pairs.new_j[:needed]
-    pairs.history[:needed] = pairs.new_history[:needed]
     pairs.count[0] = needed
-    index_by_particle(pairs.i, pairs.j, needed, pairs.start, pairs.slots)
+    index_by_particle(pairs.i, pairs.j, needed, pairs.first, pairs.start, pairs.slots)
     pairs.x_built[:] = p.x
-    return True
+    cell.built[:] = cell.length
+    return OK
 
 
 @jit
-def advance(p, pairs, walls, law, moduli, dyn, events, run, step, stop, obs):
+def needs_rebuild(p, pairs, cell, dt, skin, direction):
+    """Whether some pair could close half the skin in the next step: twice the largest
+    reach of a particle from its place at the last build, plus the relative change of the
+    cell's edges times the largest contact reach, exceeds the skin."""
+    if p.x.shape[0] >= PARALLEL_FROM:
+        reach = largest_reach_parallel(
+            p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction, cell.length, cell.built
+        )
+    else:
+        reach = largest_reach(
+            p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction, cell.length, cell.built
+        )
+    strain = 0.0
+    for d in range(3):
+        ahead = dt * abs(cell.rate[d]) / cell.length[d]
+        strain = max(strain, abs(cell.length[d] / cell.built[d] - 1.0) + ahead)
+    return 2.0 * reach + strain * (2.0 * p.radius.max() + skin) > skin
+
+
+@jit
+def advance(p, pairs, walls, cell, law, moduli, dyn, events, run, step, stop, obs):
     """Run whole steps from `step` to `stop` (forward if stop > step, else reversed).
 
     run = (dt, skin, first step of the stage, last step, observables interval). Observables
     are recorded into the rows of `obs` at every step where (step - first) % interval == 0
     and at the last step. Returns (status, step reached, rows recorded); status
-    PAIR_OVERFLOW means the pair list must grow before stepping on (the state is then at a
-    whole step).
+    PAIR_OVERFLOW means the pair list must grow before stepping on, CELL_TOO_SMALL that the
+    cell has shrunk too far (the state is then at a whole step).
     """
     dt, skin = run[0], run[1]
     first, last, every = int(run[2]), int(run[3]), int(run[4])
     direction = 1 if stop > step else -1
     rows = 0
     while step != stop:
-        if largest_reach(p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction) > 0.5 * skin:
-            if not rebuild_pairs(p, pairs, skin):
-                return PAIR_OVERFLOW, step, rows
-        wall_time = (step + direction - first) * dt
+        if needs_rebuild(p, pairs, cell, dt, skin, direction):
+            status = rebuild_pairs(p, pairs, cell, skin)
+            if status != OK:
+                return status, step, rows
+        elapsed = (step + direction - first) * dt
         if direction > 0:
-            forward_step(p, pairs, walls, law, moduli, dyn, events, dt, step, wall_time)
+            forward_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elapsed)
         else:
-            reverse_step(p, pairs, walls, law, moduli, dyn, events, dt, step, wall_time)
+            reverse_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elapsed)
         step += direction
         if (step - first) % every == 0 or step == last:
             obs[rows, 0] = step
-            observe(p, pairs, walls, dyn, obs[rows])
+            observe(p, pairs, walls, cell, law, moduli, dyn, obs[rows])
             rows += 1
     return OK, step, rows

@@ -1,52 +1,96 @@
 import numpy as np
+import pytest
 
 from revdem_cli.kernels.neighbours import build_pairs, carry_history, index_by_particle
 
+OPEN = (np.zeros(3, np.int64), np.ones(3))
 
-def brute_force_pairs(x, radius, skin):
+
+def brute_force_pairs(x, radius, skin, box=None):
+    """Pairs within reach, the nearest image across a periodic box if one is given."""
     n = len(x)
-    return [
-        (i, j)
-        for i in range(n)
-        for j in range(i + 1, n)
-        if np.linalg.norm(x[j] - x[i]) < radius[i] + radius[j] + skin
-    ]
+    found = []
+    for i in range(n):
+        for j in range(i + 1, n):
+            d = x[j] - x[i]
+            if box is not None:
+                d -= box * np.floor(d / box + 0.5)
+            if np.linalg.norm(d) < radius[i] + radius[j] + skin:
+                found.append((i, j))
+    return found
 
 
-def random_packing(n, seed):
+def random_packing(n, seed, size=0.05):
     rng = np.random.default_rng(seed)
-    return rng.uniform(0, 0.05, (n, 3)), rng.uniform(0.004, 0.006, n)
+    return rng.uniform(0, size, (n, 3)), rng.uniform(0.004, 0.006, n)
 
 
-def test_cell_list_pairs_equal_brute_force_and_are_sorted():
-    x, radius = random_packing(400, 1)
+def listed(x, radius, skin, periodic, length, parallel):
     cap = 20000
-    pi, pj = np.zeros(cap, np.int64), np.zeros(cap, np.int64)
-    n = build_pairs(x, radius, 0.001, pi, pj)
+    pi, pj = np.zeros(cap, np.int32), np.zeros(cap, np.int32)
+    n = build_pairs(x, radius, skin, periodic, length, pi, pj, parallel)
+    return n, list(zip(pi[:n].tolist(), pj[:n].tolist(), strict=True))
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_cell_list_pairs_equal_brute_force_and_are_sorted(parallel):
+    x, radius = random_packing(400, 1)
+    n, pairs = listed(x, radius, 0.001, *OPEN, parallel)
     expected = brute_force_pairs(x, radius, 0.001)
     assert n == len(expected) > 0
-    assert list(zip(pi[:n].tolist(), pj[:n].tolist(), strict=True)) == expected
+    assert pairs == expected
 
 
-def test_too_small_arrays_report_the_size_needed():
+@pytest.mark.parametrize("size", [0.05, 0.035])  # 3 and 2 cells an edge: each cell once
+def test_periodic_pairs_reach_across_faces_to_the_nearest_image(size):
+    x, radius = random_packing(300, 3, size)
+    box = np.full(3, size)
+    n, pairs = listed(x, radius, 0.001, np.ones(3, np.int64), box, True)
+    expected = brute_force_pairs(x, radius, 0.001, box)
+    assert pairs == expected
+    across = [(i, j) for i, j in expected if np.abs(x[j] - x[i]).max() > size / 2]
+    assert across, "some pairs touch only through a face"
+
+
+def test_too_small_arrays_report_the_size_needed_and_stay_as_they_were():
     x, radius = random_packing(200, 2)
     needed = len(brute_force_pairs(x, radius, 0.001))
-    pi, pj = np.zeros(needed // 2, np.int64), np.zeros(needed // 2, np.int64)
-    assert build_pairs(x, radius, 0.001, pi, pj) == needed
+    pi, pj = np.full(needed // 2, 7, np.int32), np.full(needed // 2, 7, np.int32)
+    assert build_pairs(x, radius, 0.001, *OPEN, pi, pj, False) == needed
+    assert (pi == 7).all() and (pj == 7).all()
 
 
-def test_history_follows_its_pair_across_rebuilds():
-    old_i, old_j = np.array([0, 0, 1, 2]), np.array([1, 3, 2, 3])
-    old = np.arange(12.0).reshape(4, 3)
-    new_i, new_j = np.array([0, 1, 1, 2]), np.array([3, 2, 3, 3])
-    new = np.full((4, 3), -1.0)
-    carry_history(old_i, old_j, old, 4, new_i, new_j, new, 4)
-    np.testing.assert_array_equal(new, [old[1], old[2], [0, 0, 0], old[3]])
+def test_history_follows_its_pair_across_rebuilds_in_place():
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        universe = [(i, j) for i in range(12) for j in range(i + 1, 12)]
+        old = sorted(rng.choice(len(universe), rng.integers(0, 30), replace=False))
+        new = sorted(rng.choice(len(universe), rng.integers(0, 30), replace=False))
+        old_pairs = [universe[k] for k in old]
+        new_pairs = [universe[k] for k in new]
+        capacity = 40
+        history = rng.normal(size=(capacity, 3))
+        before = {pair: history[k].copy() for k, pair in enumerate(old_pairs)}
+        old_i, old_j = (np.array([p[a] for p in old_pairs] + [0], np.int32) for a in (0, 1))
+        new_i, new_j = (np.array([p[a] for p in new_pairs] + [0], np.int32) for a in (0, 1))
+        carry_history(old_i, old_j, len(old), new_i, new_j, len(new), history)
+        for m, pair in enumerate(new_pairs):
+            np.testing.assert_array_equal(history[m], before.get(pair, np.zeros(3)))
 
 
 def test_each_particle_lists_its_pairs_in_partner_order():
-    pi, pj = np.array([0, 0, 1, 2]), np.array([1, 3, 2, 3])
-    start, slots = np.zeros(5, np.int64), np.zeros(8, np.int64)
-    index_by_particle(pi, pj, 4, start, slots)
-    per_particle = [slots[start[p] : start[p + 1]].tolist() for p in range(4)]
+    pi, pj = np.array([0, 0, 1, 2], np.int32), np.array([1, 3, 2, 3], np.int32)
+    first, start, slots = np.zeros(5, np.int64), np.zeros(5, np.int64), np.zeros(4, np.int32)
+    index_by_particle(pi, pj, 4, first, start, slots)
+    below = [slots[start[p] : start[p + 1]].tolist() for p in range(4)]
+    above = [list(range(first[p], first[p + 1])) for p in range(4)]
+    per_particle = [b + a for b, a in zip(below, above, strict=True)]
     assert per_particle == [[0, 1], [0, 2], [2, 3], [1, 3]]
+    assert [
+        [int(pi[k] if pj[k] == p else pj[k]) for k in ks] for p, ks in enumerate(per_particle)
+    ] == [
+        [1, 3],
+        [0, 2],
+        [1, 3],
+        [0, 2],
+    ]

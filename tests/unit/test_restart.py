@@ -8,9 +8,8 @@ from tests.conftest import two_spheres
 def listed(pairs, name):
     """The meaningful part of a pair-list array: the listed pairs, or all of a per-particle one."""
     n = int(pairs.count[0])
-    return {"start": pairs.start, "x_built": pairs.x_built, "slots": pairs.slots[: 2 * n]}.get(
-        name, getattr(pairs, name)[:n]
-    )
+    whole = {"first": pairs.first, "start": pairs.start, "x_built": pairs.x_built}
+    return {**whole, "slots": pairs.slots[:n]}.get(name, getattr(pairs, name)[:n])
 
 
 def test_restart_round_trip_keeps_every_array_bit_for_bit(tmp_path):
@@ -22,8 +21,10 @@ def test_restart_round_trip_keeps_every_array_bit_for_bit(tmp_path):
     assert first.state.pairs.count[0] == 1
     for name, a in first.state.particles._asdict().items():
         np.testing.assert_array_equal(a, getattr(second.state.particles, name), err_msg=name)
-    for name in ("i", "j", "history", "force", "energy", "start", "slots", "x_built"):
+    for name in ("i", "j", "history", "force", "first", "start", "slots", "x_built"):
         np.testing.assert_array_equal(
             listed(first.state.pairs, name), listed(second.state.pairs, name), err_msg=name
         )
+    for name, a in first.state.cell._asdict().items():
+        np.testing.assert_array_equal(a, getattr(second.state.cell, name), err_msg=name)
     assert second.scenario_json == first.scenario_json and second.scenario_text == "text"

@@ -1,0 +1,125 @@
+"""The periodic cell: an orthorhombic box [0, L) repeated in x, y and z, whose edges may move.
+
+Each edge is fixed, moves at a prescribed strain rate, or holds a stress with a servo. In
+a deforming cell the particles are carried affinely: their state is the cell coordinate
+s = x / L, drifted with their own velocity (relative to the cell's affine motion) and mapped
+back with the new edge lengths, x = s L. Across a contact the cell's affine motion adds
+(dL/dt / L) d to the relative velocity of two particles d apart.
+
+Servos, for an axis a holding the stress target s*_a:
+- PROPORTIONAL (Hanley 2020 §3.2.3): dL_a/dt = gain (sigma_aa - s*_a) / s*_a L_a, from the
+  stress at the start of the step. Reversed, the step starts from the later stress, so the
+  cell does not retrace its path exactly (the paper's observation).
+- INERTIAL: the edge is a degree of freedom of mass M driven by (sigma_aa - s*_a) A_a, A_a the
+  area of the face normal to a, integrated with the particles' velocity-Verlet half steps;
+  its reversed step is the exact inverse of its forward step.
+"""
+
+import numpy as np
+
+from revdem_cli.kernels import jit
+
+FIXED = 0
+STRAIN_RATE = 1
+STRESS = 2
+
+PROPORTIONAL = 0
+INERTIAL = 1
+
+
+@jit
+def images(cell):
+    """The cell's edges and their inverses as a 6-tuple for `nearest_image`, the inverse 0
+    on an axis that is not periodic."""
+    inv = (
+        1.0 / cell.length[0] if cell.periodic[0] else 0.0,
+        1.0 / cell.length[1] if cell.periodic[1] else 0.0,
+        1.0 / cell.length[2] if cell.periodic[2] else 0.0,
+    )
+    return (cell.length[0], cell.length[1], cell.length[2], inv[0], inv[1], inv[2])
+
+
+@jit
+def nearest_image(d, image):
+    """The separation d (3-tuple) mapped to its nearest periodic image; `image` from
+    `images`, or None where no axis is periodic. (On an axis that is not periodic the
+    inverse is 0 and d is returned unchanged, bit for bit: d - L floor(0.5) = d - 0.)"""
+    if image is None:
+        return d
+    return (  # np.floor stays a float (math.floor would round-trip through an integer)
+        d[0] - image[0] * np.floor(d[0] * image[3] + 0.5),
+        d[1] - image[1] * np.floor(d[1] * image[4] + 0.5),
+        d[2] - image[2] * np.floor(d[2] * image[5] + 0.5),
+    )
+
+
+@jit
+def affine_velocity(d, rate, length):
+    """Velocity of the cell's affine motion across a separation d: (dL/dt / L) d."""
+    return (rate[0] / length[0] * d[0], rate[1] / length[1] * d[1], rate[2] / length[2] * d[2])
+
+
+@jit
+def deforms(cell):
+    """Whether any edge of the cell moves in this run."""
+    for a in range(3):
+        if cell.control[a] != FIXED:
+            return True
+    return False
+
+
+@jit
+def holds_stress(cell):
+    """Whether a servo holds the stress on some edge in this stage."""
+    for a in range(3):
+        if cell.control[a] == STRESS:
+            return True
+    return False
+
+
+@jit
+def volume(cell):
+    return cell.length[0] * cell.length[1] * cell.length[2]
+
+
+@jit
+def servo_forces(cell, local_damping):
+    """Inertial servo: the force on each stress-controlled edge at the current step,
+    (sigma_aa - s*_a) A_a, less local damping (Hanley 2020 Eq 21) as on a particle."""
+    if cell.servo != INERTIAL:
+        return
+    for a in range(3):
+        if cell.control[a] == STRESS:
+            force = (cell.stress[a, a] - cell.target[a]) * volume(cell) / cell.length[a]
+            sign = 1.0 if cell.rate[a] > 0.0 else (-1.0 if cell.rate[a] < 0.0 else 0.0)
+            cell.force[a] = force - local_damping * abs(force) * sign
+
+
+@jit
+def kick_cell(cell, h):
+    """Inertial servo: dL/dt += h F / M, h = +-dt/2, as the particles' half kicks."""
+    if cell.servo != INERTIAL:
+        return
+    for a in range(3):
+        if cell.control[a] == STRESS:
+            cell.rate[a] += h * cell.force[a] / cell.mass
+
+
+@jit
+def move_cell(cell, dt, elapsed):
+    """The edges after a step of dt (< 0 reversed), `elapsed` seconds into the stage at its
+    end; cell.mid gets the edges at the middle of the step, the ones a drift divides by.
+
+    Strain-rate edges: L = L_start + rate elapsed, a function of the step as walls are.
+    Proportional servo: the rate from the stress now, then L += dt rate. Inertial: L += dt rate.
+    """
+    for a in range(3):
+        before = cell.length[a]
+        if cell.control[a] == STRAIN_RATE:
+            cell.length[a] = cell.start[a] + cell.rate[a] * elapsed
+        elif cell.control[a] == STRESS:
+            if cell.servo == PROPORTIONAL:
+                error = (cell.stress[a, a] - cell.target[a]) / cell.target[a]
+                cell.rate[a] = cell.gain * error * before
+            cell.length[a] = before + dt * cell.rate[a]
+        cell.mid[a] = 0.5 * (before + cell.length[a])
