@@ -23,7 +23,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check revdem_cli tests
 	$(BIN)/ruff format --check revdem_cli tests
 
-PAPER_CASES := collision collision_shear drop_A drop_B drop_C
+PAPER_CASES := collision collision_shear drop_A drop_B drop_C fcc_triaxial oedometer
 
 paper: $(STAMP)
 	mkdir -p scenarios/report

@@ -13,7 +13,7 @@ import re
 import sys
 import tomllib
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import (
     BaseModel,
@@ -26,6 +26,9 @@ from pydantic import (
 )
 
 from revdem_cli.errors import InputError
+
+if TYPE_CHECKING:
+    from revdem_cli.build.spheres import Spheres
 
 
 def _number(value):
@@ -182,11 +185,15 @@ class Region(_Model):
         return (self.radius, self.height, 0.0) if self.shape == "cylinder" else self.size
 
 
+MAX_GENERATED = 20_000_000
+"""Most spheres one [[packings]] or [[lattices]] entry generates."""
+
+
 class Packing(_Model):
     """Spheres with radii drawn uniformly from [radius_min, radius_max], placed at random
     without overlap inside a region (random sequential addition), from a seeded generator."""
 
-    count: Int = Field(gt=0, le=5_000_000, description="number of spheres")
+    count: Int = Field(gt=0, le=MAX_GENERATED, description="number of spheres")
     material: str = Field(description="name of a material in [materials]")
     radius_min: Float = Field(gt=0, description="smallest radius, m")
     radius_max: Float = Field(gt=0, description="largest radius, m")
@@ -200,25 +207,71 @@ class Packing(_Model):
             raise ValueError("radius_max must not be below radius_min")
         return self
 
-    def spheres(self) -> list[Particle]:
+    def spheres(self, materials: tuple[str, ...]) -> Spheres:
         """The generated spheres; raises PackingError if the region cannot take them."""
         import numpy as np
 
         from revdem_cli.build.packing import place_spheres
+        from revdem_cli.build.spheres import uniform
 
         rng = np.random.default_rng(self.seed)
         radii = rng.uniform(self.radius_min, self.radius_max, self.count)
         region = self.region
         centres = place_spheres(radii, region.shape, region.origin, region.extent, self.seed + 1)
-        return [
-            Particle(
-                material=self.material,
-                radius=float(r),
-                position=tuple(map(float, x)),
-                velocity=self.velocity,
-            )
-            for r, x in zip(radii, centres, strict=True)
-        ]
+        material = materials.index(self.material)
+        return uniform(self.count, radii, material, materials, centres, self.velocity)
+
+
+class Lattice(_Model):
+    """Spheres of one radius on a face-centred cubic lattice: cells[0] x cells[1] x cells[2]
+    cubic unit cells of edge `spacing`, four spheres each (a corner and three face centres),
+    numbered cell by cell with z fastest."""
+
+    type: Literal["fcc"] = Field(default="fcc", description="'fcc', face-centred cubic")
+    material: str = Field(description="name of a material in [materials]")
+    radius: Float = Field(gt=0, description="radius, m")
+    cells: tuple[Int, Int, Int] = Field(description="unit cells along x, y and z")
+    spacing: Float | None = Field(
+        default=None,
+        gt=0,
+        description="edge of the cubic unit cell, m; default 2 sqrt(2) radius, neighbours touching",
+    )
+    origin: Vector3 = Field(default=(0.0, 0.0, 0.0), description="corner of the first cell, m")
+    velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="initial velocity, m/s")
+    random_velocity: Float = Field(
+        default=0.0,
+        ge=0,
+        description="each velocity component gets a uniform random addition in [-this, this], "
+        "m/s, from a generator seeded with `seed`",
+    )
+    seed: Int = Field(default=0, ge=0, description="seed of the random velocities")
+
+    @model_validator(mode="after")
+    def _size(self) -> Lattice:
+        if min(self.cells) < 1:
+            raise ValueError("cells: at least one unit cell along each axis")
+        if self.count > MAX_GENERATED:
+            raise ValueError(f"cells: {self.count} spheres, more than {MAX_GENERATED}")
+        return self
+
+    @property
+    def count(self) -> int:
+        return 4 * self.cells[0] * self.cells[1] * self.cells[2]
+
+    @property
+    def lattice_constant(self) -> float:
+        return self.spacing or 2.0 * math.sqrt(2.0) * self.radius
+
+    def spheres(self, materials: tuple[str, ...]) -> Spheres:
+        import numpy as np
+
+        from revdem_cli.build.spheres import fcc_positions, uniform
+
+        x = fcc_positions(self.cells, self.lattice_constant, self.origin)
+        v = np.array(self.velocity) + np.random.default_rng(self.seed).uniform(
+            -self.random_velocity, self.random_velocity, x.shape
+        )
+        return uniform(len(x), self.radius, materials.index(self.material), materials, x, v)
 
 
 class Integrator(_Model):
@@ -415,19 +468,21 @@ class Reversal(_Model):
 class Output(_Model):
     """What is written besides the trajectories."""
 
-    figures: list[Literal["speed", "forces", "velocity_z", "wall_forces"]] = Field(
+    figures: list[Literal["speed", "forces", "velocity_z", "wall_forces", "stress_ratios"]] = Field(
         default_factory=list,
         description="figures written beside the trajectories, forward and reversed overlaid: "
         "'speed' = |v| of each particle, 'forces' = largest normal and shear contact force, "
         "'velocity_z' = vertical velocity of each particle, all against time; 'wall_forces' "
-        "= z force on each plane wall against the solid fraction (or against time)",
+        "= z force on each plane wall against the solid fraction (or against time); "
+        "'stress_ratios' = principal stress ratios and coordination number against the "
+        "compression of a periodic cell",
     )
 
 
 class Scenario(_Model):
     """A complete revdem experiment."""
 
-    _spheres: list[Particle] = PrivateAttr(default_factory=list)
+    _spheres: Spheres | None = PrivateAttr(default=None)
 
     name: str = Field(
         pattern=r"^[A-Za-z0-9_.-]+$", description="run name, used for output file names"
@@ -439,6 +494,7 @@ class Scenario(_Model):
     packings: list[Packing] = Field(
         default_factory=list, description="spheres generated at random in regions"
     )
+    lattices: list[Lattice] = Field(default_factory=list, description="spheres on lattices")
     walls: list[Wall] = Field(default_factory=list, description="walls")
     cell: Cell | None = Field(default=None, description="periodic boundaries in x, y and z")
     gravity: Vector3 = Field(
@@ -459,6 +515,7 @@ class Scenario(_Model):
         for kind, items in (
             ("particles", self.particles),
             ("packings", self.packings),
+            ("lattices", self.lattices),
             ("walls", self.walls),
         ):
             for i, item in enumerate(items):
@@ -538,7 +595,7 @@ class Scenario(_Model):
 
         if self.cell is None:
             return
-        x = np.array([p.position for p in self._spheres])
+        x = self._spheres.position
         size = np.array(self.cell.size)
         outside = np.nonzero(((x < 0.0) | (x >= size)).any(axis=1))[0]
         if len(outside):
@@ -546,7 +603,7 @@ class Scenario(_Model):
             raise _FieldError(
                 where, f"{sphere} starts outside the cell [0, L) of size {list(size)}"
             )
-        r_max = max(p.radius for p in self._spheres)
+        r_max = float(self._spheres.radius.max())
         reach = 2.0 * r_max + (self.neighbours.skin or 0.1 * r_max)
         for axis, edge in zip("xyz", size, strict=True):
             if edge <= 2.0 * reach:
@@ -594,11 +651,13 @@ class Scenario(_Model):
         per_sphere = BYTES_PER_SPHERE + BYTES_PER_SPHERE_AND_WALL * len(self.walls)
         memory = memory_bytes()
         count = len(self.particles)
-        for k, packing in enumerate(self.packings):
-            count += packing.count
+        generated = [(f"packings[{k}].count", p) for k, p in enumerate(self.packings)]
+        generated += [(f"lattices[{k}].cells", g) for k, g in enumerate(self.lattices)]
+        for field, source in generated:
+            count += source.count
             if count * per_sphere > memory:
                 raise _FieldError(
-                    f"packings[{k}].count",
+                    field,
                     f"{count} spheres would need about {_size(count * per_sphere)} of memory "
                     f"({per_sphere} bytes each), more than the {_size(memory)} of this machine",
                 )
@@ -629,21 +688,38 @@ class Scenario(_Model):
                 )
 
     def _generate(self) -> None:
-        from revdem_cli.build.packing import PackingError
+        import numpy as np
 
-        spheres = list(self.particles)
+        from revdem_cli.build.packing import PackingError
+        from revdem_cli.build.spheres import Spheres
+
+        materials = tuple(self.materials)
+        given = Spheres(
+            np.array([p.radius for p in self.particles], dtype=np.float64),
+            np.array([p.position for p in self.particles], dtype=np.float64).reshape(-1, 3),
+            np.array([p.velocity for p in self.particles], dtype=np.float64).reshape(-1, 3),
+            np.array([p.angular_velocity for p in self.particles], dtype=np.float64).reshape(-1, 3),
+            np.array([materials.index(p.material) for p in self.particles], dtype=np.int64),
+            materials,
+        )
+        parts = [given]
         for i, packing in enumerate(self.packings):
             try:
-                spheres += packing.spheres()
+                parts.append(packing.spheres(materials))
             except PackingError as exc:
                 raise _FieldError(f"packings[{i}]", str(exc)) from None
-        if not spheres:
-            raise _FieldError("particles", "no spheres: give [[particles]] or [[packings]]")
+        parts += [lattice.spheres(materials) for lattice in self.lattices]
+        spheres = Spheres.join(parts, materials)
+        if not len(spheres):
+            raise _FieldError(
+                "particles", "no spheres: give [[particles]], [[packings]] or [[lattices]]"
+            )
         self._spheres = spheres
 
     @property
-    def spheres(self) -> list[Particle]:
-        """Every sphere of the scenario: those given one by one, then the generated ones."""
+    def spheres(self) -> Spheres:
+        """Every sphere of the scenario as arrays: those given one by one, then the packings'
+        and the lattices'."""
         return self._spheres
 
     def _check_overlaps(self) -> None:
@@ -652,8 +728,7 @@ class Scenario(_Model):
         import numpy as np
         from scipy.spatial import cKDTree
 
-        x = np.array([p.position for p in self._spheres])
-        r = np.array([p.radius for p in self._spheres])
+        x, r = self._spheres.position, self._spheres.radius
         size = np.array(self.cell.size) if self.cell else None
         for i, j in sorted(cKDTree(x, boxsize=size).query_pairs(2.0 * r.max())):
             d = x[j] - x[i]
@@ -671,8 +746,7 @@ class Scenario(_Model):
 
         if not self.walls:
             return
-        x = np.array([p.position for p in self._spheres])
-        r = np.array([p.radius for p in self._spheres])
+        x, r = self._spheres.position, self._spheres.radius
         for wall in self.walls:
             normal = np.array(wall.normal) / max(abs(c) for c in wall.normal)
             axis = normal / np.linalg.norm(normal)
@@ -704,10 +778,12 @@ class Scenario(_Model):
         if index < len(self.particles):
             return f"particles[{index}].position", f"sphere {index}"
         index -= len(self.particles)
-        for k, packing in enumerate(self.packings):
-            if index < packing.count:
-                return f"packings[{k}]", f"sphere {index} of packings[{k}]"
-            index -= packing.count
+        sources = [("packings", k, p) for k, p in enumerate(self.packings)]
+        sources += [("lattices", k, g) for k, g in enumerate(self.lattices)]
+        for kind, k, source in sources:
+            if index < source.count:
+                return f"{kind}[{k}]", f"sphere {index} of {kind}[{k}]"
+            index -= source.count
         raise IndexError(index)
 
     @property

@@ -95,7 +95,7 @@ class Model:
     @cached_property
     def solid_volume(self) -> float:
         """Volume of all the spheres, m^3."""
-        return float(sum(4.0 / 3.0 * np.pi * sphere.radius**3 for sphere in self.scenario.spheres))
+        return float((4.0 / 3.0 * np.pi * self.scenario.spheres.radius**3).sum())
 
     def wall_index(self, name: str) -> int:
         return [wall.name for wall in self.scenario.walls].index(name)

@@ -89,20 +89,19 @@ def cell_deforms(scenario: Scenario) -> bool:
 
 
 def particles(scenario: Scenario) -> Particles:
-    names = list(scenario.materials)
-    ps = scenario.spheres
-    n = len(ps)
-    radius = np.array([p.radius for p in ps], dtype=np.float64)
-    density = np.array([scenario.materials[p.material].density for p in ps])
-    mass = 4.0 / 3.0 * np.pi * radius**3 * density
+    spheres = scenario.spheres
+    n = len(spheres)
+    radius = spheres.radius.copy()
+    densities = np.array([m.density for m in scenario.materials.values()])
+    mass = 4.0 / 3.0 * np.pi * radius**3 * densities[spheres.material]
     inertia = 0.4 * mass * radius**2  # solid sphere, I = 2/5 m r^2 (Hanley 2020 §2)
-    x = np.array([p.position for p in ps], dtype=np.float64).reshape(n, 3)
+    x = spheres.position.copy()
     in_cell = scenario.cell is not None and cell_deforms(scenario)
     return Particles(
         x=x,
         s=x / np.array(scenario.cell.size) if in_cell else np.zeros((0, 3)),
-        v=np.array([p.velocity for p in ps], dtype=np.float64).reshape(n, 3),
-        omega=np.array([p.angular_velocity for p in ps], dtype=np.float64).reshape(n, 3),
+        v=spheres.velocity.copy(),
+        omega=spheres.angular_velocity.copy(),
         f=np.zeros((n, 3)),
         torque=np.zeros((n, 3)),
         radius=radius,
@@ -110,7 +109,7 @@ def particles(scenario: Scenario) -> Particles:
         inertia=inertia,
         inv_mass=1.0 / mass,
         inv_inertia=1.0 / inertia,
-        material=np.array([names.index(p.material) for p in ps], dtype=np.int64),
+        material=spheres.material.copy(),
         v_drift=np.full((n if uses_drag(scenario) else 0, 3), np.nan),
     )
 
@@ -296,4 +295,4 @@ def initial_state(scenario: Scenario) -> State:
 
 def default_skin(scenario: Scenario) -> float:
     """Neighbour skin: as given, else 10 % of the largest radius."""
-    return scenario.neighbours.skin or 0.1 * max(p.radius for p in scenario.spheres)
+    return scenario.neighbours.skin or 0.1 * float(scenario.spheres.radius.max())

@@ -8,8 +8,10 @@ back with the new edge lengths, x = s L. Across a contact the cell's affine moti
 
 Servos, for an axis a holding the stress target s*_a:
 - PROPORTIONAL (Hanley 2020 §3.2.3): dL_a/dt = gain (sigma_aa - s*_a) / s*_a L_a, from the
-  stress at the start of the step. Reversed, the step starts from the later stress, so the
-  cell does not retrace its path exactly (the paper's observation).
+  stress at the start of the step. Reversed, it still steers the stress towards its target
+  (the exact time reverse of a relaxation diverges), from the later stress: the reversed
+  run follows the forward one only as closely as the servo tracks its target, closer the
+  larger the gain (the paper's observation).
 - INERTIAL: the edge is a degree of freedom of mass M driven by (sigma_aa - s*_a) A_a, A_a the
   area of the face normal to a, integrated with the particles' velocity-Verlet half steps;
   its reversed step is the exact inverse of its forward step.
@@ -118,8 +120,8 @@ def move_cell(cell, dt, elapsed):
         if cell.control[a] == STRAIN_RATE:
             cell.length[a] = cell.start[a] + cell.rate[a] * elapsed
         elif cell.control[a] == STRESS:
-            if cell.servo == PROPORTIONAL:
+            if cell.servo == PROPORTIONAL:  # dL/dt of forward time; reversed, L -= |dt| dL/dt
                 error = (cell.stress[a, a] - cell.target[a]) / cell.target[a]
-                cell.rate[a] = cell.gain * error * before
+                cell.rate[a] = (cell.gain if dt > 0.0 else -cell.gain) * error * before
             cell.length[a] = before + dt * cell.rate[a]
         cell.mid[a] = 0.5 * (before + cell.length[a])

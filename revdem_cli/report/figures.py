@@ -32,30 +32,42 @@ def _figure(
 ) -> Path:
     """Plot series(path) -> [(label, x, values)] for both runs: forward solid, reversed
     dashed, same colour per series."""
+    return _panels(forward, reverse, png, [(series, ylabel)], xlabel)
+
+
+def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str) -> Path:
+    """Panels one above the other over a shared x axis, each (series, ylabel) as in
+    `_figure`."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
+    fig, axes = plt.subplots(
+        len(panels), 1, figsize=(6, 1.5 + 2.5 * len(panels)), dpi=120, sharex=True, squeeze=False
+    )
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    span = []
-    for run, path, style in (
-        ("forward", forward, {"lw": 2.5, "alpha": 0.5}),
-        ("reversed", reverse, {"lw": 1.2, "ls": "--"}),
-    ):
-        if path is None:
-            continue
-        for k, (label, x, values) in enumerate(series(path)):
-            ax.plot(x, values, color=colours[k % len(colours)], label=f"{label} {run}", **style)
-            if run == "forward":
-                span += [values.min(), values.max()]
-    margin = 0.15 * (max(span) - min(span)) or 1.0
-    ax.set_ylim(min(span) - margin, max(span) + margin)  # a runaway reversal goes off scale
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    for ax, (series, ylabel) in zip(axes[:, 0], panels, strict=True):
+        span = []
+        for run, path, style in (
+            ("forward", forward, {"lw": 2.5, "alpha": 0.5}),
+            ("reversed", reverse, {"lw": 1.2, "ls": "--"}),
+        ):
+            if path is None:
+                continue
+            for k, (label, x, values) in enumerate(series(path)):
+                colour = colours[k % len(colours)]
+                ax.plot(x, values, color=colour, label=f"{label} {run}", **style)
+                finite = values[np.isfinite(values)]
+                if run == "forward" and len(finite):
+                    span += [finite.min(), finite.max()]
+        span = span or [0.0, 1.0]
+        margin = 0.15 * (max(span) - min(span)) or 1.0
+        ax.set_ylim(min(span) - margin, max(span) + margin)  # a runaway reversal goes off scale
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel(xlabel)
     fig.tight_layout()
     fig.savefig(png)
     plt.close(fig)
@@ -108,11 +120,7 @@ def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
         scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])
     planes = [wall["name"] for wall in scenario["walls"] if wall["type"] == "plane"]
     by_fraction = scenario.get("solid_fraction") is not None
-    window = None
-    if reverse is not None:
-        with open_trajectory(reverse) as f:
-            steps = f["observables/kinetic_energy/step"][:]
-            window = (steps.min(), steps.max())
+    window = _reversed_window(reverse)
 
     def series(path):
         with open_trajectory(path) as f:
@@ -130,10 +138,65 @@ def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     return _figure(forward, reverse, png, series, "force on the wall, z (N)", xlabel)
 
 
+def _reversed_window(reverse: Path | None) -> tuple[int, int] | None:
+    """First and last step of the reversed run's observables, or None without one."""
+    from revdem_cli.io.h5md import open_trajectory
+
+    if reverse is None:
+        return None
+    with open_trajectory(reverse) as f:
+        steps = f["observables/kinetic_energy/step"][:]
+        return int(steps.min()), int(steps.max())
+
+
+def stress_ratios_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """Principal stress ratios sigma_1 / sigma_3 and sigma_2 / sigma_3, and the coordination
+    number, against the compression of the cell along its strain-rate axis (mm), over the
+    reversed stage (Hanley 2020 Figure 4)."""
+    import json
+
+    from revdem_cli.io.h5md import open_trajectory
+
+    with open_trajectory(forward) as f:
+        scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])
+    stage = next((s for s in scenario["stages"] if s.get("reverse")), scenario["stages"][-1])
+    motion = stage.get("cell") or {}
+    axis = next(
+        (k for k, name in enumerate("xyz") if (motion.get(name) or {}).get("strain_rate")), 2
+    )
+    window = _reversed_window(reverse)
+    with open_trajectory(forward) as f:
+        steps = f["observables/cell_length/step"][:]
+        first = window[0] if window else int(steps.min())
+        start = f["observables/cell_length/value"][np.nonzero(steps == first)[0][0], axis]
+
+    def read(path, name):
+        with open_trajectory(path) as f:
+            steps = f["observables/cell_length/step"][:]
+            keep = slice(None) if window is None else (steps >= window[0]) & (steps <= window[1])
+            compression = (start - f["observables/cell_length/value"][:, axis][keep]) * 1e3
+            return compression, f[f"observables/{name}/value"][:][keep]
+
+    def ratios(path):
+        compression, principal = read(path, "principal_stress")
+        with np.errstate(divide="ignore", invalid="ignore"):  # no stress yet: not plotted
+            return [
+                ("σ1/σ3", compression, principal[:, 0] / principal[:, 2]),
+                ("σ2/σ3", compression, principal[:, 1] / principal[:, 2]),
+            ]
+
+    def coordination(path):
+        return [("coordination", *read(path, "coordination_number"))]
+
+    panels = [(ratios, "principal stress ratio"), (coordination, "coordination number")]
+    return _panels(forward, reverse, png, panels, f"compression along {'xyz'[axis]} (mm)")
+
+
 FIGURES = {
     "speed": speed_figure,
     "velocity_z": velocity_z_figure,
     "forces": forces_figure,
     "wall_forces": wall_forces_figure,
+    "stress_ratios": stress_ratios_figure,
 }
 """Figure kinds a scenario can ask for in [output] figures."""

@@ -69,14 +69,39 @@ def _observable_at(run, moment: str, name: str) -> np.ndarray:
     return values[-1] if moment != "start" else values[np.nonzero(steps == first)[0][0]]
 
 
+def _stress_ratio(principal: np.ndarray) -> np.ndarray:
+    """sigma_1 / sigma_3 of principal stresses, largest first."""
+    return principal[..., 0] / principal[..., 2]
+
+
+def _peak_stress_ratio(run) -> float:
+    """Largest sigma_1 / sigma_3 of the forward run over the reversed stage (Hanley 2020
+    Figure 4, the peak of Thornton's Eq 24)."""
+    with open_trajectory(run.reverse) as f:
+        first = int(f["observables/principal_stress/step"][:].min())
+    with open_trajectory(run.forward) as f:
+        steps = f["observables/principal_stress/step"][:]
+        principal = f["observables/principal_stress/value"][:]
+    return float(_stress_ratio(principal[steps >= first]).max())
+
+
 def _stage_measures() -> dict[str, tuple[str, Callable]]:
-    """Solid fraction and z force on the case's lower and upper walls at the start and end
-    of the reversed stage and at the end of its reversal (Hanley 2020 §3.2.2)."""
+    """At the start and end of the reversed stage and at the end of its reversal: solid
+    fraction and z force on the case's lower and upper walls (Hanley 2020 §3.2.2),
+    coordination number and sigma_1 / sigma_3 (§3.2.3)."""
     measures = {}
     for moment in ("start", "end", "reversed"):
         measures[f"solid_fraction_{moment}"] = (
             "close",
             lambda run, m=moment: float(_observable_at(run, m, "solid_fraction")),
+        )
+        measures[f"coordination_number_{moment}"] = (
+            "close",
+            lambda run, m=moment: float(_observable_at(run, m, "coordination_number")),
+        )
+        measures[f"stress_ratio_{moment}"] = (
+            "close",
+            lambda run, m=moment: float(_stress_ratio(_observable_at(run, m, "principal_stress"))),
         )
         for wall in ("lower_wall", "upper_wall"):
             measures[f"{wall}_force_{moment}"] = (
@@ -95,6 +120,7 @@ MEASURES: dict[str, tuple[str, Callable]] = {
     "max_shear_force": ("close", _max_shear_force),
     "shear_force_at_separation": ("close", _shear_force_at_separation),
     "terminal_velocity": ("close", _velocity_before_contact),
+    "peak_stress_ratio": ("close", _peak_stress_ratio),
     **_stage_measures(),
 }
 """quantity -> (how revdem's value is judged against the paper's, how it is measured)."""

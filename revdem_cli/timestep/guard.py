@@ -61,15 +61,14 @@ def rayleigh_dt(radius: float, material: Material) -> float:
 def particle_speeds(scenario: Scenario) -> np.ndarray:
     """Largest speed of each particle on reaching a plane wall: starting speed plus free fall
     along the wall's normal from the starting gap, v² = |v₀|² + 2 g_n gap."""
-    velocity = np.array([p.velocity for p in scenario.spheres], dtype=float)
-    squared = (velocity**2).sum(axis=1)
+    spheres = scenario.spheres
+    squared = (spheres.velocity**2).sum(axis=1)
     gravity = np.array(scenario.gravity, dtype=float)
     for wall in (w for w in scenario.walls if w.type == "plane"):
         normal = np.array(wall.normal, dtype=float) / math.hypot(*wall.normal)
         toward = max(0.0, -float(gravity @ normal))  # gravity's component towards the plane
-        for q, p in enumerate(scenario.spheres):
-            gap = float((np.array(p.position) - wall.point) @ normal) - p.radius
-            squared[q] = max(squared[q], float(velocity[q] @ velocity[q]) + 2.0 * toward * gap)
+        gap = (spheres.position - np.array(wall.point)) @ normal - spheres.radius
+        squared = np.maximum(squared, (spheres.velocity**2).sum(axis=1) + 2.0 * toward * gap)
     return np.sqrt(squared)
 
 
@@ -83,12 +82,11 @@ def _largest_moduli(scenario: Scenario, pairs) -> tuple[float, float]:
 
 def contact_kinds(scenario: Scenario) -> list[Kind]:
     """The sphere pair (two or more particles) and the sphere on a wall (any wall)."""
-    mass = min(
-        scenario.materials[p.material].density * 4.0 / 3.0 * math.pi * p.radius**3
-        for p in scenario.spheres
-    )
-    radius = max(p.radius for p in scenario.spheres)
-    used = {p.material for p in scenario.spheres}
+    spheres = scenario.spheres
+    densities = np.array([m.density for m in scenario.materials.values()])
+    mass = float((densities[spheres.material] * 4.0 / 3.0 * math.pi * spheres.radius**3).min())
+    radius = float(spheres.radius.max())
+    used = set(spheres.material_names())
     speeds = np.sort(particle_speeds(scenario))[::-1]
     kinds = []
     if len(scenario.spheres) > 1:
@@ -154,7 +152,12 @@ def critical_time_step(scenario: Scenario) -> tuple[float, str]:
             f"linear contact: {contact:.3g} s, the velocity-Verlet limit of a {name}{shear} "
             f"(Peng 2020 Eq 47-49) with the smallest particle mass"
         )
-    rayleigh = min(rayleigh_dt(p.radius, scenario.materials[p.material]) for p in scenario.spheres)
+    spheres = scenario.spheres
+    rayleigh = min(
+        rayleigh_dt(float(spheres.radius[spheres.material == k].min()), material)
+        for k, material in enumerate(scenario.materials.values())
+        if (spheres.material == k).any()
+    )
     return min(rayleigh, contact), (
         f"Hertz contact: the smaller of the Rayleigh time step {rayleigh:.3g} s and "
         f"{contact:.3g} s, the velocity-Verlet limit of a {name}{shear} at the Hertz "

@@ -63,3 +63,42 @@ def test_figure_6c_falling_sphere_reaches_the_terminal_velocity(tmp_path):
     assert vz == pytest.approx(
         paper["terminal_velocity"], rel=paper["terminal_velocity_relative_tolerance"]
     )
+
+
+@pytest.fixture(scope="module")
+def fcc_run(tmp_path_factory):
+    """configs/fcc_triaxial.toml (inertial servo), forward and reversed."""
+    directory = tmp_path_factory.mktemp("fcc")
+    return directory, run("fcc_triaxial", directory)
+
+
+def test_figure_4_stress_ratio_rises_to_2_as_coordination_falls_from_12_to_8(fcc_run):
+    from revdem_cli.report.paper import case_rows
+
+    directory, _ = fcc_run
+    rows = case_rows("fcc_triaxial", PAPER["fcc_triaxial"], directory)
+    assert len(rows) == 7
+    assert all(agrees == "yes" for *_, agrees in rows), rows
+
+
+def test_figure_4_the_inertial_servo_reverses_far_closer_than_the_proportional(fcc_run, tmp_path):
+    _, inertial = fcc_run
+    proportional = run("fcc_triaxial", tmp_path, "cell.servo=proportional").verdict
+    assert inertial.verdict["max_position_error_rel"] <= 1e-9
+    assert proportional["max_position_error_rel"] > 1e3 * inertial.verdict["max_position_error_rel"]
+    with h5py.File(tmp_path / "fcc_triaxial.reverse.h5") as f:
+        principal = f["observables/principal_stress/value"][-1]
+    assert principal[0] / principal[2] == pytest.approx(1.0, abs=1e-3)  # isotropic again
+
+
+@pytest.mark.parametrize("mu", [0.1, 0.25, 0.5])
+def test_eq_24_peak_stress_ratio_with_friction(tmp_path, mu):
+    # Thornton 1979: the contacts in the xz and yz planes slide at sigma_1/sigma_3 =
+    # 2 (1 + mu) / (1 - mu)
+    sweep = tomllib.loads((ROOT / "configs/sweeps/fcc_friction.toml").read_text())
+    overrides = [item for item in sweep["set"] if not item.startswith("contact.friction")]
+    outputs = run("fcc_triaxial", tmp_path, *overrides, f"contact.friction={mu}", reverse=False)
+    with h5py.File(outputs.forward) as f:
+        principal = f["observables/principal_stress/value"][1:]
+    peak = (principal[:, 0] / principal[:, 2]).max()
+    assert peak == pytest.approx(2 * (1 + mu) / (1 - mu), rel=0.05)

@@ -43,7 +43,7 @@ def test_the_platens_carry_the_load_and_the_weight_at_rest(smoke):
     bottom platen is the top platen's plus the weight of the spheres (Hanley 2020: -323 N
     against 318 N, 5 N of weight)."""
     scenario = load_scenario(SMOKE)[0]
-    weight = sum(4 / 3 * np.pi * s.radius**3 * 1000.0 * G for s in scenario.spheres)
+    weight = float((4 / 3 * np.pi * scenario.spheres.radius**3 * 1000.0 * G).sum())
     with h5py.File(smoke / "oedometer_smoke.reverse.h5") as f:
         start = int(f["observables/kinetic_energy/step"][:].min())
     steps, obs = observables(

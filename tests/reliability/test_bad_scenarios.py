@@ -533,7 +533,8 @@ def test_huge_counts_are_refused_before_anything_is_generated(tried, data):
         packings.append(copy.deepcopy(PACKED["packings"][0]) | {"count": count})
         k = len(packings) - 1
         expected = [f"packings[{k}].count: "]
-        expected.append("less than or equal to 5000000" if count > 5_000_000 else "memory")
+        limit = config.MAX_GENERATED
+        expected.append(f"less than or equal to {limit}" if count > limit else "memory")
     elif what == "steps":
         scenario["stages"][0]["steps"] = data.draw(st.integers(2**53 + 1, 2**63 - 1))
         expected = ["stages[0].steps: ", "2^53"]

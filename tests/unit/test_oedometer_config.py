@@ -14,7 +14,7 @@ SMOKE = CONFIGS / "smoke" / "oedometer.toml"
 
 def test_the_full_oedometer_is_the_papers_case():
     scenario, _ = load_scenario(CONFIGS / "oedometer.toml")
-    radii = np.array([s.radius for s in scenario.spheres])
+    radii = scenario.spheres.radius
     assert len(radii) == 900 and 0.0045 <= radii.min() and radii.max() <= 0.0055
     assert {m.shear_modulus for m in scenario.materials.values()} == {2e6, 1e9}
     compress = scenario.reversed_stage
@@ -30,7 +30,7 @@ def test_solid_fraction_is_the_spheres_volume_over_the_volume_between_the_planes
     model = Model.of(scenario)
     state = initial_state(scenario)
     row = model.observe(state, model.dynamics)
-    volume = sum(4 / 3 * np.pi * s.radius**3 for s in scenario.spheres)
+    volume = float((4 / 3 * np.pi * scenario.spheres.radius**3).sum())
     expected = volume / (np.pi * 0.055**2 * 0.065)
     assert row[model.column("solid_fraction")] == pytest.approx(expected, rel=1e-12)
     top = model.column("wall_position/top")

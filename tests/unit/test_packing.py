@@ -30,8 +30,8 @@ steps = 1
 
 def spheres(text=OEDOMETER_FILL):
     scenario = scenario_from_text(text, ".toml", "fill.toml")
-    x = np.array([p.position for p in scenario.spheres])
-    r = np.array([p.radius for p in scenario.spheres])
+    x = scenario.spheres.position
+    r = scenario.spheres.radius
     return x, r
 
 

@@ -1,0 +1,63 @@
+"""The spheres of a scenario as arrays, and the lattices that generate them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+FCC_BASIS = np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.5, 0.0, 0.5], [0.0, 0.5, 0.5]])
+"""The four spheres of a cubic face-centred unit cell, in units of the lattice constant."""
+
+
+@dataclass(frozen=True, eq=False)
+class Spheres:
+    """Spheres as arrays: radius (N,), position, velocity, angular velocity (N, 3), and
+    `material`, the index of each sphere's material among `materials` (N,)."""
+
+    radius: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    material: np.ndarray
+    materials: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return len(self.radius)
+
+    @classmethod
+    def join(cls, parts: list[Spheres], materials: tuple[str, ...]) -> Spheres:
+        def stacked(name: str, shape: tuple[int, ...], dtype=np.float64) -> np.ndarray:
+            arrays = [getattr(part, name) for part in parts]
+            return np.concatenate(arrays) if arrays else np.zeros(shape, dtype)
+
+        return cls(
+            stacked("radius", (0,)),
+            stacked("position", (0, 3)),
+            stacked("velocity", (0, 3)),
+            stacked("angular_velocity", (0, 3)),
+            stacked("material", (0,), np.int64),
+            materials,
+        )
+
+    def material_names(self) -> list[str]:
+        return [self.materials[k] for k in self.material]
+
+
+def uniform(count: int, radius, material: int, materials, position, velocity) -> Spheres:
+    """`count` spheres of the given radii (one, or one each), one material, no spin."""
+    return Spheres(
+        np.broadcast_to(np.asarray(radius, dtype=np.float64), (count,)).copy(),
+        np.asarray(position, dtype=np.float64).reshape(count, 3),
+        np.broadcast_to(np.asarray(velocity, dtype=np.float64), (count, 3)).copy(),
+        np.zeros((count, 3)),
+        np.full(count, material, dtype=np.int64),
+        tuple(materials),
+    )
+
+
+def fcc_positions(cells, spacing: float, origin) -> np.ndarray:
+    """Centres of an fcc lattice of cells[0] x cells[1] x cells[2] cubic unit cells of edge
+    `spacing` from `origin`, cell by cell (z fastest), four spheres a cell."""
+    grid = np.indices(tuple(cells), dtype=np.float64).reshape(3, -1).T
+    return ((grid[:, None, :] + FCC_BASIS[None]) * spacing).reshape(-1, 3) + np.asarray(origin)

@@ -1,0 +1,153 @@
+"""Periodic cells: contacts through the faces, the stress of Hanley 2020 Eq 22-23 against
+lattices where it follows from one contact force, and a deforming cell carrying its spheres."""
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from revdem_cli.config import Scenario
+from revdem_cli.engine import Model, run_scenario
+from revdem_cli.kernels.forces import particle_stress
+from revdem_cli.state import initial_state
+
+KN = 1.0e5  # N/m
+
+
+def lattice_scenario(positions, radius, box, stages=None, **changes) -> Scenario:
+    data = {
+        "name": "lattice",
+        "materials": {"m": {"density": 1000.0, "shear_modulus": 1e6, "poisson_ratio": 0.2}},
+        "contact": {"model": "linear", "kn": KN},
+        "particles": [
+            {"material": "m", "radius": radius, "position": tuple(map(float, p))} for p in positions
+        ],
+        "cell": {"size": list(box)},
+        "integrator": {"dt": 1e-4},
+        "stages": stages or [{"name": "hold", "steps": 10}],
+    }
+    return Scenario.model_validate(data | changes)
+
+
+def stress_row(scenario):
+    model = Model.of(scenario)
+    state = initial_state(scenario)
+    row = model.observe(state, model.dynamics)
+    at = model.column("stress")
+    return row[at : at + 9].reshape(3, 3), row[model.column("coordination_number")], state
+
+
+def test_a_compressed_simple_cubic_lattice_carries_kn_overlap_over_its_face():
+    # each sphere touches six neighbours through the faces of its cubic cell of edge a
+    r, overlap, n = 0.5, 1e-3, 4
+    a = 2 * r - overlap
+    grid = np.indices((n, n, n)).reshape(3, -1).T * a + a / 2
+    sigma, coordination, state = stress_row(lattice_scenario(grid, r, [n * a] * 3))
+    np.testing.assert_allclose(np.diag(sigma), KN * overlap / a**2, rtol=1e-12)
+    assert np.abs(sigma - np.diag(np.diag(sigma))).max() < 1e-9 * sigma[0, 0]
+    assert coordination == 6.0
+    assert np.abs(state.particles.f).max() < 1e-9 * KN * overlap  # every sphere balanced
+
+
+def test_a_compressed_fcc_lattice_has_the_isotropic_stress_of_its_twelve_contacts():
+    # 12 contacts of force F along face diagonals of length d: sigma = 2 sqrt(2) F / d^2
+    r, overlap = 0.5, 2e-3
+    d = 2 * r - overlap
+    spacing = d * math.sqrt(2)
+    cells = np.indices((3, 3, 3)).reshape(3, -1).T
+    basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]])
+    x = ((cells[:, None, :] + basis[None]) * spacing).reshape(-1, 3)
+    sigma, coordination, state = stress_row(lattice_scenario(x, r, [3 * spacing] * 3))
+    expected = 2 * math.sqrt(2) * KN * overlap / d**2
+    np.testing.assert_allclose(sigma, expected * np.eye(3), rtol=1e-12, atol=1e-12 * expected)
+    assert coordination == 12.0
+    # Eq 22 sphere by sphere, and Eq 23: their volume-weighted mean is the cell's stress
+    per_sphere = np.zeros((len(x), 3, 3))
+    particle_stress(state.particles, state.pairs, state.walls, state.cell, per_sphere)
+    volume = 4 / 3 * math.pi * r**3
+    mean = per_sphere.sum(axis=0) * volume / (3 * spacing) ** 3
+    np.testing.assert_allclose(mean, sigma, rtol=1e-12, atol=1e-12 * expected)
+    np.testing.assert_allclose(per_sphere[5], per_sphere[0], rtol=1e-12, atol=1e-12 * expected)
+
+
+def test_spheres_collide_through_a_face_and_the_collision_reverses(tmp_path):
+    # two spheres 0.23 m apart across the face x = 0 = L, moving towards each other through
+    # it: the first crosses the face before they touch
+    box = [1.0, 1.0, 1.0]
+    sphere = {"material": "m", "radius": 0.09}
+    scenario = lattice_scenario(
+        [(0.01, 0.5, 0.5), (0.78, 0.5, 0.5)],
+        0.09,
+        box,
+        stages=[
+            {"name": "collide", "steps": 4000, "output_every": 100, "observables_every": 10}
+            | {"reverse": True}
+        ],
+        particles=[
+            sphere | {"position": (0.01, 0.5, 0.5), "velocity": (-0.1, 0, 0)},
+            sphere | {"position": (0.78, 0.5, 0.5), "velocity": (0.1, 0, 0)},
+        ],
+    )
+    outputs = run_scenario(scenario, "text", ".toml", tmp_path)
+    with h5py.File(outputs.forward) as f:
+        v = f["particles/all/velocity/value"][:]
+        x = f["particles/all/position/value"][:]
+        energy = f["observables/total_energy/value"][:]
+        contacts = f["observables/coordination_number/value"][:]
+        boundary = f["particles/all/box"].attrs["boundary"]
+        edges = f["particles/all/box/edges/value"][:]
+    assert contacts.max() == 1.0  # they touched, through the face
+    # equal masses swap velocities (to O(dt^2): velocity Verlet keeps a shadow energy)
+    np.testing.assert_allclose(v[-1, :, 0], [0.1, -0.1], rtol=1e-4)
+    assert x[:, 0, 0].min() < 0.0 < x[0, 0, 0]  # positions are unwrapped
+    np.testing.assert_allclose(v.sum(axis=1)[:, 0], 0.0, atol=1e-15)
+    omega = math.sqrt(KN / (0.5 * 1000.0 * 4 / 3 * math.pi * 0.09**3))  # the contact's
+    assert np.ptp(energy) < (omega * 1e-4) ** 2 * energy[0]  # velocity Verlet: O((w dt)^2)
+    assert list(boundary) == [b"periodic"] * 3 and (edges == box).all()
+    assert outputs.verdict["reversible"]
+    assert outputs.verdict["max_position_error_rel"] < 1e-12
+
+
+@pytest.mark.parametrize("servo", ["inertial", "proportional"])
+def test_a_deforming_cell_carries_its_lattice_and_the_stress_follows_the_contacts(tmp_path, servo):
+    # a simple cubic lattice compressed along z at a strain rate while x and y hold 1 kPa:
+    # the spheres stay on the lattice of the cell, and the z stress is that of its contacts
+    r, n = 0.5, 3
+    a = 2 * r - 1e-3
+    grid = np.indices((n, n, n)).reshape(3, -1).T * a + a / 2
+    steps = 20000
+    scenario = lattice_scenario(
+        grid,
+        r,
+        [n * a] * 3,
+        stages=[
+            {
+                "name": "squeeze",
+                "steps": steps,
+                "output_every": 1000,
+                "cell": {"x": {"stress": 1e3}, "y": {"stress": 1e3}, "z": {"strain_rate": -0.1}},
+            }
+        ],
+        cell={"size": [n * a] * 3, "servo": servo, "servo_mass": 1e3, "servo_gain": 20.0},
+        damping={"local": 0.7},
+    )
+    outputs = run_scenario(scenario, "text", ".toml", tmp_path, reverse=False)
+    with h5py.File(outputs.forward) as f:
+        x = f["particles/all/position/value"][-1]
+        length = f["observables/cell_length/value"][-1]
+        sigma = f["observables/stress/value"][-1]
+    np.testing.assert_allclose(length[2], n * a * (1 - 0.1 * steps * 1e-4), rtol=1e-12)
+    spacing = length / n
+    np.testing.assert_allclose(x, (grid / a) * spacing, rtol=1e-9)
+    np.testing.assert_allclose(sigma[2, 2], KN * (2 * r - spacing[2]) / (spacing[0] * spacing[1]))
+    np.testing.assert_allclose([sigma[0, 0], sigma[1, 1]], 1e3, rtol=1e-2)
+
+
+def test_spheres_must_start_inside_the_cell_and_the_cell_must_be_wide_enough():
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match="outside the cell"):
+        lattice_scenario([(1.5, 0.5, 0.5)], 0.1, [1.0, 1.0, 1.0])
+    with pytest.raises(ValidationError, match="twice the contact reach"):
+        lattice_scenario([(0.5, 0.5, 0.5)], 0.3, [1.0, 1.0, 1.0])
