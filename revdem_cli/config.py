@@ -477,6 +477,12 @@ class Output(_Model):
         "'stress_ratios' = principal stress ratios and coordination number against the "
         "compression of a periodic cell",
     )
+    particle_stress: bool = Field(
+        strict=True,
+        default=False,
+        description="write each sphere's stress (Hanley 2020 Eq 22) at every frame, "
+        "particles/all/stress [F, N, 3, 3], Pa",
+    )
 
 
 class Scenario(_Model):

@@ -24,7 +24,7 @@ from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Moduli
 from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
 from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
-from revdem_cli.kernels.forces import compute_forces
+from revdem_cli.kernels.forces import compute_forces, particle_stress
 from revdem_cli.kernels.integrate import CELL_TOO_SMALL, OK, advance
 from revdem_cli.kernels.observables import SCALARS, observe
 from revdem_cli.state import (
@@ -221,9 +221,7 @@ def run_stage(
                 state.grow_pairs()
         stopped = _stop_reached(state, model, dyn, stop)
         if target in frame_steps or stopped:
-            writer.frame(
-                state.step, float(clock.time(state.step)), state.particles, events, _box(state)
-            )
+            _write_frame(writer, state, model, clock, events)
             if progress is not None:
                 progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
         if stopped:
@@ -276,14 +274,20 @@ def set_cell_motion(cell: Cell, stage: Stage, forward: bool) -> None:
                 cell.rate[a] = motion.strain_rate * cell.length[a]
 
 
-def _box(state: State) -> np.ndarray | None:
-    """Edges of the periodic cell, or None where the boundaries are open."""
-    return state.cell.length.copy() if state.cell.periodic.any() else None
+def _write_frame(writer, state: State, model: Model, clock: StageClock, events) -> None:
+    """A trajectory frame of the state as it is: the periodic cell's edges as its box, and
+    each sphere's stress when the scenario asks for it."""
+    stress = None
+    if model.scenario.output.particle_stress:
+        stress = np.zeros((len(state.particles.x), 3, 3))
+        particle_stress(state.particles, state.pairs, state.walls, state.cell, stress)
+    box = state.cell.length.copy() if state.cell.periodic.any() else None
+    writer.frame(state.step, float(clock.time(state.step)), state.particles, events, box, stress)
 
 
 def _record_now(state, model, dyn, clock, writer, events) -> None:
     """Write the frame and observables of the state as it is (the start of a stage)."""
-    writer.frame(state.step, float(clock.time(state.step)), state.particles, events, _box(state))
+    _write_frame(writer, state, model, clock, events)
     if writer.last_observable_step() != state.step:
         _write_observables(writer, model, clock, model.observe(state, dyn)[None, :])
 
@@ -327,6 +331,7 @@ def _writer(
         state.particles.radius,
         state.particles.mass,
         scenario.cell is not None,
+        scenario.output.particle_stress,
         model.observables(),
         (len(KINDS), len(COLUMNS)),
         {

@@ -3,6 +3,7 @@
 /h5md                               version [1, 1]; author; creator revdem
 /particles/all/{position,velocity,angular_velocity,force}   step [F], time [F], value [F, N, 3]
 /particles/all/{radius,mass,id}     time-independent [N]
+/particles/all/stress               [F, N, 3, 3] each sphere's stress (Eq 22), if asked for
 /particles/all/box                  boundary "periodic" (edges: the cell's at each frame) or
                                     "none" (edges: the bounding box of the spheres); positions
                                     are unwrapped across periodic boundaries
@@ -94,6 +95,7 @@ class TrajectoryWriter:
         radius,
         mass,
         periodic: bool,
+        particle_stress: bool,
         observables: list[tuple[str, tuple[int, ...]]],
         events_shape: tuple[int, int],
         parameters: dict,
@@ -124,6 +126,10 @@ class TrajectoryWriter:
         edges = _series(box, "edges", (3,), clock)
         self.frame_rows = [_Appender(clock["step"]), _Appender(clock["time"])]
         self.frame_rows += [_Appender(g["value"]) for g in frame_groups + [events, edges]]
+        self.stress_rows = None
+        if particle_stress:
+            self.stress_rows = _Appender(_series(everything, "stress", (n, 3, 3), clock)["value"])
+            self.frame_rows.append(self.stress_rows)
         clock = None
         widths = []
         for name, shape in observables:
@@ -144,9 +150,12 @@ class TrajectoryWriter:
         yield from self.observable_clock
         yield from (appender for appender, _ in self.observable_rows)
 
-    def frame(self, step: int, time: float, particles, events: np.ndarray, box=None) -> None:
+    def frame(
+        self, step: int, time: float, particles, events: np.ndarray, box=None, stress=None
+    ) -> None:
         """Append one frame; a frame at the step already written last is skipped. `box`: the
-        edges of the periodic cell; None, the bounding box of the spheres."""
+        edges of the periodic cell; None, the bounding box of the spheres. `stress`: each
+        sphere's stress, when the writer keeps it."""
         if step == self.last_step:
             return
         self.last_step = step
@@ -159,7 +168,7 @@ class TrajectoryWriter:
             particles.f[None],
             events[None],
             (bounding_box(particles.x, particles.radius) if box is None else box)[None],
-        )
+        ) + (() if self.stress_rows is None else (stress[None],))
         for appender, value in zip(self.frame_rows, values, strict=True):
             appender.add(np.array(value))
         self._flush_if_due()

@@ -151,3 +151,28 @@ def test_spheres_must_start_inside_the_cell_and_the_cell_must_be_wide_enough():
         lattice_scenario([(1.5, 0.5, 0.5)], 0.1, [1.0, 1.0, 1.0])
     with pytest.raises(ValidationError, match="twice the contact reach"):
         lattice_scenario([(0.5, 0.5, 0.5)], 0.3, [1.0, 1.0, 1.0])
+
+
+def test_the_trajectory_keeps_each_spheres_stress_and_their_mean_is_the_cells(tmp_path):
+    r, overlap = 0.5, 2e-3
+    spacing = (2 * r - overlap) * math.sqrt(2)
+    cells = np.indices((3, 3, 3)).reshape(3, -1).T
+    basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]])
+    x = ((cells[:, None, :] + basis[None]) * spacing).reshape(-1, 3)
+    scenario = lattice_scenario(
+        x,
+        r,
+        [3 * spacing] * 3,
+        stages=[{"name": "hold", "steps": 20, "output_every": 10}],
+        output={"particle_stress": True},
+    )
+    outputs = run_scenario(scenario, "text", ".toml", tmp_path, reverse=False)
+    with h5py.File(outputs.forward) as f:
+        per_sphere = f["particles/all/stress/value"][:]
+        frames = f["particles/all/stress/step"][:]
+        steps = f["observables/stress/step"][:]
+        sigma = f["observables/stress/value"][:]
+    assert per_sphere.shape == (3, len(x), 3, 3) and list(frames) == [0, 10, 20]
+    mean = per_sphere.sum(axis=1) * (4 / 3 * math.pi * r**3) / (3 * spacing) ** 3
+    expected = sigma[np.searchsorted(steps, frames)]
+    np.testing.assert_allclose(mean, expected, rtol=1e-10, atol=1e-12 * expected.max())
