@@ -19,9 +19,12 @@ run: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
+bench: $(STAMP)
+	$(BIN)/python benchmarks/fcc_hertz.py --scaling
+
 lint: $(STAMP)
-	$(BIN)/ruff check revdem_cli tests
-	$(BIN)/ruff format --check revdem_cli tests
+	$(BIN)/ruff check revdem_cli tests benchmarks
+	$(BIN)/ruff format --check revdem_cli tests benchmarks
 
 PAPER_CASES := collision collision_shear drop_A drop_B drop_C fcc_triaxial oedometer
 

@@ -736,14 +736,22 @@ class Scenario(_Model):
 
         x, r = self._spheres.position, self._spheres.radius
         size = np.array(self.cell.size) if self.cell else None
-        for i, j in sorted(cKDTree(x, boxsize=size).query_pairs(2.0 * r.max())):
-            d = x[j] - x[i]
-            if size is not None:
-                d -= size * np.round(d / size)
-            gap = float(np.linalg.norm(d)) - r[i] - r[j]
-            if gap < -1e-2 * min(r[i], r[j]):
-                where, sphere = self._where(j)
-                raise _FieldError(where, f"{sphere} overlaps {self._where(i)[1]} by {-gap:.3g} m")
+        pairs = cKDTree(x, boxsize=size).query_pairs(2.0 * r.max(), output_type="ndarray")
+        if not len(pairs):
+            return
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+        i, j = pairs[:, 0], pairs[:, 1]
+        d = x[j] - x[i]
+        if size is not None:
+            d -= size * np.round(d / size)
+        gap = np.linalg.norm(d, axis=1) - r[i] - r[j]
+        bad = np.nonzero(gap < -1e-2 * np.minimum(r[i], r[j]))[0]
+        if len(bad):
+            k = bad[0]
+            where, sphere = self._where(int(j[k]))
+            raise _FieldError(
+                where, f"{sphere} overlaps {self._where(int(i[k]))[1]} by {-gap[k]:.3g} m"
+            )
 
     def _check_walls(self) -> None:
         """Every sphere starts inside the walls: its centre on the inner side of every plane

@@ -110,7 +110,7 @@ class Model:
         """An observables row of the state as it is."""
         row = np.zeros((1, self.observables_row))
         row[0, 0] = state.step
-        observe(*_system(state, self, dyn), row[0])
+        observe(*stepping_bundles(state, self, dyn), row[0])
         return self.complete(row)[0]
 
     def complete(self, rows: np.ndarray) -> np.ndarray:
@@ -195,7 +195,7 @@ def run_stage(
     if direction > 0:
         state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
         compute_forces(  # under the stage's settings
-            *_system(state, model, dyn), STATIC, clock.dt, 0.0, empty_events(), state.step
+            *stepping_bundles(state, model, dyn), STATIC, clock.dt, 0.0, empty_events(), state.step
         )
     every = clock.stage.observable_interval
     buffer = np.zeros((clock.stage.output_every // every + 2, model.observables_row))
@@ -212,7 +212,7 @@ def run_stage(
     for target in pauses[1:]:
         while state.step != target:
             status, state.step, rows = advance(
-                *_system(state, model, dyn), events, run, state.step, target, buffer
+                *stepping_bundles(state, model, dyn), events, run, state.step, target, buffer
             )
             _write_observables(writer, model, clock, buffer[:rows])
             if status == CELL_TOO_SMALL:
@@ -248,7 +248,7 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
     return float(np.linalg.norm(travel)) > stop.wall_travel_above.distance
 
 
-def _system(state: State, model: Model, dyn: Dynamics) -> tuple:
+def stepping_bundles(state: State, model: Model, dyn: Dynamics) -> tuple:
     """The bundles the kernels step: particles, pairs, walls, cell, contact law, moduli,
     dynamics."""
     return state.particles, state.pairs, state.walls, state.cell, model.law, model.moduli, dyn

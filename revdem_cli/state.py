@@ -171,8 +171,9 @@ _PAIR_SHEAR_SCALARS = ("overlap", "destroyed")
 
 
 def pair_capacity(needed: int) -> int:
-    """Room for a list of `needed` pairs: an eighth more, so that a few new contacts fit."""
-    return needed + needed // 8 + 16
+    """Room for a list of `needed` pairs: a sixteenth more, so that a few new contacts fit
+    (a list that outgrows it grows by a quarter)."""
+    return needed + needed // 16 + 16
 
 
 def empty_pairs(n_particles: int, capacity: int, shear: bool, reversing: bool) -> Pairs:
@@ -242,7 +243,7 @@ class State:
 
     def grow_pairs(self) -> None:
         needed = int(self.pairs.count[1])
-        self.pairs = grown(self.pairs, max(self.pairs.i.shape[0] + 16, pair_capacity(needed)))
+        self.pairs = grown(self.pairs, max(self.pairs.i.shape[0] + 16, needed + needed // 4 + 16))
 
 
 class CellTooSmall(RuntimeError):

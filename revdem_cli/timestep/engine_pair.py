@@ -121,7 +121,7 @@ def _kinetic_energy(particles) -> float:
 
 def engine_is_stable(scenario, dt: float) -> bool:
     """Whether the engine keeps the kinetic energy of `scenario` within GROWTH of its start."""
-    from revdem_cli.engine import Model, _system
+    from revdem_cli.engine import Model, stepping_bundles
     from revdem_cli.kernels.integrate import OK, advance
     from revdem_cli.state import empty_events, initial_state
 
@@ -131,7 +131,7 @@ def engine_is_stable(scenario, dt: float) -> bool:
     obs = np.zeros((STEPS, model.observables_row))
     run = np.array([dt, model.skin, 0, STEPS, 1], dtype=float)
     status, _, rows = advance(
-        *_system(state, model, model.dynamics), empty_events(), run, 0, STEPS, obs
+        *stepping_bundles(state, model, model.dynamics), empty_events(), run, 0, STEPS, obs
     )
     kinetic = obs[:rows, 1]  # kernels.observables.SCALARS[0]
     return status == OK and bool(np.all(kinetic <= GROWTH * start))
