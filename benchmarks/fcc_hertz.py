@@ -41,7 +41,7 @@ DIAMETER = 0.01
 SPACING = 0.999 * DIAMETER * 2**0.5
 
 
-def scenario_data(n: int, variant: str, steps: int) -> dict:
+def scenario_data(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict:
     """The benchmark as a revdem scenario."""
     contact = {"model": "hertz"}
     if variant == "history":
@@ -61,7 +61,7 @@ def scenario_data(n: int, variant: str, steps: int) -> dict:
             }
         ],
         "cell": {"size": [n * SPACING] * 3},
-        "integrator": {"dt": 1.0e-6},
+        "integrator": {"dt": 1.0e-6, "arithmetic": arithmetic},
         "neighbours": {"skin": 5.0e-4},
         "stages": [{"name": "run", "steps": steps, "output_every": steps}],
     }
@@ -75,7 +75,7 @@ def _rss(field: str) -> int:
     return 0
 
 
-def measure(n: int, variant: str, steps: int) -> dict:
+def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict:
     """Build the benchmark and time its stepping loop, in this process."""
     import numpy as np
 
@@ -83,17 +83,17 @@ def measure(n: int, variant: str, steps: int) -> dict:
     from revdem_cli.engine import Model
     from revdem_cli.state import initial_state
 
-    warm = Scenario.model_validate(scenario_data(2, variant, 1))  # compile, or load the cache
+    warm = Scenario.model_validate(scenario_data(2, variant, 1, arithmetic))  # compile or load
     loop_seconds(initial_state(warm), Model.of(warm), 1)
     baseline = _rss("VmRSS")
     Path("/proc/self/clear_refs").write_text("5")  # peak memory from here on
     started = time.perf_counter()
-    scenario = Scenario.model_validate(scenario_data(n, variant, steps))
+    scenario = Scenario.model_validate(scenario_data(n, variant, steps, arithmetic))
     model = Model.of(scenario)
     state = initial_state(scenario)
     setup = time.perf_counter() - started
     loop = loop_seconds(state, model, steps)
-    arrays = [state.particles, state.pairs, state.walls, state.cell]
+    arrays = [state.particles, state.pairs, state.walls, state.cell, state.fixed]
     state_bytes = sum(a.nbytes for bundle in arrays for a in bundle if isinstance(a, np.ndarray))
     count = len(state.particles.x)
     digest = hashlib.sha256()
@@ -102,6 +102,7 @@ def measure(n: int, variant: str, steps: int) -> dict:
     return {
         "n": n,
         "variant": variant,
+        "arithmetic": arithmetic,
         "particles": count,
         "steps": steps,
         "threads": int(os.environ.get("NUMBA_NUM_THREADS", os.cpu_count())),
@@ -134,14 +135,12 @@ def loop_seconds(state, model, steps: int) -> float:
     return seconds
 
 
-def in_process(n: int, variant: str, steps: int, threads: int, cache: str | None = None) -> dict:
-    """`measure` in a fresh process with `threads` threads (and its own kernel cache)."""
+def in_process(n: int, variant: str, steps: int, threads: int, arithmetic: str = "float") -> dict:
+    """`measure` in a fresh process with `threads` threads."""
     env = os.environ | {"NUMBA_NUM_THREADS": str(threads)}
-    if cache is not None:
-        env["NUMBA_CACHE_DIR"] = cache
     code = (
         "import json, sys; sys.path.insert(0, 'benchmarks'); from fcc_hertz import measure; "
-        f"print(json.dumps(measure({n}, {variant!r}, {steps})))"
+        f"print(json.dumps(measure({n}, {variant!r}, {steps}, {arithmetic!r})))"
     )
     done = subprocess.run(
         [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, check=True
@@ -221,7 +220,13 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    results = {"startup": startup_times(), "runs": [], "lammps": [], "scaling": []}
+    results = {
+        "startup": startup_times(),
+        "runs": [],
+        "lammps": [],
+        "fixed_point": [],
+        "scaling": [],
+    }
     print(
         f"start-up: JIT compile {results['startup']['jit_compile_s']:.1f} s, "
         f"warm start {results['startup']['warm_start_s']:.2f} s"
@@ -261,6 +266,23 @@ def main() -> None:
             print(
                 f"  final state with {args.threads} threads: {'identical' if same else 'DIFFERENT'}"
             )
+    threads = max(args.threads)
+    for variant in ("frictionless", "history"):
+        n = 24 if 24 in args.sizes else min(args.sizes)
+        steps = STEPS.get(n, 100)
+        fixed = in_process(n, variant, steps, threads, "fixed")
+        floating = next(
+            r
+            for r in results["runs"]
+            if (r["n"], r["variant"], r["threads"]) == (n, variant, threads)
+        )
+        ratio = floating["particle_steps_per_s"] / fixed["particle_steps_per_s"]
+        fixed["slowdown_against_float"] = ratio
+        results["fixed_point"].append(fixed)
+        print(
+            f"fixed-point {variant:13} n = {n}, {threads} threads: "
+            f"{fixed['particle_steps_per_s']:.4g} particle-steps/s, {ratio:.2f} x slower than float"
+        )
     if args.scaling:
         threads = max(args.threads)
         for variant in ("frictionless", "history"):

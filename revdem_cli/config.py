@@ -278,8 +278,11 @@ class Integrator(_Model):
     """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
 
     dt: Float = Field(gt=0, description="time step, s")
-    arithmetic: Literal["float"] = Field(
-        default="float", description="number representation of the state: 'float' (float64)"
+    arithmetic: Literal["float", "fixed"] = Field(
+        default="float",
+        description="number representation of the state: 'float' (float64), or 'fixed': "
+        "positions, velocities, angular velocities and servo-driven cell edges as 64-bit "
+        "integers on fixed grids, so that a conservative run reverses bit for bit",
     )
 
 

@@ -20,15 +20,17 @@ from revdem_cli.config import Scenario, Stage
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, read_restart, write_restart
-from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Moduli
+from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli
 from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
 from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
+from revdem_cli.kernels.fixed import EDGE, EDGE_RATE
 from revdem_cli.kernels.forces import compute_forces, particle_stress
-from revdem_cli.kernels.integrate import CELL_TOO_SMALL, OK, advance
+from revdem_cli.kernels.integrate import CELL_TOO_SMALL, FIXED_OVERFLOW, OK, advance
 from revdem_cli.kernels.observables import SCALARS, observe
 from revdem_cli.state import (
     CellTooSmall,
+    OffGrid,
     State,
     contact_law,
     default_skin,
@@ -110,7 +112,16 @@ class Model:
         """An observables row of the state as it is."""
         row = np.zeros((1, self.observables_row))
         row[0, 0] = state.step
-        observe(*stepping_bundles(state, self, dyn), row[0])
+        observe(
+            state.particles,
+            state.pairs,
+            state.walls,
+            state.cell,
+            self.law,
+            self.moduli,
+            dyn,
+            row[0],
+        )
         return self.complete(row)[0]
 
     def complete(self, rows: np.ndarray) -> np.ndarray:
@@ -191,7 +202,7 @@ def run_stage(
         )
     state.walls.velocity[:] = model.stage_wall_velocities(clock.stage)
     dyn = model.stage_dynamics(clock.stage)
-    set_cell_motion(state.cell, clock.stage, forward=direction > 0)
+    set_cell_motion(state.cell, state.fixed, clock.stage, forward=direction > 0)
     if direction > 0:
         state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
         compute_forces(  # under the stage's settings
@@ -217,6 +228,8 @@ def run_stage(
             _write_observables(writer, model, clock, buffer[:rows])
             if status == CELL_TOO_SMALL:
                 raise CellTooSmall(state.step, state.cell.length)
+            if status == FIXED_OVERFLOW:
+                raise OffGrid(state.step, state.fixed)
             if status != OK:
                 state.grow_pairs()
         stopped = _stop_reached(state, model, dyn, stop)
@@ -249,15 +262,25 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
 
 
 def stepping_bundles(state: State, model: Model, dyn: Dynamics) -> tuple:
-    """The bundles the kernels step: particles, pairs, walls, cell, contact law, moduli,
-    dynamics."""
-    return state.particles, state.pairs, state.walls, state.cell, model.law, model.moduli, dyn
+    """The bundles the kernels step: particles, pairs, walls, cell, the fixed-point state,
+    contact law, moduli, dynamics."""
+    return (
+        state.particles,
+        state.pairs,
+        state.walls,
+        state.cell,
+        state.fixed,
+        model.law,
+        model.moduli,
+        dyn,
+    )
 
 
-def set_cell_motion(cell: Cell, stage: Stage, forward: bool) -> None:
+def set_cell_motion(cell: Cell, fixed: Fixed, stage: Stage, forward: bool) -> None:
     """How the cell's edges move during a stage. Going forward, each edge starts from where
     the stage finds it: a strain-rate edge at rate x its length, a servo edge with the rate
-    it has, a fixed edge at rest. Reversed, lengths and rates come from the restart."""
+    it has, a fixed edge at rest (in fixed-point arithmetic all on their grids). Reversed,
+    lengths and rates come from the restart."""
     motions = stage.cell.axes() if stage.cell else [None, None, None]
     for a, motion in enumerate(motions):
         if motion is None:
@@ -272,6 +295,14 @@ def set_cell_motion(cell: Cell, stage: Stage, forward: bool) -> None:
                 cell.rate[a] = 0.0
             elif motion.strain_rate is not None:
                 cell.rate[a] = motion.strain_rate * cell.length[a]
+    if forward and fixed.v.shape[0] > 0:
+        for values, grid, step in (
+            (cell.length, fixed.length, fixed.grid[EDGE]),
+            (cell.rate, fixed.rate, fixed.grid[EDGE_RATE]),
+        ):
+            grid[:] = np.trunc(values / step + np.copysign(0.5, values)).astype(np.int64)
+            values[:] = grid * step
+        cell.start[:] = cell.length
 
 
 def _write_frame(writer, state: State, model: Model, clock: StageClock, events) -> None:
@@ -282,7 +313,8 @@ def _write_frame(writer, state: State, model: Model, clock: StageClock, events) 
         stress = np.zeros((len(state.particles.x), 3, 3))
         particle_stress(state.particles, state.pairs, state.walls, state.cell, stress)
     box = state.cell.length.copy() if state.cell.periodic.any() else None
-    writer.frame(state.step, float(clock.time(state.step)), state.particles, events, box, stress)
+    time = float(clock.time(state.step))
+    writer.frame(state.step, time, state.particles, events, box, stress, state.fixed)
 
 
 def _record_now(state, model, dyn, clock, writer, events) -> None:
@@ -332,12 +364,14 @@ def _writer(
         state.particles.mass,
         scenario.cell is not None,
         scenario.output.particle_stress,
+        scenario.integrator.arithmetic == "fixed",
         model.observables(),
         (len(KINDS), len(COLUMNS)),
         {
             "direction": direction,
             "dt": scenario.integrator.dt,
             "arithmetic": scenario.integrator.arithmetic,
+            "fixed_grid": state.fixed.grid,
             "scenario": text,
             "scenario_json": scenario.model_dump_json(),
             "source_restart": source,

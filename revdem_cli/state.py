@@ -8,11 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from revdem_cli.config import Damping, Material, Scenario
-from revdem_cli.kernels import cell, contact, walls
+from revdem_cli.kernels import cell, contact, fixed, walls
 from revdem_cli.kernels.arrays import (
     Cell,
     ContactLaw,
     Dynamics,
+    Fixed,
     Moduli,
     Pairs,
     Particles,
@@ -226,12 +227,14 @@ def empty_events() -> np.ndarray:
 
 @dataclass
 class State:
-    """Everything that evolves: particles, pair list with history, walls, cell, step."""
+    """Everything that evolves: particles, pair list with history, walls, cell, the integer
+    state of fixed-point arithmetic, step."""
 
     particles: Particles
     pairs: Pairs
     walls: Walls
     cell: Cell
+    fixed: Fixed
     step: int
 
     def rebuild_pairs(self, skin: float) -> None:
@@ -258,11 +261,117 @@ class CellTooSmall(RuntimeError):
         )
 
 
+GRID_BITS = 52
+"""A fixed-point grid step is 2^-52 of the scale of its quantity, rounded up to a power of
+two: the resolution of a float64 at that scale. The range, 2^62 steps, is then 1024 times
+the scale."""
+
+
+def power_of_two_above(value: float) -> float:
+    return 2.0 ** math.ceil(math.log2(value))
+
+
+def fixed_grid(scenario: Scenario) -> np.ndarray:
+    """The grid steps of fixed-point arithmetic (kernels.fixed: X, Y, Z, VELOCITY, ...,
+    EDGE_RATE), 2^-52 of each quantity's scale:
+
+    - position: the extent E of the scenario (the largest |coordinate| + radius, or cell
+      edge); in a deforming cell the cell coordinate, whose scale is 1;
+    - velocity: the largest of the starting speeds, the free-fall speed sqrt(2 |g| E), and
+      E over the duration of the run; angular velocity: that over the smallest radius, or
+      the largest starting angular velocity;
+    - force: the largest weight, or the normal force of the largest sphere at an overlap of
+      1 % of its radius; moment: that times the largest radius;
+    - cell edge: the longest edge; edge rate: as velocity.
+    """
+    spheres = scenario.spheres
+    r_max, r_min = float(spheres.radius.max()), float(spheres.radius.min())
+    extent = float((np.abs(spheres.position) + spheres.radius[:, None]).max())
+    if scenario.cell is not None:
+        extent = max(extent, max(scenario.cell.size))
+    duration = sum(stage.steps * (stage.dt or scenario.integrator.dt) for stage in scenario.stages)
+    gravity = float(np.linalg.norm(scenario.gravity))
+    speed = max(
+        float(np.linalg.norm(spheres.velocity, axis=1).max()),
+        math.sqrt(2.0 * gravity * extent),
+        extent / duration,
+    )
+    spin = max(float(np.linalg.norm(spheres.angular_velocity, axis=1).max()), speed / r_min)
+    densities = np.array([m.density for m in scenario.materials.values()])
+    masses = densities[spheres.material] * 4.0 / 3.0 * math.pi * spheres.radius**3
+    estar = float(moduli(scenario).estar.max())
+    overlap = 0.01 * r_max
+    law = scenario.contact
+    contact = (
+        law.kn * overlap
+        if law.model == "linear"
+        else 4.0 / 3.0 * estar * math.sqrt(r_max) * overlap**1.5  # Hanley 2020 Eq 6
+    )
+    force = max(float(masses.max()) * gravity, contact)
+    edge = max(scenario.cell.size) if scenario.cell is not None else 1.0
+    position = 1.0 if scenario.cell is not None and cell_deforms(scenario) else extent
+    scales = [position] * 3 + [speed, spin, force, force * r_max, edge, speed]
+    return np.array([power_of_two_above(s) * 2.0**-GRID_BITS for s in scales])
+
+
+def fixed_arrays(scenario: Scenario, p: Particles, cell_now: Cell) -> Fixed:
+    """The integer state of fixed-point arithmetic, the scenario's state rounded onto its
+    grids, and the floating-point state moved onto the grid points (empty arrays in
+    floating-point arithmetic)."""
+    if scenario.integrator.arithmetic != "fixed":
+        return Fixed(
+            x=np.zeros((0, 3), dtype=np.int64),
+            v=np.zeros((0, 3), dtype=np.int64),
+            omega=np.zeros((0, 3), dtype=np.int64),
+            length=np.zeros(3, dtype=np.int64),
+            rate=np.zeros(3, dtype=np.int64),
+            grid=np.zeros(9),
+            overflow=np.zeros(2, dtype=np.int64),
+        )
+    grid = fixed_grid(scenario)
+    position = grid[fixed.X : fixed.Z + 1]
+    in_cell = p.s.shape[0] > 0
+    coordinates = p.s if in_cell else p.x
+
+    def onto(values: np.ndarray, step) -> np.ndarray:
+        n = np.trunc(values / step + np.copysign(0.5, values)).astype(np.int64)
+        values[...] = n * step
+        return n
+
+    state = Fixed(
+        x=onto(coordinates, position),
+        v=onto(p.v, grid[fixed.VELOCITY]),
+        omega=onto(p.omega, grid[fixed.ANGULAR_VELOCITY]),
+        length=onto(cell_now.length, grid[fixed.EDGE]),
+        rate=onto(cell_now.rate, grid[fixed.EDGE_RATE]),
+        grid=grid,
+        overflow=np.zeros(2, dtype=np.int64),
+    )
+    if in_cell:
+        p.x[...] = p.s * cell_now.length
+    cell_now.start[:] = cell_now.built[:] = cell_now.mid[:] = cell_now.length
+    return state
+
+
+class OffGrid(RuntimeError):
+    """A value of fixed-point arithmetic left the range of its grid."""
+
+    def __init__(self, step: int, state: Fixed):
+        quantity = fixed.QUANTITIES[int(state.overflow[0]) - 1]
+        who = f" of particle {int(state.overflow[1])}" if state.overflow[1] >= 0 else ""
+        super().__init__(
+            f"step {step}: the {quantity}{who} left the range of its fixed-point grid "
+            f"(2^62 steps, 1024 times the scale the grid was made for); nothing wraps "
+            "around: run it in floating point, or start from a larger extent"
+        )
+
+
 def initial_state(scenario: Scenario) -> State:
     """The state at step 0 with its pair list and the forces at the initial positions."""
     p = particles(scenario)
     shear = scenario.contact.tangential != "none"
     cell_now = cell_arrays(scenario)
+    integers = fixed_arrays(scenario, p, cell_now)
     skin = default_skin(scenario)
     nothing = np.zeros(0, dtype=np.int32)
     parallel = len(p.x) >= PARALLEL_FROM
@@ -274,6 +383,7 @@ def initial_state(scenario: Scenario) -> State:
         empty_pairs(len(p.x), pair_capacity(needed), shear, reversing=False),
         wall_arrays(scenario, len(p.x)),
         cell_now,
+        integers,
         step=0,
     )
     state.rebuild_pairs(skin)
@@ -282,6 +392,7 @@ def initial_state(scenario: Scenario) -> State:
         state.pairs,
         state.walls,
         state.cell,
+        state.fixed,
         contact_law(scenario),
         moduli(scenario),
         dynamics(scenario),

@@ -16,6 +16,9 @@ SCHEMA_VERSION = 3
 FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
 """Per-particle time series of a trajectory, under /particles/all."""
 
+GRID_FIELDS = ("position_grid", "velocity_grid", "angular_velocity_grid")
+"""The integer state of fixed-point arithmetic at each frame, under /particles/all."""
+
 DAMAGE = (KeyError, OSError, RuntimeError, ValueError, TypeError, IndexError, AttributeError)
 """What h5py raises when it reads a damaged file."""
 

@@ -4,6 +4,9 @@
 /particles/all/{position,velocity,angular_velocity,force}   step [F], time [F], value [F, N, 3]
 /particles/all/{radius,mass,id}     time-independent [N]
 /particles/all/stress               [F, N, 3, 3] each sphere's stress (Eq 22), if asked for
+/particles/all/{position,velocity,angular_velocity}_grid   [F, N, 3] int64, in fixed-point
+                                    arithmetic: the integer state (steps in /parameters/revdem
+                                    fixed_grid, kernels/fixed.py)
 /particles/all/box                  boundary "periodic" (edges: the cell's at each frame) or
                                     "none" (edges: the bounding box of the spheres); positions
                                     are unwrapped across periodic boundaries
@@ -27,15 +30,17 @@ import numpy as np
 
 from revdem_cli import __version__
 from revdem_cli.errors import InputError
-from revdem_cli.io import DAMAGE, FRAME_FIELDS, SCHEMA_VERSION, one_line, open_hdf5
+from revdem_cli.io import DAMAGE, FRAME_FIELDS, GRID_FIELDS, SCHEMA_VERSION, one_line, open_hdf5
 
 
-def _series(group: h5py.Group, name: str, shape: tuple, clock: h5py.Group | None) -> h5py.Group:
+def _series(
+    group: h5py.Group, name: str, shape: tuple, clock: h5py.Group | None, dtype=np.float64
+) -> h5py.Group:
     """A time series `name` with value [F, *shape]; step and time shared with `clock`."""
     g = group.create_group(name)
     rows = max(1, 4096 // max(1, int(np.prod(shape))))
     g.create_dataset(
-        "value", shape=(0, *shape), maxshape=(None, *shape), dtype=np.float64, chunks=(rows, *shape)
+        "value", shape=(0, *shape), maxshape=(None, *shape), dtype=dtype, chunks=(rows, *shape)
     )
     if clock is None:
         g.create_dataset("step", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
@@ -96,6 +101,7 @@ class TrajectoryWriter:
         mass,
         periodic: bool,
         particle_stress: bool,
+        fixed_point: bool,
         observables: list[tuple[str, tuple[int, ...]]],
         events_shape: tuple[int, int],
         parameters: dict,
@@ -130,6 +136,12 @@ class TrajectoryWriter:
         if particle_stress:
             self.stress_rows = _Appender(_series(everything, "stress", (n, 3, 3), clock)["value"])
             self.frame_rows.append(self.stress_rows)
+        self.grid_rows = []
+        if fixed_point:
+            for name in GRID_FIELDS:
+                values = _series(everything, name, (n, 3), clock, np.int64)["value"]
+                self.grid_rows.append(_Appender(values))
+            self.frame_rows += self.grid_rows
         clock = None
         widths = []
         for name, shape in observables:
@@ -151,11 +163,19 @@ class TrajectoryWriter:
         yield from (appender for appender, _ in self.observable_rows)
 
     def frame(
-        self, step: int, time: float, particles, events: np.ndarray, box=None, stress=None
+        self,
+        step: int,
+        time: float,
+        particles,
+        events: np.ndarray,
+        box=None,
+        stress=None,
+        integers=None,
     ) -> None:
         """Append one frame; a frame at the step already written last is skipped. `box`: the
         edges of the periodic cell; None, the bounding box of the spheres. `stress`: each
-        sphere's stress, when the writer keeps it."""
+        sphere's stress, when the writer keeps it; `integers`: the fixed-point state, in
+        fixed-point arithmetic."""
         if step == self.last_step:
             return
         self.last_step = step
@@ -169,6 +189,8 @@ class TrajectoryWriter:
             events[None],
             (bounding_box(particles.x, particles.radius) if box is None else box)[None],
         ) + (() if self.stress_rows is None else (stress[None],))
+        if self.grid_rows:
+            values += tuple(getattr(integers, name)[None] for name in ("x", "v", "omega"))
         for appender, value in zip(self.frame_rows, values, strict=True):
             appender.add(np.array(value))
         self._flush_if_due()

@@ -21,7 +21,7 @@ from revdem_cli.io import (
     open_hdf5,
     stored_scenario,
 )
-from revdem_cli.kernels.arrays import Cell, Pairs, Particles, Walls
+from revdem_cli.kernels.arrays import Cell, Fixed, Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
 from revdem_cli.state import State, empty_pairs, pair_capacity
 
@@ -70,6 +70,8 @@ def write_restart(path: Path, restart: Restart) -> None:
             f.create_dataset(f"walls/{name}", data=getattr(s.walls, name))
         for name in CELL_ARRAYS:
             f.create_dataset(f"cell/{name}", data=getattr(s.cell, name))
+        for name in Fixed._fields:
+            f.create_dataset(f"fixed/{name}", data=getattr(s.fixed, name))
         n = int(s.pairs.count[0])
         shear = s.pairs.history.shape[0] > 0
         for name in PAIR_FIELDS[: 4 if shear else 3]:
@@ -111,6 +113,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     cell = cell_arrays(scenario)
     for name in CELL_ARRAYS:
         getattr(cell, name)[...] = read(f"cell/{name}")
+    integers = Fixed(*(read(f"fixed/{name}") for name in Fixed._fields))
     n = f["pairs/i"].shape[0]
     pairs: Pairs = empty_pairs(n_particles, pair_capacity(n), shear, reversing=True)
     for name in PAIR_FIELDS[: 4 if shear else 3]:
@@ -119,7 +122,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     pairs.count[:] = n
     index_by_particle(pairs.i, pairs.j, n, pairs.first, pairs.start, pairs.slots)
     return Restart(
-        state=State(particles, pairs, walls, cell, step=int(meta.attrs["step"])),
+        state=State(particles, pairs, walls, cell, integers, step=int(meta.attrs["step"])),
         scenario_json=str(meta.attrs["scenario_json"]),
         scenario_text=str(meta.attrs["scenario_text"]),
         scenario_suffix=str(meta.attrs["scenario_suffix"]),

@@ -87,6 +87,21 @@ Cell = namedtuple(
     ],
 )
 
+Fixed = namedtuple(
+    "Fixed",
+    [
+        "x",  # positions on their grid (a deforming cell: cell coordinates), int64 (N, 3)
+        "v",  # velocities on their grid, int64 (N, 3)
+        "omega",  # angular velocities on their grid, int64 (N, 3)
+        "length",  # cell edges on their grid (inertial servo), int64 (3,)
+        "rate",  # their rates on their grid, int64 (3,)
+        "grid",  # grid steps, see kernels.fixed: X, Y, Z, VELOCITY, ..., EDGE_RATE, (9,)
+        "overflow",  # [1 + quantity, particle] of the first value to leave its grid, (2,)
+    ],
+)
+"""The integer state of fixed-point arithmetic (kernels/fixed.py); every array has length 0
+in floating-point runs."""
+
 ContactLaw = namedtuple(
     "ContactLaw",
     [

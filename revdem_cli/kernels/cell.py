@@ -20,6 +20,7 @@ Servos, for an axis a holding the stress target s*_a:
 import numpy as np
 
 from revdem_cli.kernels import jit
+from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, OF_CELL, RANGE, note_overflow, rounded
 
 FIXED = 0
 STRAIN_RATE = 1
@@ -27,6 +28,17 @@ STRESS = 2
 
 PROPORTIONAL = 0
 INERTIAL = 1
+
+
+@jit
+def add_on_grid(fixed, n, increment, step):
+    """n + round(increment / step): an edge or its rate on its grid; a value that would
+    leave the grid stays, and is counted as an overflow of the cell."""
+    rounded_increment = rounded(increment / step)
+    if abs(rounded_increment) > RANGE or abs(n + np.int64(rounded_increment)) > RANGE:
+        note_overflow(fixed, OF_CELL, (1, -1))
+        return n
+    return n + np.int64(rounded_increment)
 
 
 @jit
@@ -98,23 +110,33 @@ def servo_forces(cell, local_damping):
 
 
 @jit
-def kick_cell(cell, h):
-    """Inertial servo: dL/dt += h F / M, h = +-dt/2, as the particles' half kicks."""
+def kick_cell(cell, fixed, h):
+    """Inertial servo: dL/dt += h F / M, h = +-dt/2, as the particles' half kicks; on its
+    grid in fixed-point arithmetic."""
     if cell.servo != INERTIAL:
         return
+    on_grid = fixed.v.shape[0] > 0
+    step = fixed.grid[EDGE_RATE] if on_grid else 0.0
     for a in range(3):
         if cell.control[a] == STRESS:
-            cell.rate[a] += h * cell.force[a] / cell.mass
+            if on_grid:
+                kick = h * cell.force[a] / cell.mass
+                fixed.rate[a] = add_on_grid(fixed, fixed.rate[a], kick, step)
+                cell.rate[a] = fixed.rate[a] * step
+            else:
+                cell.rate[a] += h * cell.force[a] / cell.mass
 
 
 @jit
-def move_cell(cell, dt, elapsed):
+def move_cell(cell, fixed, dt, elapsed):
     """The edges after a step of dt (< 0 reversed), `elapsed` seconds into the stage at its
     end; cell.mid gets the edges at the middle of the step, the ones a drift divides by.
 
     Strain-rate edges: L = L_start + rate elapsed, a function of the step as walls are.
-    Proportional servo: the rate from the stress now, then L += dt rate. Inertial: L += dt rate.
+    Proportional servo: the rate from the stress now, then L += dt rate. Inertial: L += dt rate,
+    on its grid in fixed-point arithmetic.
     """
+    on_grid = fixed.v.shape[0] > 0 and cell.servo == INERTIAL
     for a in range(3):
         before = cell.length[a]
         if cell.control[a] == STRAIN_RATE:
@@ -123,5 +145,10 @@ def move_cell(cell, dt, elapsed):
             if cell.servo == PROPORTIONAL:  # dL/dt of forward time; reversed, L -= |dt| dL/dt
                 error = (cell.stress[a, a] - cell.target[a]) / cell.target[a]
                 cell.rate[a] = (cell.gain if dt > 0.0 else -cell.gain) * error * before
-            cell.length[a] = before + dt * cell.rate[a]
+            if on_grid:
+                step = fixed.grid[EDGE]
+                fixed.length[a] = add_on_grid(fixed, fixed.length[a], dt * cell.rate[a], step)
+                cell.length[a] = fixed.length[a] * step
+            else:
+                cell.length[a] = before + dt * cell.rate[a]
         cell.mid[a] = 0.5 * (before + cell.length[a])

@@ -16,6 +16,7 @@ built serial and parallel; small systems step serially, without waking threads.
 import math
 
 import numba
+import numpy as np
 
 from revdem_cli.kernels import jit, serial_and_parallel
 from revdem_cli.kernels.cell import (
@@ -40,6 +41,16 @@ from revdem_cli.kernels.contact import (
     unwind_shear,
 )
 from revdem_cli.kernels.events import note_destroyed
+from revdem_cli.kernels.fixed import (
+    ANGULAR_VELOCITY,
+    FORCE,
+    OF_FORCE,
+    RANGE,
+    TORQUE,
+    VELOCITY,
+    note_overflow,
+    rounded,
+)
 from revdem_cli.kernels.walls import wall_overlap
 
 ZERO = (0.0, 0.0, 0.0)
@@ -296,6 +307,21 @@ def _wall_loop(
     return slips, last_slip, losses, last_loss
 
 
+@jit
+def add_on_grid(total, value, factor, per_step):
+    """total + factor value on a grid of 1 / per_step: total a 3-tuple of integers, factor
+    value rounded to the grid first (`fixed.rounded`; the steps are powers of two, so
+    multiplying by per_step divides by the step exactly). Returns (sum, whether it stayed in
+    range)."""
+    n0 = rounded(factor * value[0] * per_step)
+    n1 = rounded(factor * value[1] * per_step)
+    n2 = rounded(factor * value[2] * per_step)
+    if max(abs(n0), abs(n1), abs(n2)) > RANGE:
+        return total, False
+    result = (total[0] + np.int64(n0), total[1] + np.int64(n1), total[2] + np.int64(n2))
+    return result, max(abs(result[0]), abs(result[1]), abs(result[2])) <= RANGE
+
+
 def _gather_loop(
     mass,
     inv_mass,
@@ -316,34 +342,108 @@ def _gather_loop(
     f_out,
     t_out,
     h,
+    fixed_v,
+    fixed_w,
+    grid,
 ):
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
     (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21);
     then the half kick v += h f / m, w += h t / I (Eq 11-12; h = 0: none). Without a
-    tangential law (no `moment`) every moment is zero."""
+    tangential law (no `moment`) every moment is zero.
+
+    In fixed-point arithmetic (fixed_v not empty) each term is rounded to the force or moment
+    grid and summed as an integer, so the sum does not depend on the order of its terms,
+    and the kick lands on the velocity grids. Returns (particles whose sum or velocity left
+    its grid, the last of them)."""
     torques = moment.shape[0] > 0
+    on_grid = fixed_v.shape[0] > 0
+    f_step = grid[FORCE] if on_grid else 1.0
+    t_step = grid[TORQUE] if on_grid else 1.0
+    per_f, per_t = 1.0 / f_step, 1.0 / t_step
+    out = 0
+    last = -1
     for q in numba.prange(f_out.shape[0]):
-        f = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
+        weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
+        f_int = (np.int64(0), np.int64(0), np.int64(0))
+        t_int = (np.int64(0), np.int64(0), np.int64(0))
+        f = ZERO if on_grid else weight
         t = ZERO
+        ok = True
+        if on_grid:
+            f_int, ok = add_on_grid(f_int, weight, 1.0, per_f)
         for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
             k = slots[s]
-            f = axpy(-1.0, row(pair_force, k), f)
+            if on_grid:
+                f_int, fine = add_on_grid(f_int, row(pair_force, k), -1.0, per_f)
+                ok = ok and fine
+            else:
+                f = axpy(-1.0, row(pair_force, k), f)
             if torques:  # Hanley 2020 Eq 5: the lever arm r - overlap / 2 times n x f
-                t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
+                arm = radius[q] - 0.5 * overlaps[k]
+                if on_grid:
+                    t_int, fine = add_on_grid(t_int, row(moment, k), arm, per_t)
+                    ok = ok and fine
+                else:
+                    t = axpy(arm, row(moment, k), t)
         for k in range(first[q], first[q + 1]):  # partners j > q
-            f = axpy(1.0, row(pair_force, k), f)
+            if on_grid:
+                f_int, fine = add_on_grid(f_int, row(pair_force, k), 1.0, per_f)
+                ok = ok and fine
+            else:
+                f = axpy(1.0, row(pair_force, k), f)
             if torques:
-                t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
+                arm = radius[q] - 0.5 * overlaps[k]
+                if on_grid:
+                    t_int, fine = add_on_grid(t_int, row(moment, k), arm, per_t)
+                    ok = ok and fine
+                else:
+                    t = axpy(arm, row(moment, k), t)
         for b in range(wall_force.shape[1]):
-            f = axpy(1.0, cell_of(wall_force, q, b), f)
-            t = axpy(1.0, cell_of(wall_torque, q, b), t)
+            if on_grid:
+                f_int, fine = add_on_grid(f_int, cell_of(wall_force, q, b), 1.0, per_f)
+                t_int, turned = add_on_grid(t_int, cell_of(wall_torque, q, b), 1.0, per_t)
+                ok = ok and fine and turned
+            else:
+                f = axpy(1.0, cell_of(wall_force, q, b), f)
+                t = axpy(1.0, cell_of(wall_torque, q, b), t)
+        if on_grid:
+            f = (f_int[0] * f_step, f_int[1] * f_step, f_int[2] * f_step)
+            t = (t_int[0] * t_step, t_int[1] * t_step, t_int[2] * t_step)
         for d in range(3):
             f_out[q, d] = f[d] - local * abs(f[d]) * sign(v[q, d])  # Hanley 2020 Eq 21
-            v[q, d] += h * f_out[q, d] * inv_mass[q]
         if torques:  # else the moments stay zero
             for d in range(3):
                 t_out[q, d] = t[d] - local * abs(t[d]) * sign(w[q, d])
-                w[q, d] += h * t_out[q, d] * inv_inertia[q]
+        if on_grid:
+            ok = ok and kick_on_grid(fixed_v, v, f_out, inv_mass, q, h, grid[VELOCITY])
+            if torques:
+                step = grid[ANGULAR_VELOCITY]
+                ok = ok and kick_on_grid(fixed_w, w, t_out, inv_inertia, q, h, step)
+        else:
+            for d in range(3):
+                v[q, d] += h * f_out[q, d] * inv_mass[q]
+                if torques:
+                    w[q, d] += h * t_out[q, d] * inv_inertia[q]
+        if not ok:
+            out += 1
+            last = max(last, q)
+    return out, last
+
+
+@jit
+def kick_on_grid(n, v, f, inv_m, q, h, step):
+    """The half kick of particle q on its grid, n += round(h f / m / step), v = n step
+    (`fixed._kick`); whether it stayed in range."""
+    ok = True
+    per_step = 1.0 / step  # a power of two: multiplying by it divides exactly
+    for d in range(3):
+        increment = rounded(h * f[q, d] * inv_m[q] * per_step)
+        if abs(increment) > RANGE or abs(n[q, d] + np.int64(increment)) > RANGE:
+            ok = False
+        else:
+            n[q, d] += np.int64(increment)
+        v[q, d] = n[q, d] * step
+    return ok
 
 
 def _unwind_pair_loop(
@@ -420,7 +520,7 @@ unwind_wall_loop, unwind_wall_loop_parallel = serial_and_parallel(_unwind_wall_l
 
 
 @jit
-def compute_forces(p, pairs, walls, cell, law, moduli, dyn, mode, dt, h, events, step):
+def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, events, step):
     """Forces at the current positions (Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed),
     the half kick h that follows them, and the stress a servo needs; the shear force the
     step destroyed goes into the event log at `step`."""
@@ -488,6 +588,9 @@ def compute_forces(p, pairs, walls, cell, law, moduli, dyn, mode, dt, h, events,
         p.f,
         p.torque,
         h,
+        fixed.v,
+        fixed.omega,
+        fixed.grid,
     )
     periodic = cell.periodic[0] or cell.periodic[1] or cell.periodic[2]
     if p.x.shape[0] >= PARALLEL_FROM:
@@ -498,7 +601,7 @@ def compute_forces(p, pairs, walls, cell, law, moduli, dyn, mode, dt, h, events,
         wall_events = wall_loop_parallel(*wall_args)
         if holds_stress(cell):
             stress_of(p, pairs, cell)
-        gather_loop_parallel(*gather_args)
+        gathered = gather_loop_parallel(*gather_args)
     else:
         if periodic:
             pair_events = pair_loop(*particle_args, images(cell), *pair_args)
@@ -507,7 +610,8 @@ def compute_forces(p, pairs, walls, cell, law, moduli, dyn, mode, dt, h, events,
         wall_events = wall_loop(*wall_args)
         if holds_stress(cell):
             stress_of(p, pairs, cell)
-        gather_loop(*gather_args)
+        gathered = gather_loop(*gather_args)
+    note_overflow(fixed, OF_FORCE, gathered)
     servo_forces(cell, dyn.local_damping)
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)
 

@@ -1,7 +1,9 @@
 """Velocity-Verlet stepping, forward and reversed, and the compiled loop of a stage."""
 
 import numba
+import numpy as np
 
+from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import jit, serial_and_parallel
 from revdem_cli.kernels.cell import kick_cell, move_cell
 from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE
@@ -20,6 +22,7 @@ from revdem_cli.kernels.walls import place_walls
 OK = 0
 PAIR_OVERFLOW = 1
 CELL_TOO_SMALL = 2
+FIXED_OVERFLOW = 3
 
 
 def _kick(v, f, inv_m, h):
@@ -34,6 +37,15 @@ def _scale(v, factor):
     for q in numba.prange(v.shape[0]):
         for d in range(3):
             v[q, d] *= factor
+
+
+def _scale_fixed(n, v, factor, step):
+    """Drag on the velocity grid: n = round(n factor), v = n step (not invertible, as drag is
+    not in floating point either)."""
+    for q in numba.prange(n.shape[0]):
+        for d in range(3):
+            n[q, d] = np.int64(fx.rounded(n[q, d] * factor))
+            v[q, d] = n[q, d] * step
 
 
 def _drift(x, v, h):
@@ -77,6 +89,7 @@ def _drift_in_cell(x, s, v, h, mid, length):
 
 kick_serial, kick_parallel = serial_and_parallel(_kick)
 scale_serial, scale_parallel = serial_and_parallel(_scale)
+scale_fixed_serial, scale_fixed_parallel = serial_and_parallel(_scale_fixed)
 drift_serial, drift_parallel = serial_and_parallel(_drift)
 drift_in_cell_serial, drift_in_cell_parallel = serial_and_parallel(_drift_in_cell)
 
@@ -90,18 +103,69 @@ def kick(v, f, inv_m, h):
 
 
 @jit
-def scale(v, factor):
+def kick_on_grid(n, v, f, inv_m, h, step, fixed, quantity):
     if v.shape[0] >= PARALLEL_FROM:
-        scale_parallel(v, factor)
+        fx.note_overflow(fixed, quantity, fx.kick_parallel(n, v, f, inv_m, h, step))
     else:
-        scale_serial(v, factor)
+        fx.note_overflow(fixed, quantity, fx.kick_serial(n, v, f, inv_m, h, step))
 
 
 @jit
-def drift(p, cell, h, events, step):
-    """The drift of every particle; a nonzero displacement too small to change a position
-    (or a cell coordinate) is lost to round-off, and logged with the largest such
-    displacement of the last particle it happened to."""
+def kick_particles(p, fixed, law, h):
+    """The half kick of the velocities and, where there are moments (a tangential law), of
+    the angular velocities: on their grids in fixed-point arithmetic."""
+    moments = law.tangential != NO_SHEAR  # without shear forces the moments are zero
+    if fixed.v.shape[0] > 0:
+        grid = fixed.grid
+        kick_on_grid(fixed.v, p.v, p.f, p.inv_mass, h, grid[fx.VELOCITY], fixed, fx.OF_VELOCITY)
+        if moments:
+            step = grid[fx.ANGULAR_VELOCITY]
+            omega = (fixed.omega, p.omega, p.torque, p.inv_inertia)
+            kick_on_grid(*omega, h, step, fixed, fx.OF_ANGULAR_VELOCITY)
+        return
+    kick(p.v, p.f, p.inv_mass, h)
+    if moments:
+        kick(p.omega, p.torque, p.inv_inertia, h)
+
+
+@jit
+def scale(p, fixed, factor):
+    parallel = p.v.shape[0] >= PARALLEL_FROM
+    if fixed.v.shape[0] > 0:
+        if parallel:
+            scale_fixed_parallel(fixed.v, p.v, factor, fixed.grid[fx.VELOCITY])
+        else:
+            scale_fixed_serial(fixed.v, p.v, factor, fixed.grid[fx.VELOCITY])
+    elif parallel:
+        scale_parallel(p.v, factor)
+    else:
+        scale_serial(p.v, factor)
+
+
+@jit
+def drift_on_grid(p, cell, fixed, h):
+    """The drift in fixed-point arithmetic, then the positions the integers give. Motion
+    below the grid is not lost information: the reversed drift rounds the same increment."""
+    in_cell = p.s.shape[0] > 0  # positions are the coordinates of a deforming cell
+    step = fixed.grid[fx.X : fx.Z + 1]
+    if p.x.shape[0] >= PARALLEL_FROM:
+        moved = fx.drift_parallel(fixed.x, p.v, h, step, cell.mid, in_cell)
+        fx.note_overflow(fixed, fx.OF_POSITION, moved)
+        fx.mirror_parallel(fixed.x, p.x, p.s, step, cell.length)
+    else:
+        moved = fx.drift_serial(fixed.x, p.v, h, step, cell.mid, in_cell)
+        fx.note_overflow(fixed, fx.OF_POSITION, moved)
+        fx.mirror_serial(fixed.x, p.x, p.s, step, cell.length)
+
+
+@jit
+def drift(p, cell, fixed, h, events, step):
+    """The drift of every particle; in floating point a nonzero displacement too small to
+    change a position (or a cell coordinate) is lost to round-off, and logged with the
+    largest such displacement of the last particle it happened to."""
+    if fixed.v.shape[0] > 0:
+        drift_on_grid(p, cell, fixed, h)
+        return
     parallel = p.x.shape[0] >= PARALLEL_FROM
     in_cell = p.s.shape[0] > 0
     if in_cell:
@@ -126,27 +190,25 @@ def drift(p, cell, h, events, step):
 
 
 @jit
-def forward_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elapsed):
+def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed):
     """One forward step from `step` (Hanley 2020 Eq 1-12, with drag Eq 25-26); `elapsed`
     is the stage's time at its end."""
     h = 0.5 * dt
-    kick(p.v, p.f, p.inv_mass, h)
-    if law.tangential != NO_SHEAR:  # without shear forces the moments are zero
-        kick(p.omega, p.torque, p.inv_inertia, h)
-    kick_cell(cell, h)
+    kick_particles(p, fixed, law, h)
+    kick_cell(cell, fixed, h)
     if dyn.drag != 1.0:
-        scale(p.v, dyn.drag)
+        scale(p, fixed, dyn.drag)
         note_fixed_points(p.v, p.v_drift, step + 1, events)
-    move_cell(cell, dt, elapsed)
-    drift(p, cell, dt, events, step + 1)
+    move_cell(cell, fixed, dt, elapsed)
+    drift(p, cell, fixed, dt, events, step + 1)
     place_walls(walls, elapsed)
-    compute_forces(p, pairs, walls, cell, law, moduli, dyn, FORWARD, dt, h, events, step + 1)
+    compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, FORWARD, dt, h, events, step + 1)
     note_damping(events, step + 1, law, dyn)
-    kick_cell(cell, h)
+    kick_cell(cell, fixed, h)
 
 
 @jit
-def reverse_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elapsed):
+def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed):
     """One reversed step from `step`: the forward step's operations undone in reverse order.
 
     Kick back with the stored force (Eq 17, 27); undo the shear increment and spin
@@ -158,20 +220,18 @@ def reverse_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elap
     and are logged.
     """
     h = -0.5 * dt
-    kick(p.v, p.f, p.inv_mass, h)
-    if law.tangential != NO_SHEAR:
-        kick(p.omega, p.torque, p.inv_inertia, h)
-    kick_cell(cell, h)
+    kick_particles(p, fixed, law, h)
+    kick_cell(cell, fixed, h)
     unwind_shear_history(p, pairs, walls, cell, law, moduli, dt)
-    move_cell(cell, -dt, elapsed)
-    drift(p, cell, -dt, events, step - 1)
+    move_cell(cell, fixed, -dt, elapsed)
+    drift(p, cell, fixed, -dt, events, step - 1)
     place_walls(walls, elapsed)
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)
-        scale(p.v, 1.0 / dyn.drag)
-    compute_forces(p, pairs, walls, cell, law, moduli, dyn, REVERSE, dt, h, events, step - 1)
+        scale(p, fixed, 1.0 / dyn.drag)
+    compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, REVERSE, dt, h, events, step - 1)
     note_damping(events, step - 1, law, dyn)
-    kick_cell(cell, h)
+    kick_cell(cell, fixed, h)
 
 
 @jit
@@ -226,14 +286,15 @@ def needs_rebuild(p, pairs, cell, dt, skin, direction):
 
 
 @jit
-def advance(p, pairs, walls, cell, law, moduli, dyn, events, run, step, stop, obs):
+def advance(p, pairs, walls, cell, fixed, law, moduli, dyn, events, run, step, stop, obs):
     """Run whole steps from `step` to `stop` (forward if stop > step, else reversed).
 
     run = (dt, skin, first step of the stage, last step, observables interval). Observables
     are recorded into the rows of `obs` at every step where (step - first) % interval == 0
     and at the last step. Returns (status, step reached, rows recorded); status
     PAIR_OVERFLOW means the pair list must grow before stepping on, CELL_TOO_SMALL that the
-    cell has shrunk too far (the state is then at a whole step).
+    cell has shrunk too far (the state is then at a whole step), FIXED_OVERFLOW that a
+    value left its fixed-point grid in the step just taken (fixed.overflow says which).
     """
     dt, skin = run[0], run[1]
     first, last, every = int(run[2]), int(run[3]), int(run[4])
@@ -245,11 +306,14 @@ def advance(p, pairs, walls, cell, law, moduli, dyn, events, run, step, stop, ob
             if status != OK:
                 return status, step, rows
         elapsed = (step + direction - first) * dt
+        system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
         if direction > 0:
-            forward_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elapsed)
+            forward_step(*system, dt, step, elapsed)
         else:
-            reverse_step(p, pairs, walls, cell, law, moduli, dyn, events, dt, step, elapsed)
+            reverse_step(*system, dt, step, elapsed)
         step += direction
+        if fixed.overflow[0] != 0:
+            return FIXED_OVERFLOW, step, rows
         if (step - first) % every == 0 or step == last:
             obs[rows, 0] = step
             observe(p, pairs, walls, cell, law, moduli, dyn, obs[rows])

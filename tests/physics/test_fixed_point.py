@@ -1,0 +1,131 @@
+"""Fixed-point arithmetic ([integrator] arithmetic = "fixed"): a conservative run and its
+reversal return the very integers they started from; the trajectories stay within the grid
+resolution of floating point; dissipation still breaks exactness; nothing wraps around."""
+
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from revdem_cli.config import load_scenario
+from revdem_cli.engine import run_scenario
+from tests.conftest import CONFIGS
+
+FIXED = "integrator.arithmetic=fixed"
+
+
+def run(config, tmp_path, *overrides, reverse=True):
+    scenario, text = load_scenario(CONFIGS / config, [FIXED, *overrides])
+    return run_scenario(scenario, text, ".toml", tmp_path, reverse=reverse)
+
+
+CONSERVATIVE = {
+    "collision": ("collision.toml",),
+    "oedometer compression with its moving platen": ("smoke/oedometer.toml",),
+    "fcc, strain rate and inertial servo": ("fcc_triaxial.toml",),
+    "fcc, strain rates only": (
+        "fcc_triaxial.toml",
+        "stages.1.cell.x={strain_rate=5e-7}",
+        "stages.1.cell.y={strain_rate=5e-7}",
+    ),
+    "undamped drop": ("drop_A.toml", "damping.drag=1.0", "stages.0.steps=300000"),
+}
+
+
+@pytest.mark.parametrize("case", CONSERVATIVE)
+def test_a_conservative_run_reverses_to_the_same_integers(tmp_path, case):
+    config, *overrides = CONSERVATIVE[case]
+    verdict = run(config, tmp_path, *overrides).verdict
+    assert verdict["bitwise_identical"] is True
+    assert verdict["max_position_error"] == 0.0 and verdict["max_velocity_error"] == 0.0
+    name = load_scenario(CONFIGS / config)[0].name
+    with (
+        h5py.File(tmp_path / f"{name}.forward.h5") as f,
+        h5py.File(tmp_path / f"{name}.reverse.h5") as b,
+    ):
+        first = int(b["particles/all/position_grid/step"][-1])
+        k = int(np.nonzero(f["particles/all/position_grid/step"][:] == first)[0][0])
+        for field in ("position_grid", "velocity_grid"):
+            start = f[f"particles/all/{field}/value"][k]
+            back = b[f"particles/all/{field}/value"][-1]
+            assert start.dtype == np.int64 and np.array_equal(start, back)
+
+
+def test_fixed_point_follows_floating_point_within_the_grid_times_the_steps(tmp_path):
+    """|x_fixed - x_float| <= (N + 1) (q_x + N dt q_v): the start and each of N steps round a
+    position by at most a step q_x, and a velocity by q_v, which moves the position by
+    dt q_v every step after."""
+    fixed = run("collision.toml", tmp_path / "fixed", reverse=False)
+    scenario, text = load_scenario(CONFIGS / "collision.toml")
+    floating = run_scenario(scenario, text, ".toml", tmp_path / "float", reverse=False)
+    with h5py.File(fixed.forward) as a, h5py.File(floating.forward) as b:
+        grid = a["parameters/revdem"].attrs["fixed_grid"]
+        steps = a["particles/all/position/step"][:]
+        dx = np.abs(a["particles/all/position/value"][:] - b["particles/all/position/value"][:])
+        dv = np.abs(a["particles/all/velocity/value"][:] - b["particles/all/velocity/value"][:])
+    dt = scenario.integrator.dt
+    n = steps[:, None, None]
+    assert (dx <= (n + 1) * (grid[0] + n * dt * grid[3])).all()
+    assert (dv <= (n + 1) * grid[3]).all()
+    assert dx.max() > 0.0  # the grids are not those of floating point
+
+
+def test_drag_breaks_exactness_in_fixed_point_too(tmp_path):
+    # rounding gamma_d v to the grid cannot be undone exactly by rounding v / gamma_d
+    verdict = run("drop_A.toml", tmp_path, "stages.0.steps=300000").verdict
+    assert verdict["bitwise_identical"] is False
+    assert verdict["max_velocity_error"] > 0.0
+
+
+def test_a_value_leaving_its_grid_is_an_error_not_a_wrap_around(tmp_path):
+    # one sphere at 1 m/s from the origin: its grid reaches 1024 x the extent (8 m)
+    scenario = tmp_path / "away.toml"
+    scenario.write_text(
+        """name = "away"
+[materials.m]
+density = 1000.0
+shear_modulus = 2.0e6
+poisson_ratio = 0.2
+[contact]
+model = "hertz"
+[[particles]]
+material = "m"
+radius = 0.005
+position = [0.0, 0.0, 0.0]
+velocity = [1.0, 0.0, 0.0]
+[integrator]
+dt = 1.0e-3
+arithmetic = "fixed"
+[[stages]]
+name = "fly"
+steps = 20000
+output_every = 1000
+"""
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "revdem_cli.cli", "run", str(scenario), "--out", str(tmp_path)]
+        + ["-q"],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 1
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr
+    assert "position of particle 0 left the range of its fixed-point grid" in lines[0]
+    with h5py.File(tmp_path / "away.forward.h5") as f:  # what was written is kept
+        x = f["particles/all/position/value"][:, 0, 0]
+    assert 7.0 < x[-1] < 8.2 and (np.diff(x) > 0).all()
+
+
+def test_fixed_point_is_recorded_with_its_grid(tmp_path):
+    outputs = run("collision.toml", tmp_path, reverse=False)
+    with h5py.File(outputs.forward) as f:
+        attrs = f["parameters/revdem"].attrs
+        assert attrs["arithmetic"] == "fixed"
+        grid = attrs["fixed_grid"]
+        n = f["particles/all/position_grid/value"][-1]
+        x = f["particles/all/position/value"][-1]
+    assert (np.log2(grid) == np.round(np.log2(grid))).all()  # powers of two
+    np.testing.assert_array_equal(x, n * grid[0])
