@@ -818,10 +818,11 @@ OBSERVABLE_COLUMNS = 9
 """Columns of an observables row besides its 6 per wall: the step, 7 scalars and the solid
 fraction (kernels.observables)."""
 
-BYTES_PER_SPHERE = 4096
-"""Memory a sphere takes in a run, bytes: its Particle (about 0.7 kB), its arrays (0.2 kB),
-its share of the pair list (8 pairs, 1.9 kB, which may double as it grows) and working room;
-3.1 kB measured after the initial state of a 20 000-sphere packing."""
+BYTES_PER_SPHERE = 2048
+"""Memory a sphere takes in a run, bytes, with room to spare: 0.94 kB measured at a million
+spheres with shear history (benchmarks/fcc_hertz.py: its arrays, its share of the pair list
+and the scenario's copy of its starting state), twice that for a pair list that grows by
+a quarter as a packing densifies and for the checks of a new scenario."""
 
 BYTES_PER_SPHERE_AND_WALL = 160
 """Memory of the contact history of a sphere with a wall, bytes (5 vectors and 4 scalars)."""
