@@ -638,6 +638,13 @@ def stress_of(p, pairs, cell):
 
 
 @jit
+def wall_normal(p, walls, q, b):
+    """Unit normal from particle q towards wall b (for observables, not per step)."""
+    point, axis = row(walls.point, b), row(walls.axis, b)
+    return wall_overlap(walls.kind[b], point, axis, walls.radius[b], row(p.x, q), p.radius[q])[1]
+
+
+@jit
 def particle_stress(p, pairs, walls, cell, out):
     """Stress of each particle, -1/V_p sum over its contacts of x_c (x) f_c with x_c from its
     centre to the contact point (Hanley 2020 Eq 22; compression positive), Pa, (N, 3, 3).
@@ -661,14 +668,7 @@ def particle_stress(p, pairs, walls, cell, out):
     for q in range(p.x.shape[0]):
         for b in range(walls.force.shape[1]):
             if walls.overlap[q, b] > 0.0:
-                _, n = wall_overlap(
-                    walls.kind[b],
-                    row(walls.point, b),
-                    row(walls.axis, b),
-                    walls.radius[b],
-                    row(p.x, q),
-                    p.radius[q],
-                )
+                n = wall_normal(p, walls, q, b)
                 arm = p.radius[q] - 0.5 * walls.overlap[q, b]
                 for a in range(3):
                     for c in range(3):

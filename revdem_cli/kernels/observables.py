@@ -9,8 +9,15 @@ import math
 from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import images
 from revdem_cli.kernels.contact import NO_SHEAR, contact_energy, dot
-from revdem_cli.kernels.forces import ZERO, cell_of, pair_overlap, row, separation, stress_of
-from revdem_cli.kernels.walls import wall_overlap
+from revdem_cli.kernels.forces import (
+    ZERO,
+    cell_of,
+    pair_overlap,
+    row,
+    separation,
+    stress_of,
+    wall_normal,
+)
 
 SCALARS = (
     "kinetic_energy",  # translational and rotational, J
@@ -80,14 +87,7 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
         for b in range(nwalls):
             overlap = walls.overlap[q, b]
             if overlap > 0.0:
-                _, n = wall_overlap(
-                    walls.kind[b],
-                    row(walls.point, b),
-                    row(walls.axis, b),
-                    walls.radius[b],
-                    row(p.x, q),
-                    p.radius[q],
-                )
+                n = wall_normal(p, walls, q, b)
                 m, mw = p.material[q], walls.material[b]
                 shear = cell_of(walls.history, q, b)
                 elastic += contact_energy(
