@@ -37,6 +37,8 @@ def _scenario(text: str) -> dict:
             for s in scenario.stages
         ],
         "dt": scenario.integrator.dt,
+        "arithmetic": scenario.integrator.arithmetic,
+        "cell": list(scenario.cell.size) if scenario.cell else None,
     }
 
 
@@ -59,7 +61,12 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
         verdict = json.loads(comparison.read_text())
         info["comparison"] = {
             key: verdict[key]
-            for key in ("reversible", "max_position_error_rel", "first_divergence_step")
+            for key in (
+                "reversible",
+                "max_position_error_rel",
+                "first_divergence_step",
+                "bitwise_identical",
+            )
         }
     return info
 
@@ -92,7 +99,11 @@ def info_lines(info: dict) -> list[str]:
         f"stages:     {stages}",
         f"particles:  {info['particles']}",
         f"dt:         {info['dt']:.6g} s",
+        f"arithmetic: {info['arithmetic']}"
+        + (" (64-bit integers on fixed grids)" if info["arithmetic"] == "fixed" else ""),
     ]
+    if info["cell"] is not None:
+        lines.append(f"cell:       periodic, {' x '.join(f'{e:.6g}' for e in info['cell'])} m")
     if info["kind"] == "trajectory":
         lines.append(
             f"frames:     {info['frames']}, steps {info['first_step']} to {info['last_step']}"
@@ -106,8 +117,9 @@ def info_lines(info: dict) -> list[str]:
             line = "reversible"
         else:
             line = f"not reversible, the runs part at step {verdict['first_divergence_step']}"
+        exact = ", bitwise identical" if verdict["bitwise_identical"] else ""
         lines.append(
             f"reversal:   {line} (max position error / diameter "
-            f"{verdict['max_position_error_rel']:.3g})"
+            f"{verdict['max_position_error_rel']:.3g}{exact})"
         )
     return lines
