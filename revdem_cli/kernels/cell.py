@@ -56,9 +56,17 @@ def nearest_image(d, image):
 
 
 @jit
-def affine_velocity(d, rate, length):
-    """Velocity of the cell's affine motion across a separation d: (dL/dt / L) d."""
-    return (rate[0] / length[0] * d[0], rate[1] / length[1] * d[1], rate[2] / length[2] * d[2])
+def strain_rates(rate, length):
+    """(dL/dt / L) of each edge, a 3-tuple: what `affine_velocity` takes."""
+    return (rate[0] / length[0], rate[1] / length[1], rate[2] / length[2])
+
+
+@jit
+def affine_velocity(d, strain):
+    """Velocity of the cell's affine motion across a separation d: (dL/dt / L) d, with the
+    strain rates of `strain_rates` (a tuple, not the arrays: a compiled call per pair that
+    receives arrays pays an atomic reference-count update for each)."""
+    return (strain[0] * d[0], strain[1] * d[1], strain[2] * d[2])
 
 
 @jit

@@ -25,6 +25,7 @@ from revdem_cli.kernels.cell import (
     images,
     nearest_image,
     servo_forces,
+    strain_rates,
     volume,
 )
 from revdem_cli.kernels.contact import (
@@ -87,17 +88,17 @@ def separation(x, i, j, image):
 
 
 @jit
-def pair_velocity(i, j, d, n, overlap, v, w, radius, rate, length, deforming):
+def pair_velocity(i, j, d, n, overlap, v, w, radius, strain, deforming):
     """(velocity of j relative to i at the contact, mean spin about n) of the pair (i, j)
     with separation d and normal n; in a deforming cell the relative velocity includes the
-    cell's affine motion."""
+    cell's affine motion (`strain` from `cell.strain_rates`)."""
     w_i = row(w, i)
     w_j = row(w, j)
     arm_i = radius[i] - 0.5 * overlap
     arm_j = radius[j] - 0.5 * overlap
     vrel = relative_velocity(n, arm_i, arm_j, row(v, i), w_i, row(v, j), w_j)
     if deforming:
-        vrel = axpy(1.0, affine_velocity(d, rate, length), vrel)
+        vrel = axpy(1.0, affine_velocity(d, strain), vrel)
     return vrel, 0.5 * (dot(w_i, n) + dot(w_j, n))
 
 
@@ -162,6 +163,7 @@ def _pair_loop(
     last_slip = -1
     losses = 0
     last_loss = -1
+    strain = strain_rates(rate, length)
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
@@ -173,9 +175,7 @@ def _pair_loop(
             vrel = ZERO
             spin = 0.0
             if moving:
-                vrel, spin = pair_velocity(
-                    i, j, d, n, overlap, v, w, radius, rate, length, deforming
-                )
+                vrel, spin = pair_velocity(i, j, d, n, overlap, v, w, radius, strain, deforming)
             a, b = material[i], material[j]
             f, shear, slipped = contact_force(
                 law,
@@ -366,6 +366,7 @@ def _unwind_pair_loop(
     dt,
 ):
     """Reversed step, before drifting back: undo Eq 10 and 9 for every pair, in place."""
+    strain = strain_rates(rate, length)
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
@@ -373,7 +374,7 @@ def _unwind_pair_loop(
         dist = norm(d)
         overlap = radius[i] + radius[j] - dist
         n = scaled(1.0 / dist, d)
-        vrel, spin = pair_velocity(i, j, d, n, overlap, v, w, radius, rate, length, deforming)
+        vrel, spin = pair_velocity(i, j, d, n, overlap, v, w, radius, strain, deforming)
         rstar = radius[i] * radius[j] / (radius[i] + radius[j])
         gs = gstar[material[i], material[j]]
         put(history, k, unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, row(history, k)))
