@@ -74,19 +74,22 @@ an ulp (the first term left out, a^6/720 or a^7/5040, is below 2e-21), and cheap
 
 
 @inline
-def cos_sin(angle):
+def cos_sin(angle, small=False):
     """(cos angle, sin angle); even and odd in the angle exactly, so a rotation by -angle
-    uses the same numbers as one by +angle."""
-    if abs(angle) >= SMALL_ANGLE:
+    uses the same numbers as one by +angle. `small`: the angle is known to be below
+    SMALL_ANGLE, and the branch to math.cos and math.sin is left out (in a vectorised loop
+    it costs as much as the rest of the rotation, even where it is never taken)."""
+    if not small and abs(angle) >= SMALL_ANGLE:
         return math.cos(angle), math.sin(angle)
     a2 = angle * angle
     return 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0)), angle * (1.0 - a2 * (1.0 / 6.0 - a2 / 120.0))
 
 
 @inline
-def rotate_about(b, n, angle):
-    """Rotate b (in the plane normal to n) by `angle` about n: the spin correction R (Eq 9)."""
-    c, s = cos_sin(angle)
+def rotate_about(b, n, angle, small=False):
+    """Rotate b (in the plane normal to n) by `angle` about n: the spin correction R (Eq 9);
+    `small`: |angle| < SMALL_ANGLE (see `cos_sin`)."""
+    c, s = cos_sin(angle, small)
     return axpy(s, cross(n, b), scaled(c, b))
 
 
@@ -141,7 +144,7 @@ def contact_velocity(n, arm_i, arm_j, v_ij, w_i, w_j):
 
 @inline
 def contact_force(
-    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, spin, history, n_new
+    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, spin, history, n_new, small=False
 ):
     """Force on i at one contact in overlap > 0, and the new shear history.
 
@@ -151,6 +154,7 @@ def contact_force(
     across the contact normal `n_new` of the later positions (`unwind_shear`); mapping it
     onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
     the history as is. Returns (force on i, history, amount the Coulomb cap removed).
+    `small`: |spin dt| < SMALL_ANGLE (see `cos_sin`).
     """
     elastic, stiffness, _ = normal_law(law, overlap, rstar, estar)
     vn = dot(vrel, n)
@@ -163,7 +167,7 @@ def contact_force(
     vt = axpy(-vn, n, vrel)
     ks = shear_stiffness(law, overlap, rstar, gstar)
     if mode == FORWARD:
-        rotated = rotate_about(remap(history, n), n, spin * dt)  # Eq 7-9
+        rotated = rotate_about(remap(history, n), n, spin * dt, small)  # Eq 7-9
         shear = axpy(ks * dt, vt, rotated)  # Eq 10
     elif mode == REVERSE:
         shear = unmap(history, n_new, n)

@@ -46,6 +46,7 @@ from revdem_cli.kernels.cell import (
 from revdem_cli.kernels.contact import (
     FORWARD,
     NO_SHEAR,
+    SMALL_ANGLE,
     axpy,
     contact_force,
     contact_velocity,
@@ -153,13 +154,14 @@ M_STAR = 7  # reduced mass, with viscous damping
 VELOCITY = 8  # v_j - v_i: 3 rows
 OMEGA_I = 11  # 3 rows
 OMEGA_J = 14  # 3 rows
-SHEAR = 17  # the shear history, replaced by the contact stage with the new one: 3 rows
+SHEAR = 17  # the shear history: 3 rows
 NORMAL_NEW = 20  # reversed runs: the unwinding normal: 3 rows
 FORCE = 23  # 3 rows
-MOMENT = 26  # n x force: 3 rows
-OVERLAP = 29
-SLIPPED = 30  # shear force removed by the Coulomb cap
-ROWS = 31
+NEW_SHEAR = 26  # the new shear history: 3 rows
+MOMENT = 29  # n x force: 3 rows
+OVERLAP = 32
+SLIPPED = 33  # shear force removed by the Coulomb cap
+ROWS = 34
 
 
 def empty_blocks(chunks: int) -> np.ndarray:
@@ -223,14 +225,18 @@ def gather_pairs(
 
 
 @inline
-def contacts(block, size, law, mode, dt, strain, deforming, unwound):
+def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
     """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
     with a tangential law, the new history, n x force, the overlap and the shear force the
     Coulomb cap removed, column by column, reading and writing the block only: one loop
-    body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0)."""
+    body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
+    The rows read are left as they were, so that a block can be done again. `small`: the
+    spin corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`).
+    Returns how many angles were not."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0
     damped = law.beta_n > 0.0 or law.beta_t > 0.0
+    large = 0
     for k in range(size):
         d = entries(block, SEPARATION, k)
         r_i = entry(block, RADIUS_I, k)
@@ -245,6 +251,7 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound):
             w_j = entries(block, OMEGA_J, k)
             v_ij = entries(block, VELOCITY, k)
             vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
+            large += abs(spin * dt) >= SMALL_ANGLE  # the angle of contact_force's Eq 9
         f, shear, slipped = contact_force(
             law,
             mode,
@@ -259,14 +266,16 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound):
             spin,
             entries(block, SHEAR, k) if shear_law else ZERO,
             entries(block, NORMAL_NEW, k) if unwound else ZERO,
+            small,
         )
         touching = overlap > 0.0
         enter3(block, FORCE, k, f if touching else ZERO)
         if shear_law:
-            enter3(block, SHEAR, k, shear if touching else ZERO)
+            enter3(block, NEW_SHEAR, k, shear if touching else ZERO)
             enter3(block, MOMENT, k, cross(n, f) if touching else ZERO)
             enter(block, OVERLAP, k, overlap)
             enter(block, SLIPPED, k, slipped if touching else 0.0)
+    return large
 
 
 @inline
@@ -280,15 +289,18 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, unwound):
     """`contacts`, compiled apart for the common cases (stepping forward without viscous
     damping, with and without shear), where the law's constants remove the branches those
     cases never take from the vectorised loop: an elementwise loop computes both sides of
-    every branch in it."""
+    every branch in it. With shear, the block is done with small spin corrections, and
+    again with any where some angle is not small (rare: |spin dt| >= 1e-3)."""
     if mode == FORWARD and law.beta_n == 0.0 and law.beta_t == 0.0:
         if law.tangential == NO_SHEAR:
-            contacts(block, size, undamped(law, NO_SHEAR), FORWARD, dt, strain, deforming, False)
+            frictionless = undamped(law, NO_SHEAR)
+            contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True)
         else:
             forward = undamped(law, law.tangential)
-            contacts(block, size, forward, FORWARD, dt, strain, deforming, False)
+            if contacts(block, size, forward, FORWARD, dt, strain, deforming, False, True) > 0:
+                contacts(block, size, forward, FORWARD, dt, strain, deforming, False, False)
     else:
-        contacts(block, size, law, mode, dt, strain, deforming, unwound)
+        contacts(block, size, law, mode, dt, strain, deforming, unwound, False)
 
 
 @inline
@@ -307,7 +319,7 @@ def scatter_pairs(block, first, size, force, history, moment, overlaps, destroye
         if shear_law:
             overlap = entry(block, OVERLAP, k)
             lost = norm(row(history, p)) if overlap <= 0.0 and mode == FORWARD else 0.0
-            put(history, p, entries(block, SHEAR, k))
+            put(history, p, entries(block, NEW_SHEAR, k))
             put(moment, p, entries(block, MOMENT, k))
             overlaps[p] = overlap
             slipped = entry(block, SLIPPED, k)
