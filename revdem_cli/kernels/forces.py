@@ -204,8 +204,8 @@ def gather_pairs(
     unwound = normal_new.shape[0] > 0
     for k in range(size):
         p = first + k
-        i = pi[p]
-        j = pj[p]
+        i = np.uint32(pi[p])  # unsigned: numba then skips the check for negative indices
+        j = np.uint32(pj[p])
         enter3(block, SEPARATION, k, separation(x, i, j, image))
         enter(block, RADIUS_I, k, radius[i])
         enter(block, RADIUS_J, k, radius[j])
