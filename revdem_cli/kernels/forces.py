@@ -18,7 +18,9 @@ quantity and a column per pair, and goes through three stages:
 - gather: each pair's separation, radii, moduli, velocities and history into its column
   (scalar: the particles' rows are scattered in memory);
 - contact stage: `contact.contact_force` and its geometry and kinematics, column by column,
-  reading and writing the block only, so the loop is elementwise over contiguous rows;
+  reading and writing the block only, so the loop is elementwise over contiguous rows (with
+  the spin correction's cos and sin as their series; a block where some angle is too large
+  for that is done again with them in full);
 - scatter: each column's force, history, moment and overlap into the pair arrays, counting
   the shear force destroyed (scalar, branches).
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
@@ -141,7 +143,7 @@ def wall_kinematics(q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_
 
 
 BLOCK = 64
-"""Pairs in a block of the pair loop; its ROWS x BLOCK values (16 KB) stay in the
+"""Pairs in a block of the pair loop; its ROWS x BLOCK values (17 KB) stay in the
 first-level cache."""
 
 # The rows of a block, BLOCK values each, one column per pair (see the module docstring)
