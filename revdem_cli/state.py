@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from revdem_cli.config import Damping, Material, Scenario
@@ -20,7 +21,7 @@ from revdem_cli.kernels.arrays import (
     Walls,
 )
 from revdem_cli.kernels.events import COLUMNS, KINDS
-from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces
+from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces, empty_blocks
 from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, rebuild_pairs
 from revdem_cli.kernels.neighbours import build_pairs
 
@@ -197,6 +198,7 @@ def empty_pairs(n_particles: int, capacity: int, shear: bool, reversing: bool) -
         x_built=np.zeros((n_particles, 3)),
         new_i=np.zeros(capacity, dtype=np.int32),
         new_j=np.zeros(capacity, dtype=np.int32),
+        blocks=empty_blocks(numba.config.NUMBA_NUM_THREADS),
     )
 
 

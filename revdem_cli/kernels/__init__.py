@@ -32,6 +32,11 @@ numba.config.CACHE_DIR = _cache_dir()
 jit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy")
 """Serial compiled function."""
 
+inline = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", forceinline=True)
+"""Serial compiled helper over scalars and tuples, always inlined into its callers (LLVM's
+alwaysinline): a loop over a block of pairs that calls it stays one loop body, which LLVM
+can vectorise."""
+
 pjit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", parallel=True)
 """Compiled function with `numba.prange` loops; each iteration writes only its own slot."""
 

@@ -44,6 +44,7 @@ Pairs = namedtuple(
         "x_built",  # positions at the last build, m, (N, 3)
         "new_i",  # the next list while it is built, int32 (P,)
         "new_j",  # int32 (P,)
+        "blocks",  # working rows of the pair loop, one block per chunk of the list (forces.py)
     ],
 )
 """history, moment, overlap and destroyed have length P with a tangential law, else 0;

@@ -19,7 +19,7 @@ Servos, for an axis a holding the stress target s*_a:
 
 import numpy as np
 
-from revdem_cli.kernels import jit
+from revdem_cli.kernels import inline, jit
 from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, OF_CELL, RANGE, note_overflow, rounded
 
 FIXED = 0
@@ -53,7 +53,7 @@ def images(cell):
     return (cell.length[0], cell.length[1], cell.length[2], inv[0], inv[1], inv[2])
 
 
-@jit
+@inline
 def nearest_image(d, image):
     """The separation d (3-tuple) mapped to its nearest periodic image; `image` from
     `images`, or None where no axis is periodic. (On an axis that is not periodic the
@@ -67,10 +67,18 @@ def nearest_image(d, image):
     )
 
 
-@jit
-def affine_velocity(d, rate, length):
-    """Velocity of the cell's affine motion across a separation d: (dL/dt / L) d."""
-    return (rate[0] / length[0] * d[0], rate[1] / length[1] * d[1], rate[2] / length[2] * d[2])
+@inline
+def strain_rates(rate, length):
+    """(dL/dt / L) of each edge, a 3-tuple: what `affine_velocity` takes."""
+    return (rate[0] / length[0], rate[1] / length[1], rate[2] / length[2])
+
+
+@inline
+def affine_velocity(d, strain):
+    """Velocity of the cell's affine motion across a separation d: (dL/dt / L) d, with the
+    strain rates of `strain_rates` (a tuple, not the arrays: a compiled call per pair that
+    receives arrays pays an atomic reference-count update for each)."""
+    return (strain[0] * d[0], strain[1] * d[1], strain[2] * d[2])
 
 
 @jit

@@ -7,7 +7,7 @@ wall); forces are those on i; the tangential history is the elastic shear force 
 
 import math
 
-from revdem_cli.kernels import jit
+from revdem_cli.kernels import inline
 
 HERTZ = 0
 LINEAR = 1
@@ -21,33 +21,33 @@ REVERSE = 1  # shear history mapped back (the inverse of Eq 7-10)
 STATIC = 2  # shear history used as it is: forces of a state that is not stepping
 
 
-@jit
+@inline
 def dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@jit
+@inline
 def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@jit
+@inline
 def axpy(s, a, b):
     """s a + b."""
     return (s * a[0] + b[0], s * a[1] + b[1], s * a[2] + b[2])
 
 
-@jit
+@inline
 def scaled(s, a):
     return (s * a[0], s * a[1], s * a[2])
 
 
-@jit
+@inline
 def norm(a):
     return math.sqrt(dot(a, a))
 
 
-@jit
+@inline
 def normal_law(law, overlap, rstar, estar):
     """(elastic normal force, its stiffness dF/dd, stored energy) of one contact."""
     if law.model == LINEAR:
@@ -60,7 +60,7 @@ def normal_law(law, overlap, rstar, estar):
     return force, 2.0 * estar * root, 0.4 * force * overlap  # dF/dd = 2 E* sqrt(R* d), U = 2/5 F d
 
 
-@jit
+@inline
 def shear_stiffness(law, overlap, rstar, gstar):
     """k_s: constant, or Mindlin H^s = H^n sqrt(U^n) 3(1-nu)/(2-nu) = 8 G* sqrt(R* d) (Eq 10)."""
     if law.tangential == LINEAR_SHEAR:
@@ -73,24 +73,27 @@ SMALL_ANGLE = 1e-3
 an ulp (the first term left out, a^6/720 or a^7/5040, is below 2e-21), and cheaper."""
 
 
-@jit
-def cos_sin(angle):
+@inline
+def cos_sin(angle, small=False):
     """(cos angle, sin angle); even and odd in the angle exactly, so a rotation by -angle
-    uses the same numbers as one by +angle."""
-    if abs(angle) >= SMALL_ANGLE:
+    uses the same numbers as one by +angle. `small`: the angle is known to be below
+    SMALL_ANGLE, and the branch to math.cos and math.sin is left out (in a vectorised loop
+    it costs as much as the rest of the rotation, even where it is never taken)."""
+    if not small and abs(angle) >= SMALL_ANGLE:
         return math.cos(angle), math.sin(angle)
     a2 = angle * angle
     return 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0)), angle * (1.0 - a2 * (1.0 / 6.0 - a2 / 120.0))
 
 
-@jit
-def rotate_about(b, n, angle):
-    """Rotate b (in the plane normal to n) by `angle` about n: the spin correction R (Eq 9)."""
-    c, s = cos_sin(angle)
+@inline
+def rotate_about(b, n, angle, small=False):
+    """Rotate b (in the plane normal to n) by `angle` about n: the spin correction R (Eq 9);
+    `small`: |angle| < SMALL_ANGLE (see `cos_sin`)."""
+    c, s = cos_sin(angle, small)
     return axpy(s, cross(n, b), scaled(c, b))
 
 
-@jit
+@inline
 def remap(shear, n):
     """Project the old shear force onto the plane normal to n and restore its magnitude
     (Hanley 2020 Eq 7-8)."""
@@ -104,7 +107,7 @@ def remap(shear, n):
     return scaled(math.sqrt(size2 / length2), projected)  # Eq 8
 
 
-@jit
+@inline
 def unmap(mapped, n_new, n_old):
     """Exact inverse of `remap`: the vector in the plane normal to n_old whose projection
     along n_new is parallel to `mapped`, with the magnitude of `mapped`."""
@@ -115,7 +118,7 @@ def unmap(mapped, n_new, n_old):
     return scaled(math.sqrt(size2 / dot(lifted, lifted)), lifted)
 
 
-@jit
+@inline
 def coulomb_cap(shear, limit):
     """Limit |f_s| to mu |f_n| (Hanley 2020 §2); returns (force, amount removed)."""
     size2 = dot(shear, shear)
@@ -125,17 +128,23 @@ def coulomb_cap(shear, limit):
     return scaled(limit / size, shear), size - limit
 
 
-@jit
+@inline
 def relative_velocity(n, arm_i, arm_j, v_i, w_i, v_j, w_j):
     """Velocity of j relative to i at the contact point, branch vectors arm_i n and -arm_j n:
     (v_j + w_j x (-arm_j n)) - (v_i + w_i x arm_i n) = v_j - v_i - (arm_i w_i + arm_j w_j) x n."""
+    return contact_velocity(n, arm_i, arm_j, axpy(-1.0, v_i, v_j), w_i, w_j)
+
+
+@inline
+def contact_velocity(n, arm_i, arm_j, v_ij, w_i, w_j):
+    """`relative_velocity` from the centres' relative velocity v_ij = v_j - v_i."""
     spin = axpy(arm_i, w_i, scaled(arm_j, w_j))
-    return axpy(-1.0, cross(spin, n), axpy(-1.0, v_i, v_j))
+    return axpy(-1.0, cross(spin, n), v_ij)
 
 
-@jit
+@inline
 def contact_force(
-    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, spin, history, n_new
+    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, spin, history, n_new, small=False
 ):
     """Force on i at one contact in overlap > 0, and the new shear history.
 
@@ -145,6 +154,7 @@ def contact_force(
     across the contact normal `n_new` of the later positions (`unwind_shear`); mapping it
     onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
     the history as is. Returns (force on i, history, amount the Coulomb cap removed).
+    `small`: |spin dt| < SMALL_ANGLE (see `cos_sin`).
     """
     elastic, stiffness, _ = normal_law(law, overlap, rstar, estar)
     vn = dot(vrel, n)
@@ -157,7 +167,7 @@ def contact_force(
     vt = axpy(-vn, n, vrel)
     ks = shear_stiffness(law, overlap, rstar, gstar)
     if mode == FORWARD:
-        rotated = rotate_about(remap(history, n), n, spin * dt)  # Eq 7-9
+        rotated = rotate_about(remap(history, n), n, spin * dt, small)  # Eq 7-9
         shear = axpy(ks * dt, vt, rotated)  # Eq 10
     elif mode == REVERSE:
         shear = unmap(history, n_new, n)
@@ -170,7 +180,7 @@ def contact_force(
     return axpy(1.0, shear, force), shear, slip
 
 
-@jit
+@inline
 def contact_energy(law, overlap, rstar, estar, gstar, shear):
     """Elastic energy stored in a contact in overlap > 0: normal spring and shear spring."""
     energy = normal_law(law, overlap, rstar, estar)[2]
@@ -179,7 +189,7 @@ def contact_energy(law, overlap, rstar, estar, gstar, shear):
     return energy + 0.5 * dot(shear, shear) / shear_stiffness(law, overlap, rstar, gstar)
 
 
-@jit
+@inline
 def unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, history):
     """Reversed step, at the later positions: undo Eq 10 and Eq 9. The result is mapped back
     onto the earlier contact plane by `unmap` once the particles have moved back."""

@@ -11,6 +11,21 @@ The loops take plain arrays and do each item's work in the loop body, with helpe
 scalars and 3-tuples: a compiled call that receives array bundles pays an atomic
 reference-count update per array, which would dominate the cost per item. Each loop is
 built serial and parallel; small systems step serially, without waking threads.
+
+The pair loop works in blocks of BLOCK pairs, so that LLVM can vectorise the contact
+physics (AVX-512: eight pairs at a time). A block is ROWS x BLOCK doubles, a row per
+quantity and a column per pair, and goes through three stages:
+- gather: each pair's separation, radii, moduli, velocities and history into its column
+  (scalar: the particles' rows are scattered in memory);
+- contact stage: `contact.contact_force` and its geometry and kinematics, column by column,
+  reading and writing the block only, so the loop is elementwise over contiguous rows (with
+  the spin correction's cos and sin as their series; a block where some angle is too large
+  for that is done again with them in full);
+- scatter: each column's force, history, moment and overlap into the pair arrays, counting
+  the shear force destroyed (scalar, branches).
+Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
+cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each chunk worked
+through with its own block, so the loop allocates nothing.
 """
 
 import math
@@ -18,7 +33,9 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import jit, serial_and_parallel
+from revdem_cli.kernels import fixed as fx
+from revdem_cli.kernels import inline, jit, serial_and_parallel
+from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.cell import (
     affine_velocity,
     deforms,
@@ -26,13 +43,16 @@ from revdem_cli.kernels.cell import (
     images,
     nearest_image,
     servo_forces,
+    strain_rates,
     volume,
 )
 from revdem_cli.kernels.contact import (
     FORWARD,
     NO_SHEAR,
+    SMALL_ANGLE,
     axpy,
     contact_force,
+    contact_velocity,
     cross,
     dot,
     norm,
@@ -41,16 +61,6 @@ from revdem_cli.kernels.contact import (
     unwind_shear,
 )
 from revdem_cli.kernels.events import note_destroyed
-from revdem_cli.kernels.fixed import (
-    ANGULAR_VELOCITY,
-    FORCE,
-    OF_FORCE,
-    RANGE,
-    TORQUE,
-    VELOCITY,
-    note_overflow,
-    rounded,
-)
 from revdem_cli.kernels.walls import wall_overlap
 
 ZERO = (0.0, 0.0, 0.0)
@@ -69,13 +79,13 @@ def sign(a):
     return 1.0 if a > 0.0 else (-1.0 if a < 0.0 else 0.0)
 
 
-@jit
+@inline
 def row(a, k):
     """Row k of an (n, 3) array as a 3-tuple."""
     return (a[k, 0], a[k, 1], a[k, 2])
 
 
-@jit
+@inline
 def put(a, k, vector):
     a[k, 0], a[k, 1], a[k, 2] = vector
 
@@ -91,31 +101,28 @@ def place(a, q, b, vector):
     a[q, b, 0], a[q, b, 1], a[q, b, 2] = vector
 
 
-@jit
+@inline
 def separation(x, i, j, image):
     """x_j - x_i, across periodic boundaries to the nearest image (`cell.nearest_image`)."""
     return nearest_image(axpy(-1.0, row(x, i), row(x, j)), image)
 
 
-@jit
-def pair_velocity(i, j, d, n, overlap, v, w, radius, rate, length, deforming):
-    """(velocity of j relative to i at the contact, mean spin about n) of the pair (i, j)
-    with separation d and normal n; in a deforming cell the relative velocity includes the
-    cell's affine motion."""
-    w_i = row(w, i)
-    w_j = row(w, j)
-    arm_i = radius[i] - 0.5 * overlap
-    arm_j = radius[j] - 0.5 * overlap
-    vrel = relative_velocity(n, arm_i, arm_j, row(v, i), w_i, row(v, j), w_j)
+@inline
+def pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming):
+    """(velocity of j relative to i at the contact, mean spin about n) of a pair with radii
+    r_i, r_j, separation d, normal n, centres' relative velocity v_ij = v_j - v_i and spins
+    w_i, w_j; in a deforming cell the relative velocity includes the cell's affine motion
+    (`strain` from `cell.strain_rates`)."""
+    vrel = contact_velocity(n, r_i - 0.5 * overlap, r_j - 0.5 * overlap, v_ij, w_i, w_j)
     if deforming:
-        vrel = axpy(1.0, affine_velocity(d, rate, length), vrel)
+        vrel = axpy(1.0, affine_velocity(d, strain), vrel)
     return vrel, 0.5 * (dot(w_i, n) + dot(w_j, n))
 
 
-@jit
+@inline
 def pair_overlap(d, reach):
     """(overlap, distance) of a pair with separation d and reach r_i + r_j; pairs certainly
-    apart (by more than APART) get overlap -1 without a square root."""
+    apart (by more than APART) get overlap -1 and distance 0 without a square root."""
     dist2 = dot(d, d)
     if dist2 > (APART * reach) ** 2:
         return -1.0, 0.0
@@ -134,6 +141,200 @@ def wall_kinematics(q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_
     w_q = row(w, q)
     vrel = relative_velocity(n, arm, 0.0, row(v, q), w_q, row(wall_velocity, b), ZERO)
     return overlap, n, arm, vrel, 0.5 * dot(w_q, n)
+
+
+BLOCK = 64
+"""Pairs in a block of the pair loop; its ROWS x BLOCK values (17 KB) stay in the
+first-level cache."""
+
+# The rows of a block, BLOCK values each, one column per pair (see the module docstring)
+SEPARATION = 0  # x_j - x_i to the nearest image: 3 rows
+RADIUS_I = 3
+RADIUS_J = 4
+E_STAR = 5
+G_STAR = 6
+M_STAR = 7  # reduced mass, with viscous damping
+VELOCITY = 8  # v_j - v_i: 3 rows
+OMEGA_I = 11  # 3 rows
+OMEGA_J = 14  # 3 rows
+SHEAR = 17  # the shear history: 3 rows
+NORMAL_NEW = 20  # reversed runs: the unwinding normal: 3 rows
+FORCE = 23  # 3 rows
+NEW_SHEAR = 26  # the new shear history: 3 rows
+MOMENT = 29  # n x force: 3 rows
+OVERLAP = 32
+SLIPPED = 33  # shear force removed by the Coulomb cap
+ROWS = 34
+
+
+def empty_blocks(chunks: int) -> np.ndarray:
+    """Working rows of the pair loop: a block for each of `chunks` parts of the pair list."""
+    return np.zeros((chunks, ROWS * BLOCK))
+
+
+@inline
+def entry(block, r, k):
+    """Row r of a block, column k."""
+    return block[r * BLOCK + k]
+
+
+@inline
+def enter(block, r, k, value):
+    block[r * BLOCK + k] = value
+
+
+@inline
+def entries(block, r, k):
+    """Rows r to r + 2 of a block, column k, as a 3-tuple."""
+    return (block[r * BLOCK + k], block[(r + 1) * BLOCK + k], block[(r + 2) * BLOCK + k])
+
+
+@inline
+def enter3(block, r, k, vector):
+    block[r * BLOCK + k], block[(r + 1) * BLOCK + k], block[(r + 2) * BLOCK + k] = vector
+
+
+@inline
+def gather_pairs(
+    block, first, size, x, v, w, radius, mass, material, estar, gstar, image, pi, pj, history,
+    normal_new, law,
+):  # fmt: skip
+    """Columns 0 to size - 1 of the block: what the contact stage needs of pairs first to
+    first + size - 1, from their particles and their history."""
+    shear_law = law.tangential != NO_SHEAR
+    moving = shear_law or law.beta_n > 0.0  # the force depends on the relative velocity
+    damped = law.beta_n > 0.0 or law.beta_t > 0.0
+    unwound = normal_new.shape[0] > 0
+    for k in range(size):
+        p = first + k
+        i = np.uint32(pi[p])  # unsigned: numba then skips the check for negative indices
+        j = np.uint32(pj[p])
+        enter3(block, SEPARATION, k, separation(x, i, j, image))
+        enter(block, RADIUS_I, k, radius[i])
+        enter(block, RADIUS_J, k, radius[j])
+        a, b = material[i], material[j]
+        enter(block, E_STAR, k, estar[a, b])
+        enter(block, G_STAR, k, gstar[a, b])
+        if damped:
+            enter(block, M_STAR, k, mass[i] * mass[j] / (mass[i] + mass[j]))
+        if moving:
+            enter3(block, VELOCITY, k, axpy(-1.0, row(v, i), row(v, j)))
+            enter3(block, OMEGA_I, k, row(w, i))
+            enter3(block, OMEGA_J, k, row(w, j))
+        if shear_law:
+            enter3(block, SHEAR, k, row(history, p))
+        if unwound:
+            enter3(block, NORMAL_NEW, k, row(normal_new, p))
+
+
+@inline
+def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
+    """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
+    with a tangential law, the new history, n x force, the overlap and the shear force the
+    Coulomb cap removed, column by column, reading and writing the block only: one loop
+    body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
+    The rows read are left as they were, so that a block can be done again. `small`: the
+    spin corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`).
+    Returns how many angles were not."""
+    shear_law = law.tangential != NO_SHEAR
+    moving = shear_law or law.beta_n > 0.0
+    damped = law.beta_n > 0.0 or law.beta_t > 0.0
+    large = 0
+    for k in range(size):
+        d = entries(block, SEPARATION, k)
+        r_i = entry(block, RADIUS_I, k)
+        r_j = entry(block, RADIUS_J, k)
+        reach = r_i + r_j
+        overlap, dist = pair_overlap(d, reach)
+        n = scaled(1.0 / dist, d)
+        vrel = ZERO
+        spin = 0.0
+        if moving:
+            w_i = entries(block, OMEGA_I, k)
+            w_j = entries(block, OMEGA_J, k)
+            v_ij = entries(block, VELOCITY, k)
+            vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
+            large += abs(spin * dt) >= SMALL_ANGLE  # the angle of contact_force's Eq 9
+        f, shear, slipped = contact_force(
+            law,
+            mode,
+            dt,
+            overlap,
+            n,
+            r_i * r_j / reach,
+            entry(block, M_STAR, k) if damped else 0.0,
+            entry(block, E_STAR, k),
+            entry(block, G_STAR, k),
+            vrel,
+            spin,
+            entries(block, SHEAR, k) if shear_law else ZERO,
+            entries(block, NORMAL_NEW, k) if unwound else ZERO,
+            small,
+        )
+        touching = overlap > 0.0
+        enter3(block, FORCE, k, f if touching else ZERO)
+        if shear_law:
+            enter3(block, NEW_SHEAR, k, shear if touching else ZERO)
+            enter3(block, MOMENT, k, cross(n, f) if touching else ZERO)
+            enter(block, OVERLAP, k, overlap)
+            enter(block, SLIPPED, k, slipped if touching else 0.0)
+    return large
+
+
+@inline
+def undamped(law, tangential):
+    """`law` without viscous damping and with the tangential law `tangential`."""
+    return ContactLaw(law.model, law.kn, tangential, law.ks, law.mu, 0.0, 0.0)
+
+
+@inline
+def contact_stage(block, size, law, mode, dt, strain, deforming, unwound):
+    """`contacts`, compiled apart for the common cases (stepping forward without viscous
+    damping, with and without shear), where the law's constants remove the branches those
+    cases never take from the vectorised loop: an elementwise loop computes both sides of
+    every branch in it. With shear, the block is done with small spin corrections, and
+    again with any where some angle is not small (rare: |spin dt| >= 1e-3)."""
+    if mode == FORWARD and law.beta_n == 0.0 and law.beta_t == 0.0:
+        if law.tangential == NO_SHEAR:
+            frictionless = undamped(law, NO_SHEAR)
+            contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True)
+        else:
+            forward = undamped(law, law.tangential)
+            if contacts(block, size, forward, FORWARD, dt, strain, deforming, False, True) > 0:
+                contacts(block, size, forward, FORWARD, dt, strain, deforming, False, False)
+    else:
+        contacts(block, size, law, mode, dt, strain, deforming, unwound, False)
+
+
+@inline
+def scatter_pairs(block, first, size, force, history, moment, overlaps, destroyed, law, mode):
+    """The block's results into the pair arrays; returns (slips, last pair that slipped,
+    losses, last pair that lost its shear force) of the block. A pair apart loses its
+    history (the shear force is counted lost when stepping forward)."""
+    slips = 0
+    last_slip = -1
+    losses = 0
+    last_loss = -1
+    shear_law = law.tangential != NO_SHEAR
+    for k in range(size):
+        p = first + k
+        put(force, p, entries(block, FORCE, k))
+        if shear_law:
+            overlap = entry(block, OVERLAP, k)
+            lost = norm(row(history, p)) if overlap <= 0.0 and mode == FORWARD else 0.0
+            put(history, p, entries(block, NEW_SHEAR, k))
+            put(moment, p, entries(block, MOMENT, k))
+            overlaps[p] = overlap
+            slipped = entry(block, SLIPPED, k)
+            if slipped > 0.0:  # `destroyed` is read only where something was
+                destroyed[p] = slipped
+                slips += 1
+                last_slip = p
+            if lost > 0.0:
+                destroyed[p] = lost
+                losses += 1
+                last_loss = p
+    return slips, last_slip, losses, last_loss
 
 
 def _pair_loop(
@@ -161,70 +362,37 @@ def _pair_loop(
     law,
     mode,
     dt,
+    blocks,
 ):
     """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
     law, n x force, the overlap and the shear force destroyed: by the Coulomb cap, or at
-    separation, where the history is zeroed. Returns (slips, last pair that slipped, losses,
-    last pair that lost its shear force)."""
-    shear_law = law.tangential != NO_SHEAR
-    moving = shear_law or law.beta_n > 0.0  # the force depends on the relative velocity
+    separation, where the history is zeroed. The list is cut into as many chunks as there
+    are `blocks`, each done block by block in its own: gather, contact stage, scatter.
+    Returns (slips, last pair that slipped, losses, last pair that lost its shear force)."""
+    strain = strain_rates(rate, length)
     unwound = normal_new.shape[0] > 0
+    chunks = blocks.shape[0]
     slips = 0
     last_slip = -1
     losses = 0
     last_loss = -1
-    for k in numba.prange(n_pairs):
-        i = pi[k]
-        j = pj[k]
-        reach = radius[i] + radius[j]
-        d = separation(x, i, j, image)
-        overlap, dist = pair_overlap(d, reach)
-        if overlap > 0.0:
-            n = scaled(1.0 / dist, d)
-            vrel = ZERO
-            spin = 0.0
-            if moving:
-                vrel, spin = pair_velocity(
-                    i, j, d, n, overlap, v, w, radius, rate, length, deforming
-                )
-            a, b = material[i], material[j]
-            f, shear, slipped = contact_force(
-                law,
-                mode,
-                dt,
-                overlap,
-                n,
-                radius[i] * radius[j] / reach,
-                mass[i] * mass[j] / (mass[i] + mass[j])
-                if law.beta_n > 0.0 or law.beta_t > 0.0
-                else 0.0,
-                estar[a, b],
-                gstar[a, b],
-                vrel,
-                spin,
-                row(history, k) if shear_law else ZERO,
-                row(normal_new, k) if unwound else ZERO,
+    for c in numba.prange(chunks):
+        block = blocks[c]
+        end = (c + 1) * n_pairs // chunks
+        for first in range(c * n_pairs // chunks, end, BLOCK):
+            size = min(BLOCK, end - first)
+            gather_pairs(
+                block, first, size, x, v, w, radius, mass, material, estar, gstar, image, pi,
+                pj, history, normal_new, law,
+            )  # fmt: skip
+            contact_stage(block, size, law, mode, dt, strain, deforming, unwound)
+            s, s_last, lost, lost_last = scatter_pairs(
+                block, first, size, force, history, moment, overlaps, destroyed, law, mode
             )
-            put(force, k, f)
-            if shear_law:
-                put(history, k, shear)
-                put(moment, k, cross(n, f))
-                overlaps[k] = overlap
-                if slipped > 0.0:  # `destroyed` is read only where something was
-                    destroyed[k] = slipped
-                    slips += 1
-                    last_slip = max(last_slip, k)
-        else:
-            put(force, k, ZERO)
-            if shear_law:
-                lost = norm(row(history, k)) if mode == FORWARD else 0.0
-                put(history, k, ZERO)
-                put(moment, k, ZERO)
-                overlaps[k] = overlap
-                if lost > 0.0:
-                    destroyed[k] = lost
-                    losses += 1
-                    last_loss = max(last_loss, k)
+            slips += s
+            last_slip = max(last_slip, s_last)
+            losses += lost
+            last_loss = max(last_loss, lost_last)
     return slips, last_slip, losses, last_loss
 
 
@@ -313,13 +481,13 @@ def add_on_grid(total, value, factor, per_step):
     value rounded to the grid first (`fixed.rounded`; the steps are powers of two, so
     multiplying by per_step divides by the step exactly). Returns (sum, whether it stayed in
     range)."""
-    n0 = rounded(factor * value[0] * per_step)
-    n1 = rounded(factor * value[1] * per_step)
-    n2 = rounded(factor * value[2] * per_step)
-    if max(abs(n0), abs(n1), abs(n2)) > RANGE:
+    n0 = fx.rounded(factor * value[0] * per_step)
+    n1 = fx.rounded(factor * value[1] * per_step)
+    n2 = fx.rounded(factor * value[2] * per_step)
+    if max(abs(n0), abs(n1), abs(n2)) > fx.RANGE:
         return total, False
     result = (total[0] + np.int64(n0), total[1] + np.int64(n1), total[2] + np.int64(n2))
-    return result, max(abs(result[0]), abs(result[1]), abs(result[2])) <= RANGE
+    return result, max(abs(result[0]), abs(result[1]), abs(result[2])) <= fx.RANGE
 
 
 def _gather_loop(
@@ -357,8 +525,8 @@ def _gather_loop(
     its grid, the last of them)."""
     torques = moment.shape[0] > 0
     on_grid = fixed_v.shape[0] > 0
-    f_step = grid[FORCE] if on_grid else 1.0
-    t_step = grid[TORQUE] if on_grid else 1.0
+    f_step = grid[fx.FORCE] if on_grid else 1.0
+    t_step = grid[fx.TORQUE] if on_grid else 1.0
     per_f, per_t = 1.0 / f_step, 1.0 / t_step
     out = 0
     last = -1
@@ -415,9 +583,9 @@ def _gather_loop(
             for d in range(3):
                 t_out[q, d] = t[d] - local * abs(t[d]) * sign(w[q, d])
         if on_grid:
-            ok = ok and kick_on_grid(fixed_v, v, f_out, inv_mass, q, h, grid[VELOCITY])
+            ok = ok and kick_on_grid(fixed_v, v, f_out, inv_mass, q, h, grid[fx.VELOCITY])
             if torques:
-                step = grid[ANGULAR_VELOCITY]
+                step = grid[fx.ANGULAR_VELOCITY]
                 ok = ok and kick_on_grid(fixed_w, w, t_out, inv_inertia, q, h, step)
         else:
             for d in range(3):
@@ -437,8 +605,8 @@ def kick_on_grid(n, v, f, inv_m, q, h, step):
     ok = True
     per_step = 1.0 / step  # a power of two: multiplying by it divides exactly
     for d in range(3):
-        increment = rounded(h * f[q, d] * inv_m[q] * per_step)
-        if abs(increment) > RANGE or abs(n[q, d] + np.int64(increment)) > RANGE:
+        increment = fx.rounded(h * f[q, d] * inv_m[q] * per_step)
+        if abs(increment) > fx.RANGE or abs(n[q, d] + np.int64(increment)) > fx.RANGE:
             ok = False
         else:
             n[q, d] += np.int64(increment)
@@ -466,6 +634,7 @@ def _unwind_pair_loop(
     dt,
 ):
     """Reversed step, before drifting back: undo Eq 10 and 9 for every pair, in place."""
+    strain = strain_rates(rate, length)
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
@@ -473,7 +642,12 @@ def _unwind_pair_loop(
         dist = norm(d)
         overlap = radius[i] + radius[j] - dist
         n = scaled(1.0 / dist, d)
-        vrel, spin = pair_velocity(i, j, d, n, overlap, v, w, radius, rate, length, deforming)
+        w_i = row(w, i)
+        w_j = row(w, j)
+        v_ij = axpy(-1.0, row(v, i), row(v, j))
+        vrel, spin = pair_velocity(
+            d, n, overlap, radius[i], radius[j], v_ij, w_i, w_j, strain, deforming
+        )
         rstar = radius[i] * radius[j] / (radius[i] + radius[j])
         gs = gstar[material[i], material[j]]
         put(history, k, unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, row(history, k)))
@@ -542,6 +716,7 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         law,
         mode,
         dt,
+        pairs.blocks,
     )
     wall_args = (
         p.x,
@@ -611,7 +786,7 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         if holds_stress(cell):
             stress_of(p, pairs, cell)
         gathered = gather_loop(*gather_args)
-    note_overflow(fixed, OF_FORCE, gathered)
+    fx.note_overflow(fixed, fx.OF_FORCE, gathered)
     servo_forces(cell, dyn.local_damping)
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)
 
