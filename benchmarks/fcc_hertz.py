@@ -131,10 +131,10 @@ def loop_seconds(state, model, steps: int) -> float:
     from revdem_cli.state import empty_events
 
     obs = np.zeros((2, model.observables_row))
-    run = np.array([1.0e-6, model.skin, 0, steps, steps], dtype=float)
+    run = np.array([1.0e-6, model.skin, 0, steps, steps, model.scenario.integrator.overlap_limit])
     bundles = stepping_bundles(state, model, model.dynamics)
     started = time.perf_counter()
-    status, _, _ = advance(*bundles, empty_events(), run, 0, steps, obs)
+    status, _, _ = advance(*bundles, empty_events(), run, 0, steps, obs, np.zeros(4))
     seconds = time.perf_counter() - started
     if status != OK:
         raise RuntimeError(f"the stepping loop stopped with status {status}")

@@ -26,6 +26,9 @@ class _Commands(TyperGroup):
             raise typer.Exit(2) from None
         except (typer.Exit, typer.Abort):
             raise  # typer's own ways out are RuntimeErrors too
+        except KeyboardInterrupt:  # a second Ctrl-C, before the checkpoint the first asked for
+            typer.echo("stopped: SIGINT twice: no checkpoint written", err=True)
+            raise typer.Exit(130) from None
         except (RuntimeError, OSError, MemoryError) as exc:
             typer.echo(f"failed: {type(exc).__name__}: {exc}", err=True)
             raise typer.Exit(1) from None
@@ -69,7 +72,9 @@ def _progress_of(unit: str):
 
 @app.command()
 def run(
-    scenario: Annotated[Path, typer.Argument(help="Scenario file (.toml, .yaml or .yml).")],
+    scenario: Annotated[
+        Path | None, typer.Argument(help="Scenario file (.toml, .yaml or .yml).")
+    ] = None,
     out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("out"),
     overrides: Annotated[
         list[str] | None,
@@ -86,14 +91,37 @@ def run(
     force: Annotated[
         bool, typer.Option("--force", help="Overwrite the outputs of an earlier run in --out.")
     ] = False,
+    resume: Annotated[
+        Path | None,
+        typer.Option(
+            "--resume",
+            help="Continue the run whose checkpoint is in this directory, instead of a scenario.",
+        ),
+    ] = None,
 ) -> None:
     """Run a scenario forward; if a stage is marked reverse, run it backwards and compare.
 
     A file with kind = "critical_time_step" is a time-step study: its figures go to --out.
-    Outputs already in --out are kept: the run refuses to start unless --force.
+    Outputs already in --out are kept: the run refuses to start unless --force. A run
+    stopped by Ctrl-C (exit 130), SIGTERM (143) or a crash continues with --resume DIR from
+    its newest checkpoint, into the same trajectory an uninterrupted run writes.
 
     Example: revdem run configs/collision.toml --out out
     """
+    from revdem_cli.report.summary import print_summary
+
+    if resume is not None:
+        if scenario is not None or overrides:
+            raise InputError("--resume DIR continues a run as it was: give no scenario or --set")
+        from revdem_cli.engine import resume_run
+
+        with _progress(quiet) or _nothing() as progress:
+            outputs = _interruptible(resume_run, resume, progress)
+        print_summary(outputs)
+        return
+    if scenario is None:
+        raise InputError("give a scenario file, or --resume DIR")
+
     from revdem_cli.timestep.study import read_study, run_study
 
     study = read_study(scenario, overrides or [])
@@ -106,19 +134,53 @@ def run(
 
     from revdem_cli.config import load_scenario
     from revdem_cli.engine import _paths, run_scenario
-    from revdem_cli.report.summary import print_summary
 
     spec, text = load_scenario(scenario, overrides or [])
     paths = _paths(out, spec.name)
     written = [paths["forward"], paths["restart"]]
     if not no_reverse and spec.reversed_stage is not None:
         written += [paths["reverse"], paths["compare"]]
+    _keep_checkpoint(out, spec.name, force)
     _keep_outputs(written + _figure_paths(out, spec), force)
     with _progress(quiet) or _nothing() as progress:
-        outputs = run_scenario(
-            spec, text, scenario.suffix.lower(), out, not no_reverse, progress, allow_unstable_dt
+        outputs = _interruptible(
+            run_scenario,
+            spec,
+            text,
+            scenario.suffix.lower(),
+            out,
+            not no_reverse,
+            progress,
+            allow_unstable_dt,
         )
     print_summary(outputs)
+
+
+def _interruptible(command, *args):
+    """Run `command`; a checkpoint written on SIGINT or SIGTERM ends it with one line and
+    exit status 128 + the signal's number."""
+    from revdem_cli.checkpoint import Interrupted
+
+    try:
+        return command(*args)
+    except Interrupted as exc:
+        typer.echo(f"stopped: {exc}", err=True)
+        raise typer.Exit(exc.exit_code) from None
+
+
+def _keep_checkpoint(out: Path, name: str, force: bool) -> None:
+    """Refuse to start over an unfinished run unless forced: its checkpoint names it."""
+    from revdem_cli.checkpoint import checkpoint_path
+
+    path = checkpoint_path(out, name)
+    if not path.exists():
+        return
+    if not force:
+        raise InputError(
+            f"{path}: an unfinished run; continue it with revdem run --resume {out}, or start "
+            "again with --force"
+        )
+    path.unlink()
 
 
 @app.command()
@@ -154,9 +216,10 @@ def reverse(
     if forward.is_file():  # compared with, and drawn beside, the reversed run
         open_trajectory(forward).close()  # checked before the reversal, not after it
         written += [paths["compare"], *_figure_paths(folder, spec)]
+    _keep_checkpoint(folder, spec.name, force)
     _keep_outputs(written, force)
     with _progress(quiet) or _nothing() as progress:
-        outputs = reverse_run(restart, out, steps, progress)
+        outputs = _interruptible(reverse_run, restart, out, steps, progress)
     print_summary(outputs)
 
 

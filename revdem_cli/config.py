@@ -284,6 +284,13 @@ class Integrator(_Model):
         "positions, velocities, angular velocities and servo-driven cell edges as 64-bit "
         "integers on fixed grids, so that a conservative run reverses bit for bit",
     )
+    overlap_limit: Float = Field(
+        default=0.5,
+        gt=0,
+        description="deepest overlap allowed, as a fraction of the smaller radius of a "
+        "contact; checked with non-finite values at every observables row, a deeper one "
+        "stops the run as blown up",
+    )
 
 
 class Neighbours(_Model):
@@ -485,6 +492,12 @@ class Output(_Model):
         default=False,
         description="write each sphere's stress (Hanley 2020 Eq 22) at every frame, "
         "particles/all/stress [F, N, 3, 3], Pa",
+    )
+    checkpoint_interval: Float = Field(
+        default=60.0,
+        ge=0,
+        description="wall-clock time between checkpoints, s, each taken at an output frame "
+        "(0: at every frame); `revdem run --resume` continues from the newest",
     )
 
 

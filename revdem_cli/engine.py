@@ -15,20 +15,23 @@ from pathlib import Path
 
 import numpy as np
 
+from revdem_cli.checkpoint import Checkpoints, checkpoint_path, find_checkpoint
 from revdem_cli.compare import compare_trajectories
 from revdem_cli.config import Scenario, Stage
 from revdem_cli.errors import InputError
+from revdem_cli.io import open_hdf5
 from revdem_cli.io.h5md import TrajectoryWriter
-from revdem_cli.io.restart import Restart, read_restart, write_restart
+from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
 from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli
 from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
 from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.fixed import EDGE, EDGE_RATE
 from revdem_cli.kernels.forces import compute_forces, particle_stress
-from revdem_cli.kernels.integrate import CELL_TOO_SMALL, FIXED_OVERFLOW, OK, advance
+from revdem_cli.kernels.integrate import BLOWN_UP, CELL_TOO_SMALL, FIXED_OVERFLOW, OK, advance
 from revdem_cli.kernels.observables import SCALARS, observe
 from revdem_cli.state import (
+    BlownUp,
     CellTooSmall,
     OffGrid,
     State,
@@ -179,6 +182,10 @@ def stage_dt(scenario: Scenario, stage: Stage) -> float:
     return stage.dt or scenario.integrator.dt
 
 
+Checkpoint = Callable[[State, StageClock, np.ndarray], None]
+"""Called as checkpoint(state, clock, events) after every frame but a stage's last."""
+
+
 def run_stage(
     state: State,
     model: Model,
@@ -187,8 +194,13 @@ def run_stage(
     writer: TrajectoryWriter,
     progress: Progress | None = None,
     stop_step: int | None = None,
+    checkpoint: Checkpoint | None = None,
+    events: np.ndarray | None = None,
 ) -> None:
-    """Advance `state` through one stage (direction +1) or back through it (direction -1)."""
+    """Advance `state` through one stage (direction +1) or back through it (direction -1).
+
+    With `events`, the stage's log so far, the state is part-way through the stage at a
+    frame of a checkpoint, and the stage carries on from there."""
     frames = clock.frame_steps()
     if direction < 0:
         frames = frames[::-1]
@@ -196,23 +208,27 @@ def run_stage(
         frames = [s for s in frames if (s - stop_step) * direction <= 0]
         if frames[-1] != stop_step:
             frames.append(stop_step)
-    if frames[0] != state.step:
+    resuming = events is not None
+    if frames[0] != state.step and not resuming:
         raise ValueError(
             f"stage {clock.stage.name} starts at step {frames[0]}, state is at {state.step}"
         )
     state.walls.velocity[:] = model.stage_wall_velocities(clock.stage)
     dyn = model.stage_dynamics(clock.stage)
-    set_cell_motion(state.cell, state.fixed, clock.stage, forward=direction > 0)
-    if direction > 0:
+    set_cell_motion(state.cell, state.fixed, clock.stage, forward=direction > 0 and not resuming)
+    if direction > 0 and not resuming:
         state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
         compute_forces(  # under the stage's settings
             *stepping_bundles(state, model, dyn), STATIC, clock.dt, 0.0, empty_events(), state.step
         )
     every = clock.stage.observable_interval
     buffer = np.zeros((clock.stage.output_every // every + 2, model.observables_row))
-    run = np.array([clock.dt, model.skin, clock.first_step, clock.last_step, every], dtype=float)
-    events = empty_events()
-    _record_now(state, model, dyn, clock, writer, events)
+    limit = model.scenario.integrator.overlap_limit
+    run = np.array([clock.dt, model.skin, clock.first_step, clock.last_step, every, limit])
+    alarm = np.zeros(4)
+    if events is None:
+        events = empty_events()
+        _record_now(state, model, dyn, clock, writer, events)
     label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
     total = abs(frames[-1] - frames[0])
     stop = clock.stage.stop_when if direction > 0 else None
@@ -220,16 +236,25 @@ def run_stage(
     if stop is not None:  # stage there with a frame
         pauses = sorted(set(frames) | set(range(frames[0], frames[-1], every)))
     frame_steps = set(frames)
-    for target in pauses[1:]:
+    for target in [s for s in pauses if (s - state.step) * direction > 0]:
         while state.step != target:
             status, state.step, rows = advance(
-                *stepping_bundles(state, model, dyn), events, run, state.step, target, buffer
+                *stepping_bundles(state, model, dyn), events, run, state.step, target, buffer, alarm
             )
             _write_observables(writer, model, clock, buffer[:rows])
             if status == CELL_TOO_SMALL:
                 raise CellTooSmall(state.step, state.cell.length)
             if status == FIXED_OVERFLOW:
                 raise OffGrid(state.step, state.fixed)
+            if status == BLOWN_UP:
+                raise BlownUp(
+                    state.step,
+                    alarm,
+                    limit,
+                    [wall.name for wall in model.scenario.walls],
+                    _likely_cause(model.scenario, clock.dt),
+                    f"{writer.path} holds the frames up to step {writer.last_step}",
+                )
             if status != OK:
                 state.grow_pairs()
         stopped = _stop_reached(state, model, dyn, stop)
@@ -239,6 +264,27 @@ def run_stage(
                 progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
         if stopped:
             return
+        if checkpoint is not None and target in frame_steps and target != frames[-1]:
+            checkpoint(state, clock, events)
+
+
+def _likely_cause(scenario: Scenario, dt: float) -> str:
+    """What the time step says about a blow-up: above the critical estimate, the likely
+    cause; well below it, unlikely to be."""
+    from revdem_cli.timestep.guard import critical_time_step
+
+    limit, reason = critical_time_step(scenario)
+    ratio = dt / limit
+    if ratio > 1.0:
+        return (
+            f"likely cause: dt = {dt:.3g} s is {ratio:.3g} times the critical time step "
+            f"{limit:.3g} s ({reason})"
+        )
+    return (
+        f"dt = {dt:.3g} s is {ratio:.2g} of the critical time step {limit:.3g} s ({reason}), "
+        "so the time step is an unlikely cause: look at what drives the spheres together "
+        "(walls, the cell, overlaps at the start, velocities)"
+    )
 
 
 def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
@@ -381,6 +427,76 @@ def _writer(
     )
 
 
+def _continued_writer(
+    path: Path, resumption: Resumption, state: State, model: Model, text: str, direction: str,
+    source: str = "",
+) -> TrajectoryWriter:  # fmt: skip
+    """A writer of `path` holding the rows it had at a checkpoint: they are copied into a new
+    file, which replaces `path` once complete (a file killed mid-write cannot be appended to
+    in place, and one left longer than the checkpoint must be cut back)."""
+    fresh = path.with_name(path.name + ".continued")
+    writer = _writer(fresh, state, model, text, direction, source)
+    try:
+        with open_hdf5(path) as old:
+            writer.copy_rows(old, resumption.frames, resumption.observables)
+    except BaseException:
+        writer.close()
+        fresh.unlink(missing_ok=True)
+        raise
+    fresh.replace(path)
+    writer.path = path
+    return writer
+
+
+@dataclass(frozen=True)
+class Run:
+    """One `revdem run` or `revdem reverse`: its scenario and where its files go."""
+
+    model: Model
+    text: str  # the scenario file as written
+    suffix: str
+    out_dir: Path
+    checkpoints: Checkpoints
+
+    @property
+    def scenario(self) -> Scenario:
+        return self.model.scenario
+
+    @property
+    def paths(self) -> dict[str, Path]:
+        return _paths(self.out_dir, self.scenario.name)
+
+    def checkpoint(self, state, clock, events, writer, trajectory, resumption) -> None:
+        """Save a checkpoint if one is due: the trajectory flushed first, so that it holds
+        every row the checkpoint counts."""
+        if not self.checkpoints.due():
+            return
+        writer.flush()
+        resumption.frames, resumption.observables = writer.rows()
+        resumption.events = events.copy()
+        self.checkpoints.save(self.restart(state, clock, trajectory, resumption))
+
+    def restart(self, state, clock, trajectory, resumption=None) -> Restart:
+        return Restart(
+            state,
+            self.scenario.model_dump_json(),
+            self.text,
+            self.suffix,
+            clock.stage.name,
+            str(Path(trajectory).resolve()),
+            clock.first_step,
+            clock.first_time,
+            resumption,
+        )
+
+
+def _run(model: Model, text: str, suffix: str, out_dir: Path) -> Run:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    name = model.scenario.name
+    interval = model.scenario.output.checkpoint_interval
+    return Run(model, text, suffix, out_dir, Checkpoints(checkpoint_path(out_dir, name), interval))
+
+
 def run_scenario(
     scenario: Scenario,
     text: str,
@@ -396,35 +512,52 @@ def run_scenario(
     """
     if not allow_unstable_dt:
         check_time_step(scenario)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = _paths(out_dir, scenario.name)
-    model = Model.of(scenario)
+    run = _run(Model.of(scenario), text, suffix, out_dir)
     state = initial_state(scenario)
+    reverse = reverse and scenario.reversed_stage is not None
+    with run.checkpoints.on_signals():
+        writer = _writer(run.paths["forward"], state, run.model, text, "forward")
+        return _forward(run, state, writer, reverse, progress)
+
+
+def _forward(
+    run: Run,
+    state: State,
+    writer: TrajectoryWriter,
+    reverse: bool,
+    progress: Progress | None,
+    resume: Restart | None = None,
+) -> Outputs:
+    """The stages from the first (or from the checkpoint `resume`) into `writer`, then the
+    restart, then the reversal if asked."""
+    scenario, paths = run.scenario, run.paths
+    first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
-    with _writer(paths["forward"], state, model, text, "forward") as writer:
-        for stage in scenario.stages:  # a stage starts where the previous one ended
+    with writer:
+        for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
+            stage = scenario.stages[index]
             clock = StageClock(stage, state.step, time, stage_dt(scenario, stage))
-            run_stage(state, model, clock, +1, writer, progress)
+            events = None
+            if resume is not None and index == first:  # carry on part-way through it
+                start = resume.stage_first_step, resume.stage_first_time
+                clock = StageClock(stage, *start, clock.dt)
+                events = resume.resumption.events
+            place = Resumption("forward", index, np.zeros(0), 0, 0, reverse, "", -1, -1)
+
+            def checkpoint(state, clock, events, place=place):
+                run.checkpoint(state, clock, events, writer, paths["forward"], place)
+
+            run_stage(state, run.model, clock, +1, writer, progress, None, checkpoint, events)
             time = float(clock.time(state.step))
-    write_restart(
-        paths["restart"],
-        Restart(
-            state,
-            scenario.model_dump_json(),
-            text,
-            suffix,
-            clock.stage.name,
-            str(paths["forward"].resolve()),
-            clock.first_step,
-            clock.first_time,
-        ),
-    )
+    write_restart(paths["restart"], run.restart(state, clock, paths["forward"]))
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
-    if reverse and scenario.reversed_stage is not None:
-        reversed_outputs = reverse_run(paths["restart"], out_dir, progress=progress)
+    if reverse:
+        restart = read_restart(paths["restart"])
+        reversed_outputs = _reverse(run, restart, paths["restart"], None, progress)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
         return reversed_outputs
-    outputs.figures = _figures(scenario, paths["forward"], None, out_dir)
+    run.checkpoints.discard()
+    outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
     return outputs
 
 
@@ -454,39 +587,89 @@ def reverse_run(
     restart = read_restart(restart_path)
     scenario = Scenario.model_validate_json(restart.scenario_json)
     out_dir = Path(out_dir) if out_dir is not None else Path(restart_path).parent
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = _paths(out_dir, scenario.name)
+    run = _run(Model.of(scenario), restart.scenario_text, restart.scenario_suffix, out_dir)
+    with run.checkpoints.on_signals():
+        return _reverse(run, restart, restart_path, steps, progress)
+
+
+def _reverse_clock(scenario: Scenario, restart: Restart, end_step: int) -> StageClock:
+    """The clock of the stage a restart ended, which ended at `end_step`."""
     stage = next(s for s in scenario.stages if s.name == restart.stage)
-    clock = StageClock(
+    return StageClock(
         stage,
         restart.stage_first_step,
         restart.stage_first_time,
         stage_dt(scenario, stage),
-        end_step=restart.state.step,
+        end_step=end_step,
     )
-    length = clock.last_step - clock.first_step
-    if steps is not None and not 0 < steps <= length:
-        raise InputError(f"--steps {steps}: must be between 1 and the stage's {length} steps")
-    stop = clock.first_step if steps is None else restart.state.step - steps
-    model = Model.of(scenario)
-    state = restart.state
-    with _writer(
-        paths["reverse"],
-        state,
-        model,
-        restart.scenario_text,
-        "reverse",
-        str(Path(restart_path).resolve()),
-    ) as writer:
-        run_stage(state, model, clock, -1, writer, progress, stop_step=stop)
+
+
+def _reverse(
+    run: Run,
+    restart: Restart,
+    restart_path: Path,
+    steps: int | None,
+    progress: Progress | None,
+    resume: Restart | None = None,
+) -> Outputs:
+    """The stage that ended at `restart` backwards (or on from the checkpoint `resume`),
+    then the comparison with the forward run and the figures."""
+    scenario, paths = run.scenario, run.paths
+    source = str(Path(restart_path).resolve())
+    if resume is None:
+        clock = _reverse_clock(scenario, restart, restart.state.step)
+        length = clock.last_step - clock.first_step
+        if steps is not None and not 0 < steps <= length:
+            raise InputError(f"--steps {steps}: must be between 1 and the stage's {length} steps")
+        stop = clock.first_step if steps is None else restart.state.step - steps
+        state, events = restart.state, None
+        text = restart.scenario_text
+        writer = _writer(paths["reverse"], state, run.model, text, "reverse", source)
+    else:
+        stop, state, events = resume.resumption.stop_step, resume.state, resume.resumption.events
+        clock = _reverse_clock(scenario, resume, resume.resumption.end_step)
+        writer = _continued_writer(
+            paths["reverse"], resume.resumption, state, run.model, restart.scenario_text,
+            "reverse", source,
+        )  # fmt: skip
+    place = Resumption("reverse", -1, np.zeros(0), 0, 0, False, source, stop, clock.last_step)
+    trajectory = restart.trajectory
+
+    def checkpoint(state, clock, events):
+        run.checkpoint(state, clock, events, writer, trajectory, place)
+
+    with writer:
+        run_stage(state, run.model, clock, -1, writer, progress, stop, checkpoint, events)
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(restart.trajectory)
     if forward.exists():
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
         paths["compare"].write_text(json.dumps(verdict, indent=2) + "\n")
         outputs.comparison, outputs.verdict = paths["compare"], verdict
-        outputs.figures = _figures(scenario, forward, paths["reverse"], out_dir)
+        outputs.figures = _figures(scenario, forward, paths["reverse"], run.out_dir)
+    run.checkpoints.discard()
     return outputs
+
+
+def resume_run(out_dir: Path, progress: Progress | None = None) -> Outputs:
+    """Continue the run whose checkpoint is in `out_dir` to its end, as if it had never
+    stopped: the trajectory it writes is the one the whole run would have written."""
+    path = find_checkpoint(out_dir)
+    resume = read_restart(path, checkpoint=True)
+    scenario = Scenario.model_validate_json(resume.scenario_json)
+    run = _run(Model.of(scenario), resume.scenario_text, resume.scenario_suffix, Path(out_dir))
+    place = resume.resumption
+    with run.checkpoints.on_signals():
+        if place.phase == "forward":
+            text = resume.scenario_text
+            writer = _continued_writer(
+                run.paths["forward"], place, resume.state, run.model, text, "forward"
+            )
+            return _forward(run, resume.state, writer, place.reverse, progress, resume)
+        restart = read_restart(place.source_restart)
+        outputs = _reverse(run, restart, Path(place.source_restart), None, progress, resume)
+        outputs.restart = Path(place.source_restart)
+        return outputs
 
 
 def _figures(

@@ -9,7 +9,7 @@ import numba
 import numpy as np
 
 from revdem_cli.config import Damping, Material, Scenario
-from revdem_cli.kernels import cell, contact, fixed, walls
+from revdem_cli.kernels import cell, contact, fixed, health, walls
 from revdem_cli.kernels.arrays import (
     Cell,
     ContactLaw,
@@ -261,6 +261,27 @@ class CellTooSmall(RuntimeError):
             f"step {step}: the periodic cell ({edges} m) is no longer more than twice the "
             "contact reach 2 r_max + skin on every axis; compress it less or start bigger"
         )
+
+
+class BlownUp(RuntimeError):
+    """The state stopped being physical (kernels/health.py): a non-finite value, or an
+    overlap deeper than integrator.overlap_limit allows."""
+
+    def __init__(
+        self, step: int, alarm: np.ndarray, limit: float, walls: list[str], cause: str, kept: str
+    ):
+        what, particle, partner, value = int(alarm[0]), int(alarm[1]), int(alarm[2]), alarm[3]
+        if what == health.NOT_FINITE:
+            quantity = ("position", "velocity", "angular velocity")[int(value)]
+            found = f"particle {particle} has a non-finite {quantity}"
+        else:
+            other = f"wall {walls[-1 - partner]}" if partner < 0 else f"particle {partner}"
+            found = (
+                f"particle {particle} and {other} overlap by {value:.3g} of the smaller radius "
+                f"(integrator.overlap_limit = {limit:g})"
+            )
+        super().__init__(f"blown up at step {step}: {found}; {cause}; {kept}")
+        self.step = step
 
 
 GRID_BITS = 52

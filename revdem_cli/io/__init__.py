@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 """Version of revdem's layout inside H5MD trajectories and restart files."""
 
 FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
@@ -28,13 +28,11 @@ def open_hdf5(path):
     is a revdem trajectory or restart that this revdem cannot read (`check_revdem_file`)."""
     from pathlib import Path
 
-    import h5py
-
     from revdem_cli.errors import InputError
 
     path = Path(path)
     try:
-        f = h5py.File(path, "r")
+        f = _open_for_reading(path)
     except OSError as exc:
         why = _why_unreadable(path, exc)
         raise InputError(f"{path}: not a readable HDF5 file ({why})") from None
@@ -47,6 +45,19 @@ def open_hdf5(path):
         f.close()
         raise InputError(f"{path}: damaged revdem file ({one_line(exc)})") from None
     return f
+
+
+def _open_for_reading(path):
+    """h5py.File(path, "r"); a trajectory still being written, or left by a run that was
+    killed, is marked open for writing, and is opened in SWMR mode instead."""
+    import h5py
+
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        if "already open for write" not in str(exc):
+            raise
+    return h5py.File(path, "r", swmr=True)
 
 
 def _why_unreadable(path, exc: OSError) -> str:

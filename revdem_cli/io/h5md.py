@@ -15,8 +15,10 @@
                                     information-destroying mechanisms (kernels/events.py)
 /parameters/revdem                  attrs: schema_version (revdem_cli.io.SCHEMA_VERSION, checked on
                                     reading), direction, dt, arithmetic, scenario, source restart
-Rows are written in blocks at least every two seconds, so an interrupted run keeps what it
-wrote up to then.
+Rows are written in blocks at least every two seconds and at every checkpoint. The file is
+written in HDF5's single-writer/multiple-reader mode, whose writes keep the file consistent
+at every moment: a run killed at any point leaves a trajectory readable up to its last
+flush (`open_hdf5` opens such a file read-only in SWMR mode).
 """
 
 from __future__ import annotations
@@ -107,7 +109,7 @@ class TrajectoryWriter:
         parameters: dict,
     ):
         self.path = Path(path)
-        self.file = h5py.File(self.path, "w")
+        self.file = h5py.File(self.path, "w", libver="latest")
         f = self.file
         h5md = f.create_group("h5md")
         h5md.attrs["version"] = np.array([1, 1])
@@ -155,10 +157,36 @@ class TrajectoryWriter:
             revdem.attrs[key] = value
         self.last_step: int | None = None
         self.last_observable: int | None = None
+        self.file.swmr_mode = True  # everything is created: from here on only appended to
         self.flushed = time.monotonic()
+
+    def copy_rows(self, source: h5py.File, frames: int, observables: int) -> None:
+        """Append the first `frames` frames and `observables` observables rows of `source`, a
+        trajectory of the same layout (a run continued from a checkpoint)."""
+        for appender in self.frame_rows:
+            appender.add(source[appender.dataset.name][:frames])
+        for appender in self._observable_appenders():
+            appender.add(source[appender.dataset.name][:observables])
+        steps = source[self.frame_rows[0].dataset.name][:frames]
+        self.last_step = int(steps[-1]) if frames else None
+        steps = source[self.observable_clock[0].dataset.name][:observables]
+        self.last_observable = int(steps[-1]) if observables else None
+        self.flush()
+
+    def rows(self) -> tuple[int, int]:
+        """(frames, observables rows) written and waiting."""
+        count = self.frame_rows[0]
+        observed = self.observable_clock[0]
+        return (
+            count.dataset.shape[0] + sum(len(rows) for rows in count.rows),
+            observed.dataset.shape[0] + sum(len(rows) for rows in observed.rows),
+        )
 
     def _appenders(self):
         yield from self.frame_rows
+        yield from self._observable_appenders()
+
+    def _observable_appenders(self):
         yield from self.observable_clock
         yield from (appender for appender, _ in self.observable_rows)
 

@@ -1,6 +1,8 @@
 """Restart files: everything needed to continue or reverse a run bit for bit.
 
-Written to a temporary name and renamed, so a restart file is either complete or absent.
+A checkpoint is a restart file taken part-way through a run, with a /revdem/checkpoint
+group saying where (`Resumption`); `revdem run --resume` continues from it. Both are written
+to a temporary name and renamed, so either is complete or absent.
 """
 
 from __future__ import annotations
@@ -37,6 +39,21 @@ CELL_ARRAYS = tuple(name for name in Cell._fields if name not in ("servo", "mass
 
 
 @dataclass
+class Resumption:
+    """Where in a run a checkpoint was taken, besides its state."""
+
+    phase: str  # "forward" (the stages in order) or "reverse" (the reversed stage)
+    stage_index: int  # the stage being run
+    events: np.ndarray  # the stage's log of information-destroying mechanisms so far
+    frames: int  # frames in the trajectory being written, up to the checkpoint's step
+    observables: int  # observables rows in it
+    reverse: bool  # forward phase: the run reverses its marked stage afterwards
+    source_restart: str  # reverse phase: the restart file it reverses from
+    stop_step: int  # reverse phase: the step it reverses back to
+    end_step: int  # reverse phase: the step the reversed stage ended at, going forward
+
+
+@dataclass
 class Restart:
     state: State
     scenario_json: str  # the validated scenario, overrides applied
@@ -46,6 +63,7 @@ class Restart:
     trajectory: str  # the forward trajectory this restart ends
     stage_first_step: int  # where that stage began
     stage_first_time: float  # s
+    resumption: Resumption | None = None  # a checkpoint's place in its run
 
 
 def write_restart(path: Path, restart: Restart) -> None:
@@ -77,23 +95,62 @@ def write_restart(path: Path, restart: Restart) -> None:
         for name in PAIR_FIELDS[: 4 if shear else 3]:
             f.create_dataset(f"pairs/{name}", data=getattr(s.pairs, name)[:n])
         f.create_dataset("pairs/x_built", data=s.pairs.x_built)
+        if restart.resumption is not None:
+            _write_resumption(meta.create_group("checkpoint"), restart.resumption)
     os.replace(tmp, path)
 
 
-def read_restart(path: str | Path) -> Restart:
-    """A restart file, checked by `open_hdf5` (schema version, layout, stored scenario);
-    InputError naming the file for anything else."""
+def _write_resumption(group: h5py.Group, resumption: Resumption) -> None:
+    for name, value in vars(resumption).items():
+        if name == "events":
+            group.create_dataset(name, data=value)
+        else:
+            group.attrs[name] = value
+
+
+def _read_resumption(group: h5py.Group) -> Resumption:
+    attrs = group.attrs
+    return Resumption(
+        phase=str(attrs["phase"]),
+        stage_index=int(attrs["stage_index"]),
+        events=group["events"][:],
+        frames=int(attrs["frames"]),
+        observables=int(attrs["observables"]),
+        reverse=bool(attrs["reverse"]),
+        source_restart=str(attrs["source_restart"]),
+        stop_step=int(attrs["stop_step"]),
+        end_step=int(attrs["end_step"]),
+    )
+
+
+def read_restart(path: str | Path, checkpoint: bool = False) -> Restart:
+    """A restart file (or with `checkpoint`, a checkpoint), checked by `open_hdf5` (schema
+    version, layout, stored scenario); InputError naming the file for anything else."""
     path = Path(path)
     f = open_hdf5(path)
     with f:
-        meta = f.get("revdem")
-        if meta is None or meta.attrs.get("kind") != "restart":
-            what = "a revdem trajectory" if "parameters/revdem" in f else "no /revdem group"
-            raise InputError(f"{path}: not a revdem restart file ({what})")
+        meta = _meta(f, path, checkpoint)
         try:
             return _read(f, meta, path)
         except DAMAGE as exc:
             raise InputError(f"{path}: damaged revdem restart file ({one_line(exc)})") from None
+
+
+def _meta(f: h5py.File, path: Path, checkpoint: bool) -> h5py.Group:
+    """The /revdem group of a restart file, or with `checkpoint`, of a checkpoint;
+    InputError if the file is something else."""
+    meta = f.get("revdem")
+    if meta is None or meta.attrs.get("kind") != "restart":
+        what = "a revdem trajectory" if "parameters/revdem" in f else "no /revdem group"
+        raise InputError(f"{path}: not a revdem restart file ({what})")
+    if checkpoint and "checkpoint" not in meta:
+        raise InputError(f"{path}: a restart file, not a checkpoint")
+    if not checkpoint and "checkpoint" in meta:
+        raise InputError(
+            f"{path}: a checkpoint of an unfinished run; continue it with "
+            f"revdem run --resume {path.parent}"
+        )
+    return meta
 
 
 def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
@@ -105,17 +162,19 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
 
     scenario = stored_scenario(meta.attrs["scenario_json"], path)
     shear = scenario.contact.tangential != "none"
+    resumption = _read_resumption(meta["checkpoint"]) if "checkpoint" in meta else None
+    reversing = resumption is None or resumption.phase == "reverse"
     particles = Particles(*(read(f"particles/{name}") for name in Particles._fields))
     n_particles = len(particles.x)
     stored = {name: read(f"walls/{name}") for name in WALL_FIELDS}
-    unwinding = n_particles if shear else 0
+    unwinding = n_particles if shear and reversing else 0
     walls = Walls(**stored, normal_new=np.zeros((unwinding, len(stored["kind"]), 3)))
     cell = cell_arrays(scenario)
     for name in CELL_ARRAYS:
         getattr(cell, name)[...] = read(f"cell/{name}")
     integers = Fixed(*(read(f"fixed/{name}") for name in Fixed._fields))
     n = f["pairs/i"].shape[0]
-    pairs: Pairs = empty_pairs(n_particles, pair_capacity(n), shear, reversing=True)
+    pairs: Pairs = empty_pairs(n_particles, pair_capacity(n), shear, reversing)
     for name in PAIR_FIELDS[: 4 if shear else 3]:
         getattr(pairs, name)[:n] = read(f"pairs/{name}")
     pairs.x_built[:] = read("pairs/x_built")
@@ -130,6 +189,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         trajectory=str(meta.attrs["trajectory"]),
         stage_first_step=int(meta.attrs["stage_first_step"]),
         stage_first_time=float(meta.attrs["stage_first_time"]),
+        resumption=resumption,
     )
 
 
@@ -138,10 +198,7 @@ def restart_scenario(path: str | Path):
     `read_restart` checks them, without reading its arrays."""
     path = Path(path)
     with open_hdf5(path) as f:
-        meta = f.get("revdem")
-        if meta is None or meta.attrs.get("kind") != "restart":
-            what = "a revdem trajectory" if "parameters/revdem" in f else "no /revdem group"
-            raise InputError(f"{path}: not a revdem restart file ({what})")
+        meta = _meta(f, path, checkpoint=False)
         return stored_scenario(meta.attrs["scenario_json"], path), Path(
             str(meta.attrs.get("trajectory", ""))
         )

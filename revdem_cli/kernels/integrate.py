@@ -9,6 +9,7 @@ from revdem_cli.kernels.cell import kick_cell, move_cell
 from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE
 from revdem_cli.kernels.events import MOTION_LOST, note, note_damping, note_fixed_points
 from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces, unwind_shear_history
+from revdem_cli.kernels.health import HEALTHY, examine
 from revdem_cli.kernels.neighbours import (
     build_pairs,
     carry_history,
@@ -23,6 +24,7 @@ OK = 0
 PAIR_OVERFLOW = 1
 CELL_TOO_SMALL = 2
 FIXED_OVERFLOW = 3
+BLOWN_UP = 4
 
 
 def _kick(v, f, inv_m, h):
@@ -286,22 +288,28 @@ def needs_rebuild(p, pairs, cell, dt, skin, direction):
 
 
 @jit
-def advance(p, pairs, walls, cell, fixed, law, moduli, dyn, events, run, step, stop, obs):
+def advance(p, pairs, walls, cell, fixed, law, moduli, dyn, events, run, step, stop, obs, alarm):
     """Run whole steps from `step` to `stop` (forward if stop > step, else reversed).
 
-    run = (dt, skin, first step of the stage, last step, observables interval). Observables
-    are recorded into the rows of `obs` at every step where (step - first) % interval == 0
-    and at the last step. Returns (status, step reached, rows recorded); status
+    run = (dt, skin, first step of the stage, last step, observables interval, deepest
+    overlap allowed / smaller radius). Observables are recorded into the rows of `obs` at
+    every step where (step - first) % interval == 0 and at the last step, each after the
+    state there passed `health.examine`, which is also asked at `stop` and before each
+    rebuild of the pair list. Returns (status, step reached, rows recorded); status
     PAIR_OVERFLOW means the pair list must grow before stepping on, CELL_TOO_SMALL that the
     cell has shrunk too far (the state is then at a whole step), FIXED_OVERFLOW that a
-    value left its fixed-point grid in the step just taken (fixed.overflow says which).
+    value left its fixed-point grid in the step just taken (fixed.overflow says which),
+    BLOWN_UP that the state at the step reached is not physical (`alarm` says why; the
+    rows recorded are of the steps before).
     """
-    dt, skin = run[0], run[1]
+    dt, skin, limit = run[0], run[1], run[5]
     first, last, every = int(run[2]), int(run[3]), int(run[4])
     direction = 1 if stop > step else -1
     rows = 0
     while step != stop:
         if needs_rebuild(p, pairs, cell, dt, skin, direction):
+            if examine(p, pairs, walls, cell, limit, alarm) != HEALTHY:  # not worth a search
+                return BLOWN_UP, step, rows
             status = rebuild_pairs(p, pairs, cell, skin)
             if status != OK:
                 return status, step, rows
@@ -314,7 +322,11 @@ def advance(p, pairs, walls, cell, fixed, law, moduli, dyn, events, run, step, s
         step += direction
         if fixed.overflow[0] != 0:
             return FIXED_OVERFLOW, step, rows
-        if (step - first) % every == 0 or step == last:
+        recorded = (step - first) % every == 0 or step == last
+        if recorded or step == stop:
+            if examine(p, pairs, walls, cell, limit, alarm) != HEALTHY:
+                return BLOWN_UP, step, rows
+        if recorded:
             obs[rows, 0] = step
             observe(p, pairs, walls, cell, law, moduli, dyn, obs[rows])
             rows += 1

@@ -27,14 +27,14 @@ def cell_grid(x, periodic, length, cutoff, max_cells):
     span = cutoff
     while True:
         for d in range(3):
+            extent = length[d] if periodic[d] else x[:, d].max() - x[:, d].min()
+            dims[d] = max(1, int(min(extent / span, max_cells)))  # no overflow, however far
             if periodic[d]:
-                dims[d] = max(1, int(length[d] / span))
                 edge[d] = length[d] / dims[d]
             else:
                 lo[d] = x[:, d].min()
-                dims[d] = max(1, int((x[:, d].max() - lo[d]) / span))
                 edge[d] = span
-        if dims[0] * dims[1] * dims[2] <= max_cells:
+        if float(dims[0]) * float(dims[1]) * float(dims[2]) <= max_cells:
             return lo, edge, dims
         span *= 2.0
 

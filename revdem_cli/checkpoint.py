@@ -1,0 +1,101 @@
+"""Checkpoints: when a run saves one, where, and what SIGINT and SIGTERM do.
+
+A checkpoint is taken at an output frame once `output.checkpoint_interval` seconds of wall
+time have passed since the last (or at once after SIGINT or SIGTERM): the trajectory is
+flushed, then the state is written to `<name>.checkpoint.h5` beside it, to a temporary
+name renamed over the old one. A finished run removes it. `revdem run --resume DIR`
+continues from it, and the continued trajectory is the one an uninterrupted run writes.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from revdem_cli.errors import InputError
+from revdem_cli.io.restart import Restart, write_restart
+
+SUFFIX = ".checkpoint.h5"
+
+
+def checkpoint_path(out_dir: Path, name: str) -> Path:
+    return Path(out_dir) / f"{name}{SUFFIX}"
+
+
+class Interrupted(Exception):
+    """The run stopped on a signal after writing a checkpoint."""
+
+    def __init__(self, signum: int, step: int, path: Path):
+        self.exit_code = 128 + signum
+        name = signal.Signals(signum).name
+        super().__init__(
+            f"{name} at step {step}: checkpoint {path} written; continue with "
+            f"revdem run --resume {path.parent}"
+        )
+
+
+class Checkpoints:
+    """The checkpoint policy of one run: its file, its interval, and the signal it was sent."""
+
+    def __init__(self, path: Path, interval: float):
+        self.path = Path(path)
+        self.interval = interval
+        self.signal = 0  # the signal that asked for a checkpoint and a stop
+        self.saved = time.monotonic()
+
+    def due(self) -> bool:
+        return self.signal != 0 or time.monotonic() - self.saved >= self.interval
+
+    def save(self, restart: Restart) -> None:
+        """Write the checkpoint; raise Interrupted after it if a signal asked for one."""
+        write_restart(self.path, restart)
+        self.saved = time.monotonic()
+        if self.signal:
+            raise Interrupted(self.signal, restart.state.step, self.path)
+
+    def discard(self) -> None:
+        self.path.unlink(missing_ok=True)
+
+    @contextmanager
+    def on_signals(self) -> Iterator[None]:
+        """While inside: SIGINT and SIGTERM ask for a checkpoint at the next frame and a stop
+        (a second one stops at once). Only the main thread can take signals."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+        kinds = (signal.SIGINT, signal.SIGTERM)
+        before = {kind: signal.getsignal(kind) for kind in kinds}
+
+        def ask(signum, frame):
+            self.signal = signum
+            for kind in kinds:
+                signal.signal(kind, before[kind])
+
+        for kind in kinds:
+            signal.signal(kind, ask)
+        try:
+            yield
+        finally:
+            for kind in kinds:
+                signal.signal(kind, before[kind])
+
+
+def find_checkpoint(out_dir: Path) -> Path:
+    """The one checkpoint in `out_dir`; InputError if there is none or more than one."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        raise InputError(f"--resume {out_dir}: no such directory")
+    found = sorted(out_dir.glob(f"*{SUFFIX}"))
+    if not found:
+        raise InputError(
+            f"--resume {out_dir}: no checkpoint (*{SUFFIX}) there: the run finished, or "
+            "stopped before its first checkpoint"
+        )
+    if len(found) > 1:
+        names = ", ".join(path.name for path in found)
+        raise InputError(f"--resume {out_dir}: several checkpoints ({names}); keep one")
+    return found[0]

@@ -1,0 +1,111 @@
+"""Blow-ups: a run whose state stops being physical (non-finite values, overlaps deeper than
+`integrator.overlap_limit`) stops there with one line naming the step, the particles and
+the likely cause, and keeps a readable trajectory of the good states before it."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+from revdem_cli.config import Scenario
+from revdem_cli.kernels.health import HEALTHY, NOT_FINITE, TOO_DEEP, examine
+from revdem_cli.state import initial_state
+from tests.conftest import CONFIGS, two_spheres
+
+
+def _failed(result) -> str:
+    """The one line of a run that failed (exit 1) without a traceback."""
+    assert result.exit_code == 1, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.output, result.output
+    return lines[0]
+
+
+def _steps_written(path) -> tuple[np.ndarray, np.ndarray]:
+    """Frame steps and observables steps of a trajectory, whose positions must be finite."""
+    with h5py.File(path) as f:
+        assert np.isfinite(f["particles/all/position/value"][:]).all()
+        return f["particles/all/position/step"][:], f["observables/kinetic_energy/step"][:]
+
+
+def test_an_overlap_deeper_than_the_limit_stops_the_run_where_it_happens(tmp_path):
+    # the collision's deepest overlap is 0.06 of the radius (Hertz, 0.9 m/s): a limit of
+    # 0.01 is passed part-way into the contact, with a time step far below the critical one
+    scenario = CONFIGS / "smoke" / "collision.yaml"
+    args = ["run", str(scenario), "--out", str(tmp_path), "-q"]
+    result = CliRunner().invoke(app, [*args, "--set", "integrator.overlap_limit=0.01"])
+    line = _failed(result)
+    assert "blown up at step" in line
+    assert "particle 0 and particle 1 overlap by 0.01" in line
+    assert "integrator.overlap_limit = 0.01" in line
+    assert "the time step is an unlikely cause" in line
+    step = int(line.split("blown up at step ")[1].split(":")[0])
+    frames, rows = _steps_written(tmp_path / "collision_smoke.forward.h5")
+    assert frames[-1] < step and rows[-1] < step  # nothing from the blown-up state
+    assert not (tmp_path / "collision_smoke.restart.h5").exists()
+
+
+def test_a_time_step_above_the_critical_one_is_named_as_the_likely_cause(tmp_path):
+    # the smoke oedometer poured at 100 times its time step: spheres hit the walls and one
+    # another ever harder until one is pushed deep into the cylinder
+    scenario = CONFIGS / "smoke" / "oedometer.toml"
+    args = ["run", str(scenario), "--out", str(tmp_path), "-q", "--allow-unstable-dt"]
+    sets = ["--set", "stages.0.dt=1e-3", "--set", "stages.0.output_every=5"]
+    line = _failed(CliRunner().invoke(app, [*args, *sets]))
+    assert "blown up at step" in line and "overlap by" in line
+    assert "likely cause: dt = 0.001 s is" in line and "times the critical time step" in line
+    step = int(line.split("blown up at step ")[1].split(":")[0])
+    frames, _ = _steps_written(tmp_path / "oedometer_smoke.forward.h5")
+    assert frames[-1] < step
+    assert f"holds the frames up to step {frames[-1]}" in line
+
+
+def _examined(scenario: Scenario, change, limit: float = 0.5) -> tuple[int, np.ndarray]:
+    state = initial_state(scenario)
+    change(state)
+    alarm = np.zeros(4)
+    p, pairs, walls, cell = state.particles, state.pairs, state.walls, state.cell
+    return examine(p, pairs, walls, cell, limit, alarm), alarm
+
+
+def test_examine_names_the_first_non_finite_value():
+    scenario = two_spheres()
+    assert _examined(scenario, lambda s: None)[0] == HEALTHY
+    for quantity, field in enumerate(("x", "v", "omega")):
+        for value in (np.nan, np.inf, -np.inf):
+
+            def spoil(state, field=field, value=value):
+                getattr(state.particles, field)[1, 2] = value
+
+            what, alarm = _examined(scenario, spoil)
+            assert what == NOT_FINITE
+            assert alarm.tolist() == [NOT_FINITE, 1, -1, quantity]
+
+
+def test_examine_names_the_deepest_overlap_with_a_sphere_or_a_wall():
+    scenario = two_spheres()  # 0.0101 m apart: 0.1 mm from touching
+
+    def press(state):
+        state.particles.x[1, 0] = 0.0099  # overlap 0.1 mm, 0.02 of the radius 5 mm
+
+    assert _examined(scenario, press, limit=0.03)[0] == HEALTHY
+    what, alarm = _examined(scenario, press, limit=0.01)
+    assert what == TOO_DEEP and alarm[:3].tolist() == [TOO_DEEP, 0, 1]
+    assert np.isclose(alarm[3], 0.02)
+
+    on_floor = two_spheres(
+        walls=[
+            {"name": "floor", "type": "plane", "material": "sphere", "point": [0, 0, -0.005],
+             "normal": [0, 0, 1]},
+        ]
+    )  # fmt: skip
+
+    def sink(state):
+        state.walls.overlap[1, 0] = 0.003  # 0.6 of the radius, as the wall loop measured it
+
+    what, alarm = _examined(on_floor, sink)
+    assert what == TOO_DEEP and alarm[:3].tolist() == [TOO_DEEP, 1, -1]
+    assert np.isclose(alarm[3], 0.6)
+    assert on_floor.integrator.overlap_limit == 0.5  # the default

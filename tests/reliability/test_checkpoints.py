@@ -1,0 +1,230 @@
+"""Interrupted runs: killed with SIGKILL at random moments, stopped by SIGINT or SIGTERM, then
+continued with `revdem run --resume`. Every continued run must write the files an
+uninterrupted run writes, dataset for dataset, bit for bit; what a killed run leaves must be
+readable up to its last checkpoint."""
+
+from __future__ import annotations
+
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+from revdem_cli.io.h5md import open_trajectory
+from revdem_cli.io.restart import read_restart
+from tests.conftest import CONFIGS, assert_one_line_error
+
+KILLS = 24
+"""SIGKILLs sent at random moments, each followed by a resume, over the cases below."""
+
+CASES = {
+    # two spheres forward then reversed: kills land in either phase
+    "collision": (
+        CONFIGS / "smoke" / "collision.yaml",
+        ["stages.0.steps=60000", "stages.0.output_every=500"],
+    ),
+    # the same in fixed-point arithmetic, whose round trip is bit for bit
+    "collision_fixed": (
+        CONFIGS / "smoke" / "collision.yaml",
+        ["stages.0.steps=60000", "stages.0.output_every=500", "integrator.arithmetic=fixed"],
+    ),
+    # 4 stages: packing, pour with local damping and a stop condition, moving platen, reversal
+    "oedometer": (CONFIGS / "smoke" / "oedometer.toml", []),
+}
+
+EVERY_FRAME = ["--set", "output.checkpoint_interval=0"]
+
+
+def _command(case: str, out: Path) -> list[str]:
+    scenario, sets = CASES[case]
+    overrides = [arg for value in sets for arg in ("--set", value)]
+    return [sys.executable, "-m", "revdem_cli.cli", "run", str(scenario), "--out", str(out)] + [
+        "-q",
+        *overrides,
+        *EVERY_FRAME,
+    ]
+
+
+def _resume(out: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "revdem_cli.cli", "run", "--resume", str(out), "-q"],
+        capture_output=True,
+        text=True,
+    )
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory) -> dict[str, tuple[Path, float]]:
+    """Each case run whole: its output directory, and the seconds from its first checkpoint
+    to its end (the window the kills are spread over)."""
+    done = {}
+    for case in CASES:
+        out = tmp_path_factory.mktemp(f"whole_{case}")
+        process = subprocess.Popen(_command(case, out), stderr=subprocess.PIPE)
+        assert _started(process, out), process.communicate()[1]
+        started = time.monotonic()
+        assert process.wait() == 0, process.communicate()[1]
+        done[case] = (out, time.monotonic() - started)
+    return done
+
+
+def _contents(path: Path) -> tuple[dict, dict]:
+    """Every dataset of an HDF5 file, and the attributes that do not name a path."""
+    datasets, attrs = {}, {}
+
+    def visit(name, item):
+        for key, value in item.attrs.items():
+            if key not in ("source_restart", "trajectory"):
+                attrs[f"{name}@{key}"] = value
+        if isinstance(item, h5py.Dataset):
+            datasets[name] = item[()]
+
+    with h5py.File(path, "r") as f:
+        f.visititems(visit)
+    return datasets, attrs
+
+
+def assert_same_files(expected: Path, got: Path) -> None:
+    """The HDF5 files and the comparison of `got` hold what those of `expected` hold."""
+    names = sorted(p.name for p in expected.iterdir() if p.suffix in (".h5", ".json"))
+    assert names == sorted(p.name for p in got.iterdir() if p.suffix in (".h5", ".json"))
+    for name in names:
+        if name.endswith(".json"):
+            assert (expected / name).read_text() == (got / name).read_text(), name
+            continue
+        (data, attrs), (data2, attrs2) = _contents(expected / name), _contents(got / name)
+        assert data.keys() == data2.keys(), name
+        for key, value in data.items():
+            assert value.dtype == data2[key].dtype and value.shape == data2[key].shape, key
+            assert np.array_equal(value, data2[key], equal_nan=True), f"{name}: {key} differs"
+        assert attrs.keys() == attrs2.keys(), name
+        for key, value in attrs.items():
+            assert np.array_equal(np.asarray(value), np.asarray(attrs2[key])), f"{name}@{key}"
+
+
+def _started(process: subprocess.Popen, out: Path) -> bool:
+    """Wait for the first checkpoint; False if the run ended first."""
+    while not list(out.glob("*.checkpoint.h5")):
+        if process.poll() is not None:
+            return False
+        time.sleep(0.005)
+    return True
+
+
+def _check_killed_trajectory(out: Path, whole: Path) -> None:
+    """What a killed run left: its trajectory being written at the checkpoint opens, holds
+    at least the frames the checkpoint counts, and they are the uninterrupted run's."""
+    (checkpoint,) = out.glob("*.checkpoint.h5")
+    place = read_restart(checkpoint, checkpoint=True).resumption
+    name = checkpoint.name.removesuffix(".checkpoint.h5")
+    kind = "forward" if place.phase == "forward" else "reverse"
+    with open_trajectory(out / f"{name}.{kind}.h5") as f:
+        frames = f["particles/all/position/value"]
+        assert frames.shape[0] >= place.frames
+        with h5py.File(whole / f"{name}.{kind}.h5") as g:
+            expected = g["particles/all/position/value"][: place.frames]
+        assert np.array_equal(frames[: place.frames], expected)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_a_run_killed_at_random_moments_resumes_to_the_uninterrupted_files(
+    case, uninterrupted, tmp_path, kills
+):
+    whole, seconds = uninterrupted[case]
+    rng = random.Random(f"kill {case}")
+    wanted = KILLS // len(CASES)
+    done = 0
+    for attempt in range(3 * wanted):
+        if done == wanted:
+            break
+        out = tmp_path / f"kill{attempt}"
+        process = subprocess.Popen(
+            _command(case, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        if not _started(process, out):
+            continue
+        time.sleep(rng.uniform(0.0, 0.8 * seconds))
+        if process.poll() is not None:  # finished before the kill: not a kill
+            continue
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+        _check_killed_trajectory(out, whole)
+        resumed = _resume(out)
+        assert resumed.returncode == 0, resumed.stderr
+        assert not list(out.glob("*.checkpoint.h5")), "a finished run keeps no checkpoint"
+        assert_same_files(whole, out)
+        done += 1
+        kills[case] = kills.get(case, 0) + 1
+    assert done == wanted, f"only {done} of {wanted} runs were still running when killed"
+
+
+@pytest.mark.parametrize(("signum", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_writes_a_checkpoint_and_stops_with_its_status(
+    signum, status, uninterrupted, tmp_path, kills
+):
+    whole, seconds = uninterrupted["collision"]
+    process = subprocess.Popen(
+        _command("collision", tmp_path), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL
+    )
+    assert _started(process, tmp_path)
+    time.sleep(0.3 * seconds)
+    process.send_signal(signum)
+    _, stderr = process.communicate()
+    lines = stderr.decode().strip().splitlines()
+    assert process.returncode == status, stderr
+    assert len(lines) == 1 and "Traceback" not in lines[0]
+    assert signal.Signals(signum).name in lines[0]
+    assert f"revdem run --resume {tmp_path}" in lines[0]
+    resumed = _resume(tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert_same_files(whole, tmp_path)
+    kills[signal.Signals(signum).name] = kills.get(signal.Signals(signum).name, 0) + 1
+
+
+def _unfinished(tmp_path: Path) -> Path:
+    """An output directory with a checkpoint, as a killed collision leaves it."""
+    process = subprocess.Popen(
+        _command("collision", tmp_path), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    assert _started(process, tmp_path)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    return tmp_path
+
+
+def test_a_new_run_over_an_unfinished_one_is_refused_unless_forced(tmp_path):
+    out = _unfinished(tmp_path)
+    scenario, sets = CASES["collision"]
+    args = ["run", str(scenario), "--out", str(out), "-q", "--set", sets[0], "--set", sets[1]]
+    result = CliRunner().invoke(app, args)
+    assert_one_line_error(result, "an unfinished run", f"revdem run --resume {out}")
+    assert list(out.glob("*.checkpoint.h5"))
+    assert CliRunner().invoke(app, [*args, "--force"]).exit_code == 0
+    assert not list(out.glob("*.checkpoint.h5"))
+
+
+def test_a_checkpoint_is_not_a_restart(tmp_path):
+    out = _unfinished(tmp_path)
+    (checkpoint,) = out.glob("*.checkpoint.h5")
+    elsewhere = tmp_path / "elsewhere"
+    result = CliRunner().invoke(app, ["reverse", str(checkpoint), "-q", "--out", str(elsewhere)])
+    assert_one_line_error(result, "a checkpoint of an unfinished run", "--resume")
+
+
+def test_resume_needs_a_checkpoint_and_nothing_else(tmp_path):
+    result = CliRunner().invoke(app, ["run", "--resume", str(tmp_path)])
+    assert_one_line_error(result, "no checkpoint")
+    result = CliRunner().invoke(app, ["run", "--resume", str(tmp_path / "absent")])
+    assert_one_line_error(result, "no such directory")
+    scenario = str(CASES["collision"][0])
+    result = CliRunner().invoke(app, ["run", scenario, "--resume", str(tmp_path)])
+    assert_one_line_error(result, "give no scenario")
+    assert_one_line_error(CliRunner().invoke(app, ["run"]), "give a scenario file")
