@@ -12,7 +12,8 @@ from revdem_cli.io import open_hdf5
 
 
 def describe(path: str | Path) -> dict:
-    """A summary of a revdem trajectory or restart file; InputError for anything else."""
+    """A summary of a revdem trajectory, restart file or checkpoint; InputError for anything
+    else."""
     path = Path(path)
     f = open_hdf5(path)
     try:
@@ -72,11 +73,13 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
 
 
 def _restart(path: Path, f: h5py.File) -> dict:
+    """A restart file, or a checkpoint: a restart taken part-way through a run."""
     attrs = f["revdem"].attrs
+    checkpoint = f["revdem"].get("checkpoint")
     return {
         "file": str(path),
-        "kind": "restart",
-        "direction": "forward",
+        "kind": "restart" if checkpoint is None else "checkpoint",
+        "direction": "forward" if checkpoint is None else str(checkpoint.attrs["phase"]),
         **_scenario(str(attrs["scenario_json"])),
         "particles": int(f["particles/x"].shape[0]),
         "step": int(attrs["step"]),
@@ -94,7 +97,7 @@ def info_lines(info: dict) -> list[str]:
     lines = [
         f"file:       {info['file']}",
         f"kind:       {info['kind']}"
-        + (f" ({info['direction']})" if info["kind"] == "trajectory" else ""),
+        + (f" ({info['direction']})" if info["kind"] != "restart" else ""),
         f"scenario:   {info['scenario']}",
         f"stages:     {stages}",
         f"particles:  {info['particles']}",
@@ -108,6 +111,9 @@ def info_lines(info: dict) -> list[str]:
         lines.append(
             f"frames:     {info['frames']}, steps {info['first_step']} to {info['last_step']}"
         )
+    elif info["kind"] == "checkpoint":
+        lines.append(f"step:       {info['step']} (in stage {info['stage']})")
+        lines.append(f"resume:     revdem run --resume {Path(info['file']).parent}")
     else:
         lines.append(f"step:       {info['step']} (end of stage {info['stage']})")
         lines.append(f"trajectory: {info['trajectory']}")

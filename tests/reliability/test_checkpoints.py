@@ -211,9 +211,15 @@ def test_a_new_run_over_an_unfinished_one_is_refused_unless_forced(tmp_path):
     assert not list(out.glob("*.checkpoint.h5"))
 
 
-def test_a_checkpoint_is_not_a_restart(tmp_path):
+def test_a_checkpoint_shows_as_one_and_is_not_a_restart(tmp_path):
     out = _unfinished(tmp_path)
     (checkpoint,) = out.glob("*.checkpoint.h5")
+    shown = CliRunner().invoke(app, ["info", str(checkpoint)])
+    assert shown.exit_code == 0, shown.output
+    assert "kind:       checkpoint (forward)" in shown.output
+    assert f"resume:     revdem run --resume {out}" in shown.output
+    trajectory = CliRunner().invoke(app, ["info", str(out / "collision_smoke.forward.h5")])
+    assert trajectory.exit_code == 0 and "frames:" in trajectory.output  # a killed run's
     elsewhere = tmp_path / "elsewhere"
     result = CliRunner().invoke(app, ["reverse", str(checkpoint), "-q", "--out", str(elsewhere)])
     assert_one_line_error(result, "a checkpoint of an unfinished run", "--resume")
