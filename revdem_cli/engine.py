@@ -458,6 +458,14 @@ class Run:
     out_dir: Path
     checkpoints: Checkpoints
 
+    @classmethod
+    def into(cls, out_dir: Path, scenario: Scenario, text: str, suffix: str) -> Run:
+        """A run of `scenario` writing into `out_dir`, which is made if need be."""
+        out_dir.mkdir(parents=True, exist_ok=True)
+        name, interval = scenario.name, scenario.output.checkpoint_interval
+        checkpoints = Checkpoints(checkpoint_path(out_dir, name), interval)
+        return cls(Model.of(scenario), text, suffix, out_dir, checkpoints)
+
     @property
     def scenario(self) -> Scenario:
         return self.model.scenario
@@ -490,13 +498,6 @@ class Run:
         )
 
 
-def _run(model: Model, text: str, suffix: str, out_dir: Path) -> Run:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    name = model.scenario.name
-    interval = model.scenario.output.checkpoint_interval
-    return Run(model, text, suffix, out_dir, Checkpoints(checkpoint_path(out_dir, name), interval))
-
-
 def run_scenario(
     scenario: Scenario,
     text: str,
@@ -512,7 +513,7 @@ def run_scenario(
     """
     if not allow_unstable_dt:
         check_time_step(scenario)
-    run = _run(Model.of(scenario), text, suffix, out_dir)
+    run = Run.into(out_dir, scenario, text, suffix)
     state = initial_state(scenario)
     reverse = reverse and scenario.reversed_stage is not None
     with run.checkpoints.on_signals():
@@ -587,7 +588,7 @@ def reverse_run(
     restart = read_restart(restart_path)
     scenario = Scenario.model_validate_json(restart.scenario_json)
     out_dir = Path(out_dir) if out_dir is not None else Path(restart_path).parent
-    run = _run(Model.of(scenario), restart.scenario_text, restart.scenario_suffix, out_dir)
+    run = Run.into(out_dir, scenario, restart.scenario_text, restart.scenario_suffix)
     with run.checkpoints.on_signals():
         return _reverse(run, restart, restart_path, steps, progress)
 
@@ -657,7 +658,7 @@ def resume_run(out_dir: Path, progress: Progress | None = None) -> Outputs:
     path = find_checkpoint(out_dir)
     resume = read_restart(path, checkpoint=True)
     scenario = Scenario.model_validate_json(resume.scenario_json)
-    run = _run(Model.of(scenario), resume.scenario_text, resume.scenario_suffix, Path(out_dir))
+    run = Run.into(Path(out_dir), scenario, resume.scenario_text, resume.scenario_suffix)
     place = resume.resumption
     with run.checkpoints.on_signals():
         if place.phase == "forward":
