@@ -9,14 +9,15 @@ import typer
 from typer.core import TyperGroup
 
 from revdem_cli import __version__
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, RunFailed
 from revdem_cli.timestep.command import dt as _dt
 
 
 class _Commands(TyperGroup):
     """Turns bad input anywhere in a command into one line on stderr and exit status 2, and a
-    failure of the machine or the file system (RuntimeError, OSError, MemoryError) into one
-    line and exit status 1. Any other exception is a bug and keeps its traceback."""
+    run that cannot go on (RunFailed) or a failure of the machine or the file system
+    (RuntimeError, OSError, MemoryError) into one line and exit status 1. Any other
+    exception is a bug and keeps its traceback."""
 
     def invoke(self, ctx):
         try:
@@ -29,6 +30,9 @@ class _Commands(TyperGroup):
         except KeyboardInterrupt:  # a second Ctrl-C, before the checkpoint the first asked for
             typer.echo("stopped: SIGINT twice: no checkpoint written", err=True)
             raise typer.Exit(130) from None
+        except RunFailed as exc:
+            typer.echo(f"failed: {exc}", err=True)
+            raise typer.Exit(1) from None
         except (RuntimeError, OSError, MemoryError) as exc:
             typer.echo(f"failed: {type(exc).__name__}: {exc}", err=True)
             raise typer.Exit(1) from None

@@ -1,4 +1,5 @@
-"""Errors that the command line turns into one clear line and exit status 2."""
+"""Errors that the command line turns into one clear line: bad input (exit status 2), and
+a run that cannot go on (exit status 1)."""
 
 
 class InputError(Exception):
@@ -6,3 +7,8 @@ class InputError(Exception):
 
     The message must name what is wrong and where (field path, file, step, particle).
     """
+
+
+class RunFailed(RuntimeError):
+    """A run that cannot go on: its state blew up, or left what revdem can represent. The
+    message names the step, the particles and what to change."""

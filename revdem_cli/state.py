@@ -9,6 +9,7 @@ import numba
 import numpy as np
 
 from revdem_cli.config import Damping, Material, Scenario
+from revdem_cli.errors import RunFailed
 from revdem_cli.kernels import cell, contact, fixed, health, walls
 from revdem_cli.kernels.arrays import (
     Cell,
@@ -251,7 +252,7 @@ class State:
         self.pairs = grown(self.pairs, max(self.pairs.i.shape[0] + 16, needed + needed // 4 + 16))
 
 
-class CellTooSmall(RuntimeError):
+class CellTooSmall(RunFailed):
     """A periodic edge shrank to twice the contact reach or less: spheres could then touch
     through two images."""
 
@@ -263,7 +264,7 @@ class CellTooSmall(RuntimeError):
         )
 
 
-class BlownUp(RuntimeError):
+class BlownUp(RunFailed):
     """The state stopped being physical (kernels/health.py): a non-finite value, or an
     overlap deeper than integrator.overlap_limit allows."""
 
@@ -376,7 +377,7 @@ def fixed_arrays(scenario: Scenario, p: Particles, cell_now: Cell) -> Fixed:
     return state
 
 
-class OffGrid(RuntimeError):
+class OffGrid(RunFailed):
     """A value of fixed-point arithmetic left the range of its grid."""
 
     def __init__(self, step: int, state: Fixed):
