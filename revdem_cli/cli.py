@@ -27,8 +27,8 @@ class _Commands(TyperGroup):
             raise typer.Exit(2) from None
         except (typer.Exit, typer.Abort):
             raise  # typer's own ways out are RuntimeErrors too
-        except KeyboardInterrupt:  # a second Ctrl-C, before the checkpoint the first asked for
-            typer.echo("stopped: SIGINT twice: no checkpoint written", err=True)
+        except KeyboardInterrupt:  # outside a run, or a second Ctrl-C within one
+            typer.echo("stopped: SIGINT, no checkpoint written", err=True)
             raise typer.Exit(130) from None
         except RunFailed as exc:
             typer.echo(f"failed: {exc}", err=True)

@@ -474,14 +474,16 @@ class Run:
     def paths(self) -> dict[str, Path]:
         return _paths(self.out_dir, self.scenario.name)
 
-    def checkpoint(self, state, clock, events, writer, trajectory, resumption) -> None:
+    def checkpoint(self, state, clock, events, writer, trajectory, place: dict) -> None:
         """Save a checkpoint if one is due: the trajectory flushed first, so that it holds
-        every row the checkpoint counts."""
+        every row the checkpoint counts. `place`: the rest of its `Resumption`."""
         if not self.checkpoints.due():
             return
         writer.flush()
-        resumption.frames, resumption.observables = writer.rows()
-        resumption.events = events.copy()
+        frames, observables = writer.rows()
+        resumption = Resumption(
+            events=events.copy(), frames=frames, observables=observables, **place
+        )
         self.checkpoints.save(self.restart(state, clock, trajectory, resumption))
 
     def restart(self, state, clock, trajectory, resumption=None) -> Restart:
@@ -543,7 +545,10 @@ def _forward(
                 start = resume.stage_first_step, resume.stage_first_time
                 clock = StageClock(stage, *start, clock.dt)
                 events = resume.resumption.events
-            place = Resumption("forward", index, np.zeros(0), 0, 0, reverse, "", -1, -1)
+            place = dict(
+                phase="forward", stage_index=index, reverse=reverse, source_restart="",
+                stop_step=-1, end_step=-1,
+            )  # fmt: skip
 
             def checkpoint(state, clock, events, place=place):
                 run.checkpoint(state, clock, events, writer, paths["forward"], place)
@@ -554,7 +559,8 @@ def _forward(
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
     if reverse:
         restart = read_restart(paths["restart"])
-        reversed_outputs = _reverse(run, restart, paths["restart"], None, progress)
+        source = str(paths["restart"].resolve())
+        reversed_outputs = _reverse(run, restart, source, None, progress)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
         return reversed_outputs
     run.checkpoints.discard()
@@ -590,7 +596,7 @@ def reverse_run(
     out_dir = Path(out_dir) if out_dir is not None else Path(restart_path).parent
     run = Run.into(out_dir, scenario, restart.scenario_text, restart.scenario_suffix)
     with run.checkpoints.on_signals():
-        return _reverse(run, restart, restart_path, steps, progress)
+        return _reverse(run, restart, str(Path(restart_path).resolve()), steps, progress)
 
 
 def _reverse_clock(scenario: Scenario, restart: Restart, end_step: int) -> StageClock:
@@ -607,42 +613,43 @@ def _reverse_clock(scenario: Scenario, restart: Restart, end_step: int) -> Stage
 
 def _reverse(
     run: Run,
-    restart: Restart,
-    restart_path: Path,
+    start: Restart,
+    source: str,
     steps: int | None,
     progress: Progress | None,
-    resume: Restart | None = None,
 ) -> Outputs:
-    """The stage that ended at `restart` backwards (or on from the checkpoint `resume`),
-    then the comparison with the forward run and the figures."""
+    """The stage that ended at the restart `start` backwards, or on from `start` when it is
+    a checkpoint of this reversal; then the comparison with the forward run and the
+    figures. `source`: the restart file's path."""
     scenario, paths = run.scenario, run.paths
-    source = str(Path(restart_path).resolve())
-    if resume is None:
-        clock = _reverse_clock(scenario, restart, restart.state.step)
+    resumption = start.resumption
+    text = start.scenario_text
+    if resumption is None:
+        clock = _reverse_clock(scenario, start, start.state.step)
         length = clock.last_step - clock.first_step
         if steps is not None and not 0 < steps <= length:
             raise InputError(f"--steps {steps}: must be between 1 and the stage's {length} steps")
-        stop = clock.first_step if steps is None else restart.state.step - steps
-        state, events = restart.state, None
-        text = restart.scenario_text
-        writer = _writer(paths["reverse"], state, run.model, text, "reverse", source)
+        stop = clock.first_step if steps is None else start.state.step - steps
+        events = None
+        writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:
-        stop, state, events = resume.resumption.stop_step, resume.state, resume.resumption.events
-        clock = _reverse_clock(scenario, resume, resume.resumption.end_step)
+        stop, events = resumption.stop_step, resumption.events
+        clock = _reverse_clock(scenario, start, resumption.end_step)
         writer = _continued_writer(
-            paths["reverse"], resume.resumption, state, run.model, restart.scenario_text,
-            "reverse", source,
-        )  # fmt: skip
-    place = Resumption("reverse", -1, np.zeros(0), 0, 0, False, source, stop, clock.last_step)
-    trajectory = restart.trajectory
+            paths["reverse"], resumption, start.state, run.model, text, "reverse", source
+        )
+    place = dict(
+        phase="reverse", stage_index=-1, reverse=False, source_restart=source, stop_step=stop,
+        end_step=clock.last_step,
+    )  # fmt: skip
 
     def checkpoint(state, clock, events):
-        run.checkpoint(state, clock, events, writer, trajectory, place)
+        run.checkpoint(state, clock, events, writer, start.trajectory, place)
 
     with writer:
-        run_stage(state, run.model, clock, -1, writer, progress, stop, checkpoint, events)
+        run_stage(start.state, run.model, clock, -1, writer, progress, stop, checkpoint, events)
     outputs = Outputs(reverse=paths["reverse"])
-    forward = Path(restart.trajectory)
+    forward = Path(start.trajectory)
     if forward.exists():
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
         paths["compare"].write_text(json.dumps(verdict, indent=2) + "\n")
@@ -667,8 +674,7 @@ def resume_run(out_dir: Path, progress: Progress | None = None) -> Outputs:
                 run.paths["forward"], place, resume.state, run.model, text, "forward"
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
-        restart = read_restart(place.source_restart)
-        outputs = _reverse(run, restart, Path(place.source_restart), None, progress, resume)
+        outputs = _reverse(run, resume, place.source_restart, None, progress)
         outputs.restart = Path(place.source_restart)
         return outputs
 

@@ -174,13 +174,8 @@ class TrajectoryWriter:
         self.flush()
 
     def rows(self) -> tuple[int, int]:
-        """(frames, observables rows) written and waiting."""
-        count = self.frame_rows[0]
-        observed = self.observable_clock[0]
-        return (
-            count.dataset.shape[0] + sum(len(rows) for rows in count.rows),
-            observed.dataset.shape[0] + sum(len(rows) for rows in observed.rows),
-        )
+        """(frames, observables rows) in the file: all of them just after a flush."""
+        return self.frame_rows[0].dataset.shape[0], self.observable_clock[0].dataset.shape[0]
 
     def _appenders(self):
         yield from self.frame_rows

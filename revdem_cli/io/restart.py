@@ -25,7 +25,7 @@ from revdem_cli.io import (
 )
 from revdem_cli.kernels.arrays import Cell, Fixed, Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
-from revdem_cli.state import State, empty_pairs, pair_capacity
+from revdem_cli.state import State, cell_arrays, empty_pairs, pair_capacity, wall_arrays
 
 PAIR_FIELDS = ("i", "j", "force", "history")
 """The per-pair arrays a restart keeps: the list, the contact forces of its step (which its
@@ -154,8 +154,8 @@ def _meta(f: h5py.File, path: Path, checkpoint: bool) -> h5py.Group:
 
 
 def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
-    """The state of a restart, with the arrays a reversed step needs."""
-    from revdem_cli.state import cell_arrays
+    """The state of a restart, with the arrays a reversed step needs (a checkpoint of a
+    forward phase: those a forward step needs)."""
 
     def read(name: str):
         return get_dataset(f, path, name)[:]
@@ -166,9 +166,9 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     reversing = resumption is None or resumption.phase == "reverse"
     particles = Particles(*(read(f"particles/{name}") for name in Particles._fields))
     n_particles = len(particles.x)
-    stored = {name: read(f"walls/{name}") for name in WALL_FIELDS}
-    unwinding = n_particles if shear and reversing else 0
-    walls = Walls(**stored, normal_new=np.zeros((unwinding, len(stored["kind"]), 3)))
+    walls = wall_arrays(scenario, n_particles, reversing)
+    for name in WALL_FIELDS:
+        getattr(walls, name)[...] = read(f"walls/{name}")
     cell = cell_arrays(scenario)
     for name in CELL_ARRAYS:
         getattr(cell, name)[...] = read(f"cell/{name}")

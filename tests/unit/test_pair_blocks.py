@@ -5,6 +5,7 @@ import numba
 import numpy as np
 import pytest
 
+from benchmarks.fcc_hertz import scenario_data
 from revdem_cli.config import Scenario
 from revdem_cli.engine import Model, stepping_bundles
 from revdem_cli.kernels.cell import images
@@ -21,33 +22,12 @@ from revdem_cli.kernels.forces import (
 )
 from revdem_cli.state import empty_events, initial_state
 
-DT = 1e-6
+DT = scenario_data(1, "history", 1)["integrator"]["dt"]  # s, the benchmark's
 
 
 def fcc(cells: int) -> Scenario:
     """The fcc Hertz benchmark with shear history (benchmarks/fcc_hertz.py) at n = cells."""
-    spacing = 0.999 * 0.01 * 2**0.5
-    return Scenario.model_validate(
-        {
-            "name": "fcc",
-            "materials": {"m": {"density": 1000.0, "shear_modulus": 2e6, "poisson_ratio": 0.2}},
-            "contact": {"model": "hertz", "tangential": "mindlin", "friction": 0.5},
-            "lattices": [
-                {
-                    "material": "m",
-                    "radius": 0.005,
-                    "cells": [cells] * 3,
-                    "spacing": spacing,
-                    "random_velocity": 0.01,
-                    "seed": 1,
-                }
-            ],
-            "cell": {"size": [cells * spacing] * 3},
-            "integrator": {"dt": DT},
-            "neighbours": {"skin": 5e-4},
-            "stages": [{"name": "run", "steps": 1, "output_every": 1}],
-        }
-    )
+    return Scenario.model_validate(scenario_data(cells, "history", 1))
 
 
 @numba.njit
