@@ -90,6 +90,12 @@ class ContactLaw(_Model):
     tangential_damping: Float = Field(
         default=0.0, ge=0, description="viscous tangential damping, fraction of critical, -"
     )
+    wall_moduli: Literal["combined", "wall"] = Field(
+        default="combined",
+        description="E* and G* of a sphere on a wall: 'combined', from both materials (Hertz, "
+        "Mindlin); 'wall', from the wall's material alone, as if the sphere were of it too "
+        "(LAMMPS fix wall/gran, whose contact parameters belong to the wall)",
+    )
 
     @model_validator(mode="after")
     def _parameters_match_laws(self) -> ContactLaw:
@@ -546,6 +552,7 @@ class Scenario(_Model):
                         f"{kind}[{i}].material",
                         f"unknown material '{item.material}' (known: {', '.join(self.materials)})",
                     )
+        self._check_wall_materials()
         wall_names = [w.name for w in self.walls]
         self._check_solid_fraction()
         for i, stage in enumerate(self.stages):
@@ -590,6 +597,28 @@ class Scenario(_Model):
         self._check_overlaps()
         self._check_walls()
         return self
+
+    def _check_wall_materials(self) -> None:
+        """With contact.wall_moduli = 'wall' a wall's material sets its contacts alone, so no
+        sphere may be of it: a sphere pair of that material would be ambiguous."""
+        if self.contact.wall_moduli != "wall":
+            return
+        spheres = {
+            item.material: f"{kind}[{i}]"
+            for kind, items in (
+                ("particles", self.particles),
+                ("packings", self.packings),
+                ("lattices", self.lattices),
+            )
+            for i, item in enumerate(items)
+        }
+        for i, wall in enumerate(self.walls):
+            if wall.material in spheres:
+                raise _FieldError(
+                    f"walls[{i}].material",
+                    f"with contact.wall_moduli = 'wall' a wall needs a material of its own; "
+                    f"'{wall.material}' is also the material of {spheres[wall.material]}",
+                )
 
     def _check_cell(self) -> None:
         """Stages move the cell only if there is one, and hold a stress only with the

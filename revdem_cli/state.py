@@ -52,12 +52,23 @@ def effective_shear_modulus(a: Material, b: Material) -> float:
 _TANGENTIAL = {"none": contact.NO_SHEAR, "linear": contact.LINEAR_SHEAR, "mindlin": contact.MINDLIN}
 
 
+def pair_moduli(scenario: Scenario, a: str, b: str) -> tuple[float, float]:
+    """(E*, G*) of a contact between materials a and b (names). With contact.wall_moduli =
+    'wall', a contact with a wall's material takes that material alone: E* = G/(1 - nu) and
+    G* = G/(2(2 - nu)) of the wall, Hanley 2020 Eq 6 and 10 with the wall's G and nu."""
+    if scenario.contact.wall_moduli == "wall":
+        walls = {w.material for w in scenario.walls}
+        a, b = (b, b) if b in walls else (a, a) if a in walls else (a, b)
+    ma, mb = scenario.materials[a], scenario.materials[b]
+    return effective_modulus(ma, mb), effective_shear_modulus(ma, mb)
+
+
 def moduli(scenario: Scenario) -> Moduli:
     """E* and G* of every pair of materials, in the order of [materials]."""
-    ms = list(scenario.materials.values())
+    names = list(scenario.materials)
+    table = np.array([[pair_moduli(scenario, a, b) for b in names] for a in names])
     return Moduli(
-        estar=np.array([[effective_modulus(a, b) for b in ms] for a in ms]),
-        gstar=np.array([[effective_shear_modulus(a, b) for b in ms] for a in ms]),
+        estar=np.ascontiguousarray(table[:, :, 0]), gstar=np.ascontiguousarray(table[:, :, 1])
     )
 
 

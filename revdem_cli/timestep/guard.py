@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from revdem_cli.config import Material, Scenario
-from revdem_cli.state import effective_modulus, effective_shear_modulus
+from revdem_cli.state import pair_moduli
 from revdem_cli.timestep.criteria import dt_velocity_verlet
 
 SHEAR_LEVER = 3.5  # A_t / A_n of a sphere contact: 1 + r²/(2/5 r²) (Peng 2020 Eq 26)
@@ -73,11 +73,8 @@ def particle_speeds(scenario: Scenario) -> np.ndarray:
 
 
 def _largest_moduli(scenario: Scenario, pairs) -> tuple[float, float]:
-    materials = [(scenario.materials[a], scenario.materials[b]) for a, b in pairs]
-    return (
-        max(effective_modulus(a, b) for a, b in materials),
-        max(effective_shear_modulus(a, b) for a, b in materials),
-    )
+    both = [pair_moduli(scenario, a, b) for a, b in pairs]
+    return max(e for e, _ in both), max(g for _, g in both)
 
 
 def contact_kinds(scenario: Scenario) -> list[Kind]:

@@ -44,6 +44,7 @@ def test_solid_fraction_is_the_spheres_volume_over_the_volume_between_the_planes
         ("solid_fraction.planes.1=nowhere", "solid_fraction.planes[1]: no plane wall is named"),
         ("walls.1.normal=[1,0,0]", "solid_fraction.planes[1]: plane 'top' is not perpendicular"),
         ("stages.1.stop_when.solid_fraction_above=1.5", "stages[1].stop_when.solid_fraction_above"),
+        ("walls.2.material=sphere", "walls[2].material: with contact.wall_moduli = 'wall' a wall"),
     ],
 )
 def test_a_bad_container_or_stop_condition_is_named(override, where):
