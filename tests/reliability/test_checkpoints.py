@@ -156,6 +156,9 @@ def test_a_run_killed_at_random_moments_resumes_to_the_uninterrupted_files(
             continue
         process.send_signal(signal.SIGKILL)
         process.wait()
+        if not list(out.glob("*.checkpoint.h5")):  # killed while exiting, its work all done
+            assert_same_files(whole, out)
+            continue
         _check_killed_trajectory(out, whole)
         resumed = _resume(out)
         assert resumed.returncode == 0, resumed.stderr
