@@ -490,87 +490,30 @@ def add_on_grid(total, value, factor, per_step):
     return result, max(abs(result[0]), abs(result[1]), abs(result[2])) <= fx.RANGE
 
 
-@inline
-def gather_particle(
-    q, mass, inv_mass, inv_inertia, radius, v, w, gravity, local, first, start, slots,
-    pair_force, moment, overlaps, wall_force, wall_torque, f_out, t_out, h, fixed_v, fixed_w,
-    grid, on_grid, torques,
-):  # fmt: skip
-    """What `_gather_loop` does for particle q, `on_grid` and `torques` given as constants, so
-    that each build of the loop keeps only its own branches. Returns whether every sum and
-    velocity stayed on its grid."""
-    f_step = grid[fx.FORCE] if on_grid else 1.0
-    t_step = grid[fx.TORQUE] if on_grid else 1.0
-    per_f, per_t = 1.0 / f_step, 1.0 / t_step
-    weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
-    f_int = (np.int64(0), np.int64(0), np.int64(0))
-    t_int = (np.int64(0), np.int64(0), np.int64(0))
-    f = ZERO if on_grid else weight
-    t = ZERO
-    ok = True
-    if on_grid:
-        f_int, ok = add_on_grid(f_int, weight, 1.0, per_f)
-    for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
-        k = slots[s]
-        if on_grid:
-            f_int, fine = add_on_grid(f_int, row(pair_force, k), -1.0, per_f)
-            ok = ok and fine
-        else:
-            f = axpy(-1.0, row(pair_force, k), f)
-        if torques:  # Hanley 2020 Eq 5: the lever arm r - overlap / 2 times n x f
-            arm = radius[q] - 0.5 * overlaps[k]
-            if on_grid:
-                t_int, fine = add_on_grid(t_int, row(moment, k), arm, per_t)
-                ok = ok and fine
-            else:
-                t = axpy(arm, row(moment, k), t)
-    for k in range(first[q], first[q + 1]):  # partners j > q
-        if on_grid:
-            f_int, fine = add_on_grid(f_int, row(pair_force, k), 1.0, per_f)
-            ok = ok and fine
-        else:
-            f = axpy(1.0, row(pair_force, k), f)
-        if torques:
-            arm = radius[q] - 0.5 * overlaps[k]
-            if on_grid:
-                t_int, fine = add_on_grid(t_int, row(moment, k), arm, per_t)
-                ok = ok and fine
-            else:
-                t = axpy(arm, row(moment, k), t)
-    for b in range(wall_force.shape[1]):
-        if on_grid:
-            f_int, fine = add_on_grid(f_int, cell_of(wall_force, q, b), 1.0, per_f)
-            t_int, turned = add_on_grid(t_int, cell_of(wall_torque, q, b), 1.0, per_t)
-            ok = ok and fine and turned
-        else:
-            f = axpy(1.0, cell_of(wall_force, q, b), f)
-            t = axpy(1.0, cell_of(wall_torque, q, b), t)
-    if on_grid:
-        f = (f_int[0] * f_step, f_int[1] * f_step, f_int[2] * f_step)
-        t = (t_int[0] * t_step, t_int[1] * t_step, t_int[2] * t_step)
-    for d in range(3):
-        f_out[q, d] = f[d] - local * abs(f[d]) * sign(v[q, d])  # Hanley 2020 Eq 21
-    if torques:  # else the moments stay zero
-        for d in range(3):
-            t_out[q, d] = t[d] - local * abs(t[d]) * sign(w[q, d])
-    if on_grid:
-        ok = ok and kick_on_grid(fixed_v, v, f_out, inv_mass, q, h, grid[fx.VELOCITY])
-        if torques:
-            step = grid[fx.ANGULAR_VELOCITY]
-            ok = ok and kick_on_grid(fixed_w, w, t_out, inv_inertia, q, h, step)
-    else:
-        for d in range(3):
-            v[q, d] += h * f_out[q, d] * inv_mass[q]
-            if torques:
-                w[q, d] += h * t_out[q, d] * inv_inertia[q]
-    return ok
-
-
 def _gather_loop(
-    mass, inv_mass, inv_inertia, radius, v, w, gravity, local, first, start, slots,
-    pair_force, moment, overlaps, wall_force, wall_torque, f_out, t_out, h, fixed_v, fixed_w,
+    mass,
+    inv_mass,
+    inv_inertia,
+    radius,
+    v,
+    w,
+    gravity,
+    local,
+    first,
+    start,
+    slots,
+    pair_force,
+    moment,
+    overlaps,
+    wall_force,
+    wall_torque,
+    f_out,
+    t_out,
+    h,
+    fixed_v,
+    fixed_w,
     grid,
-):  # fmt: skip
+):
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
     (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21);
     then the half kick v += h f / m, w += h t / I (Eq 11-12; h = 0: none). Without a
@@ -581,31 +524,77 @@ def _gather_loop(
     and the kick lands on the velocity grids. Returns (particles whose sum or velocity left
     its grid, the last of them)."""
     torques = moment.shape[0] > 0
+    on_grid = fixed_v.shape[0] > 0
+    f_step = grid[fx.FORCE] if on_grid else 1.0
+    t_step = grid[fx.TORQUE] if on_grid else 1.0
+    per_f, per_t = 1.0 / f_step, 1.0 / t_step
     out = 0
     last = -1
-    if fixed_v.shape[0] > 0:  # a loop for each case: a branch in the loop costs 10 %
-        for q in numba.prange(f_out.shape[0]):
-            if not gather_particle(
-                q, mass, inv_mass, inv_inertia, radius, v, w, gravity, local, first, start,
-                slots, pair_force, moment, overlaps, wall_force, wall_torque, f_out, t_out, h,
-                fixed_v, fixed_w, grid, True, torques,
-            ):  # fmt: skip
-                out += 1
-                last = max(last, q)
-    elif torques:
-        for q in numba.prange(f_out.shape[0]):
-            gather_particle(
-                q, mass, inv_mass, inv_inertia, radius, v, w, gravity, local, first, start,
-                slots, pair_force, moment, overlaps, wall_force, wall_torque, f_out, t_out, h,
-                fixed_v, fixed_w, grid, False, True,
-            )  # fmt: skip
-    else:
-        for q in numba.prange(f_out.shape[0]):
-            gather_particle(
-                q, mass, inv_mass, inv_inertia, radius, v, w, gravity, local, first, start,
-                slots, pair_force, moment, overlaps, wall_force, wall_torque, f_out, t_out, h,
-                fixed_v, fixed_w, grid, False, False,
-            )  # fmt: skip
+    for q in numba.prange(f_out.shape[0]):
+        weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
+        f_int = (np.int64(0), np.int64(0), np.int64(0))
+        t_int = (np.int64(0), np.int64(0), np.int64(0))
+        f = ZERO if on_grid else weight
+        t = ZERO
+        ok = True
+        if on_grid:
+            f_int, ok = add_on_grid(f_int, weight, 1.0, per_f)
+        for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
+            k = slots[s]
+            if on_grid:
+                f_int, fine = add_on_grid(f_int, row(pair_force, k), -1.0, per_f)
+                ok = ok and fine
+            else:
+                f = axpy(-1.0, row(pair_force, k), f)
+            if torques:  # Hanley 2020 Eq 5: the lever arm r - overlap / 2 times n x f
+                arm = radius[q] - 0.5 * overlaps[k]
+                if on_grid:
+                    t_int, fine = add_on_grid(t_int, row(moment, k), arm, per_t)
+                    ok = ok and fine
+                else:
+                    t = axpy(arm, row(moment, k), t)
+        for k in range(first[q], first[q + 1]):  # partners j > q
+            if on_grid:
+                f_int, fine = add_on_grid(f_int, row(pair_force, k), 1.0, per_f)
+                ok = ok and fine
+            else:
+                f = axpy(1.0, row(pair_force, k), f)
+            if torques:
+                arm = radius[q] - 0.5 * overlaps[k]
+                if on_grid:
+                    t_int, fine = add_on_grid(t_int, row(moment, k), arm, per_t)
+                    ok = ok and fine
+                else:
+                    t = axpy(arm, row(moment, k), t)
+        for b in range(wall_force.shape[1]):
+            if on_grid:
+                f_int, fine = add_on_grid(f_int, cell_of(wall_force, q, b), 1.0, per_f)
+                t_int, turned = add_on_grid(t_int, cell_of(wall_torque, q, b), 1.0, per_t)
+                ok = ok and fine and turned
+            else:
+                f = axpy(1.0, cell_of(wall_force, q, b), f)
+                t = axpy(1.0, cell_of(wall_torque, q, b), t)
+        if on_grid:
+            f = (f_int[0] * f_step, f_int[1] * f_step, f_int[2] * f_step)
+            t = (t_int[0] * t_step, t_int[1] * t_step, t_int[2] * t_step)
+        for d in range(3):
+            f_out[q, d] = f[d] - local * abs(f[d]) * sign(v[q, d])  # Hanley 2020 Eq 21
+        if torques:  # else the moments stay zero
+            for d in range(3):
+                t_out[q, d] = t[d] - local * abs(t[d]) * sign(w[q, d])
+        if on_grid:
+            ok = ok and kick_on_grid(fixed_v, v, f_out, inv_mass, q, h, grid[fx.VELOCITY])
+            if torques:
+                step = grid[fx.ANGULAR_VELOCITY]
+                ok = ok and kick_on_grid(fixed_w, w, t_out, inv_inertia, q, h, step)
+        else:
+            for d in range(3):
+                v[q, d] += h * f_out[q, d] * inv_mass[q]
+                if torques:
+                    w[q, d] += h * t_out[q, d] * inv_inertia[q]
+        if not ok:
+            out += 1
+            last = max(last, q)
     return out, last
 
 
