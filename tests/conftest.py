@@ -12,6 +12,19 @@ from revdem_cli.engine import run_scenario
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
 
+SPHERE = {"density": 1000.0, "shear_modulus": 2e6, "poisson_ratio": 0.2}
+PLANE = {"density": 1000.0, "shear_modulus": 1e9, "poisson_ratio": 0.2}
+"""The materials of Hanley 2020's sphere dropped on a plane (§5.2)."""
+
+FLOOR = {
+    "name": "plane",
+    "type": "plane",
+    "material": "plane",
+    "point": (0, 0, 0),
+    "normal": (0, 0, 1),
+}
+"""The plane z = 0 facing up, of material 'plane'."""
+
 
 def assert_one_line_error(result, *fragments):
     """A command that failed on bad input: exit 2, one line "error: ..." holding the

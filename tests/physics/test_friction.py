@@ -11,10 +11,9 @@ from revdem_cli.config import Material, Scenario
 from revdem_cli.engine import run_scenario
 from revdem_cli.kernels.events import COUNT, KINDS, LAST
 from revdem_cli.state import effective_modulus
+from tests.conftest import FLOOR, PLANE, SPHERE
 
-R, DENSITY, G = 0.005, 1000.0, 9.81
-SPHERE = {"density": DENSITY, "shear_modulus": 2e6, "poisson_ratio": 0.2}
-PLANE = {"density": DENSITY, "shear_modulus": 1e9, "poisson_ratio": 0.2}
+R, DENSITY, G = 0.005, SPHERE["density"], 9.81
 DT = 1e-5
 
 
@@ -56,15 +55,7 @@ def on_plane(
                     "velocity": velocity,
                 }
             ],
-            "walls": [
-                {
-                    "name": "plane",
-                    "type": "plane",
-                    "material": "plane",
-                    "point": (0, 0, 0),
-                    "normal": (0, 0, 1),
-                }
-            ],
+            "walls": [FLOOR],
             "gravity": gravity,
             "integrator": {"dt": DT},
             "stages": [{"name": "roll", "steps": steps, "output_every": 100, "reverse": reverse}],

@@ -10,11 +10,10 @@ import pytest
 from revdem_cli.config import Scenario
 from revdem_cli.engine import run_scenario
 from revdem_cli.state import moduli
+from tests.conftest import FLOOR, PLANE, SPHERE
 
-R, DENSITY, G = 0.005, 1000.0, 9.81
-SPHERE = {"density": DENSITY, "shear_modulus": 2e6, "poisson_ratio": 0.2}
-PLANE = {"density": DENSITY, "shear_modulus": 1e9, "poisson_ratio": 0.2}
-WEIGHT = 4 / 3 * math.pi * R**3 * DENSITY * G
+R, G = 0.005, 9.81
+WEIGHT = 4 / 3 * math.pi * R**3 * SPHERE["density"] * G
 
 
 def hertz(g: float, nu: float) -> float:
@@ -40,15 +39,7 @@ def resting(rule: str, overlap: float) -> Scenario:
             "materials": {"sphere": SPHERE, "plane": PLANE},
             "contact": {"model": "hertz", "wall_moduli": rule},
             "particles": [{"material": "sphere", "radius": R, "position": (0, 0, R - overlap)}],
-            "walls": [
-                {
-                    "name": "plane",
-                    "type": "plane",
-                    "material": "plane",
-                    "point": (0, 0, 0),
-                    "normal": (0, 0, 1),
-                }
-            ],
+            "walls": [FLOOR],
             "gravity": (0.0, 0.0, -G),
             "integrator": {"dt": 1e-6},
             "stages": [{"name": "rest", "steps": 2000, "output_every": 100}],
