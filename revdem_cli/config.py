@@ -538,14 +538,17 @@ class Scenario(_Model):
     reversal: Reversal = Field(default_factory=Reversal)
     output: Output = Field(default_factory=Output)
 
-    @model_validator(mode="after")
-    def _consistent(self) -> Scenario:
-        for kind, items in (
+    def _sphere_sources(self) -> tuple[tuple[str, list], ...]:
+        """The tables that make spheres, with their field names."""
+        return (
             ("particles", self.particles),
             ("packings", self.packings),
             ("lattices", self.lattices),
-            ("walls", self.walls),
-        ):
+        )
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Scenario:
+        for kind, items in (*self._sphere_sources(), ("walls", self.walls)):
             for i, item in enumerate(items):
                 if item.material not in self.materials:
                     raise _FieldError(
@@ -605,11 +608,7 @@ class Scenario(_Model):
             return
         spheres = {
             item.material: f"{kind}[{i}]"
-            for kind, items in (
-                ("particles", self.particles),
-                ("packings", self.packings),
-                ("lattices", self.lattices),
-            )
+            for kind, items in self._sphere_sources()
             for i, item in enumerate(items)
         }
         for i, wall in enumerate(self.walls):
