@@ -539,6 +539,8 @@ def _gather_loop(
         ok = True
         if on_grid:
             f_int, ok = add_on_grid(f_int, weight, 1.0, per_f)
+        # the two partner loops are written out: one helper for both, returning the four
+        # sums, made this loop 1.4 to 2.6 times slower (n = 24 fcc, float and fixed point)
         for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
             k = slots[s]
             if on_grid:
