@@ -178,8 +178,14 @@ class TrajectoryWriter:
         return self.frame_rows[0].dataset.shape[0], self.observable_clock[0].dataset.shape[0]
 
     def _appenders(self):
-        yield from self.frame_rows
-        yield from self._observable_appenders()
+        """Every appender, in the order a flush writes them: each clock after the values it
+        times, its time before its step, so that a run killed in the middle of a flush leaves
+        rows of values past the last step (which readers ignore), never a step short of its
+        values (which `io._check_trajectory` calls damage)."""
+        yield from self.frame_rows[2:]
+        yield from (appender for appender, _ in self.observable_rows)
+        yield from reversed(self.observable_clock)
+        yield from reversed(self.frame_rows[:2])
 
     def _observable_appenders(self):
         yield from self.observable_clock

@@ -18,9 +18,12 @@ import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
+from revdem_cli.engine import Model, _writer
+from revdem_cli.io import h5md
 from revdem_cli.io.h5md import open_trajectory
 from revdem_cli.io.restart import read_restart
-from tests.conftest import CONFIGS, assert_one_line_error
+from revdem_cli.state import empty_events, initial_state
+from tests.conftest import CONFIGS, assert_one_line_error, two_spheres
 
 KILLS = 24
 """SIGKILLs sent at random moments, each followed by a resume, over the cases below."""
@@ -132,6 +135,50 @@ def _check_killed_trajectory(out: Path, whole: Path) -> None:
         with h5py.File(whole / f"{name}.{kind}.h5") as g:
             expected = g["particles/all/position/value"][: place.frames]
         assert np.array_equal(frames[: place.frames], expected)
+
+
+class _Killed(Exception):
+    pass
+
+
+def test_a_flush_cut_short_at_any_dataset_leaves_a_trajectory_that_opens(tmp_path, monkeypatch):
+    """A kill in the middle of a flush leaves some datasets extended and others not. Cut
+    after each dataset in turn, the trajectory still opens, with its frames and observables
+    rows either all of the last flush or none of them."""
+    scenario = two_spheres()
+    model, state = Model.of(scenario), initial_state(scenario)
+    width = model.observables_row - 1
+    real = h5md._append
+    datasets = None
+    cut = 0
+    while datasets is None or cut < datasets:
+        path = tmp_path / f"cut{cut}.h5"
+        writer = _writer(path, state, model, "", "forward")
+        for step in (0, 1):
+            writer.frame(step, float(step), state.particles, empty_events())
+            writer.observables(np.array([step]), np.array([float(step)]), np.zeros((1, width)))
+            if step == 0:
+                writer.flush()
+        datasets = sum(1 for _ in writer._appenders())
+        written = []
+
+        def cut_short(dataset, values, written=written, cut=cut):
+            if len(written) == cut:
+                raise _Killed
+            written.append(dataset.name)
+            real(dataset, values)
+
+        monkeypatch.setattr(h5md, "_append", cut_short)
+        with pytest.raises(_Killed):
+            writer.flush()
+        monkeypatch.setattr(h5md, "_append", real)
+        writer.file.close()  # what reached the file, and nothing more
+        with open_trajectory(path) as f:
+            frames = f["particles/all/position/step"].shape[0]
+            rows = f["observables/kinetic_energy/step"].shape[0]
+        assert frames in (1, 2) and rows in (1, 2), written
+        cut += 1
+    assert datasets > 10
 
 
 @pytest.mark.parametrize("case", list(CASES))
