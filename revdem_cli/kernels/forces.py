@@ -209,13 +209,13 @@ def gather_pairs(
     damped = law.beta_n > 0.0 or law.beta_t > 0.0
     unwound = normal_new.shape[0] > 0
     for k in range(size):
-        p = first + k
-        i = np.uint32(pi[p])  # unsigned: numba then skips the check for negative indices
+        p = np.uint64(first + k)  # unsigned indices: numba skips the check for negative ones
+        i = np.uint32(pi[p])
         j = np.uint32(pj[p])
         enter3(block, SEPARATION, k, separation(x, i, j, image))
         enter(block, RADIUS_I, k, radius[i])
         enter(block, RADIUS_J, k, radius[j])
-        a, b = material[i], material[j]
+        a, b = np.uint32(material[i]), np.uint32(material[j])
         enter(block, E_STAR, k, estar[a, b])
         enter(block, G_STAR, k, gstar[a, b])
         if damped:
@@ -321,13 +321,14 @@ def scatter_pairs(block, first, size, force, history, moment, overlaps, destroye
     shear_law = law.tangential != NO_SHEAR
     for k in range(size):
         p = first + k
-        put(force, p, entries(block, FORCE, k))
+        u = np.uint64(p)  # unsigned, as in `gather_pairs`
+        put(force, u, entries(block, FORCE, k))
         if shear_law:
             overlap = entry(block, OVERLAP, k)
-            lost = norm(row(history, p)) if overlap <= 0.0 and mode == FORWARD else 0.0
-            put(history, p, entries(block, NEW_SHEAR, k))
-            put(moment, p, entries(block, MOMENT, k))
-            overlaps[p] = overlap
+            lost = norm(row(history, u)) if overlap <= 0.0 and mode == FORWARD else 0.0
+            put(history, u, entries(block, NEW_SHEAR, k))
+            put(moment, u, entries(block, MOMENT, k))
+            overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
             if slipped > 0.0:  # `destroyed` is read only where something was
                 destroyed[p] = slipped
@@ -545,7 +546,7 @@ def _gather_loop(
         # the two partner loops are written out: one helper for both, returning the four
         # sums, made this loop 1.4 to 2.6 times slower (n = 24 fcc, float and fixed point)
         for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
-            k = slots[s]
+            k = np.uint32(slots[s])  # unsigned, as in `gather_pairs`
             if on_grid:
                 f_int, fine = add_on_grid(f_int, row(pair_force, k), -1.0, per_f)
                 ok = ok and fine
@@ -558,7 +559,8 @@ def _gather_loop(
                     ok = ok and fine
                 else:
                     t = axpy(arm, row(moment, k), t)
-        for k in range(first[q], first[q + 1]):  # partners j > q
+        for kk in range(first[q], first[q + 1]):  # partners j > q
+            k = np.uint64(kk)
             if on_grid:
                 f_int, fine = add_on_grid(f_int, row(pair_force, k), 1.0, per_f)
                 ok = ok and fine
