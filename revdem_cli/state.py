@@ -25,6 +25,7 @@ from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces, empty_blocks
 from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, rebuild_pairs
 from revdem_cli.kernels.neighbours import build_pairs
+from revdem_cli.kernels.sums import empty_partials
 
 
 def youngs_modulus(material: Material) -> float:
@@ -211,6 +212,7 @@ def empty_pairs(n_particles: int, capacity: int, shear: bool, reversing: bool) -
         new_i=np.zeros(capacity, dtype=np.int32),
         new_j=np.zeros(capacity, dtype=np.int32),
         blocks=empty_blocks(numba.config.NUMBA_NUM_THREADS),
+        partials=empty_partials(n_particles),
     )
 
 

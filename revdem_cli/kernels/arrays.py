@@ -45,6 +45,7 @@ Pairs = namedtuple(
         "new_i",  # the next list while it is built, int32 (P,)
         "new_j",  # int32 (P,)
         "blocks",  # working rows of the pair loop, one block per chunk of the list (forces.py)
+        "partials",  # partial sums of each block of particles (sums.py)
     ],
 )
 """history, moment, overlap and destroyed have length P with a tangential law, else 0;

@@ -61,6 +61,7 @@ from revdem_cli.kernels.contact import (
     unwind_shear,
 )
 from revdem_cli.kernels.events import note_destroyed
+from revdem_cli.kernels.sums import SPAN, blocks_of, span
 from revdem_cli.kernels.walls import wall_overlap
 
 ZERO = (0.0, 0.0, 0.0)
@@ -798,25 +799,47 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)
 
 
+def _stress_sums(x, image, pi, pj, first, force, partials):
+    """sum of -d (x) f over the pairs listed under each block of particles (`kernels.sums`),
+    in list order, partials[b, 3 a + c]."""
+    n = x.shape[0]
+    for b in numba.prange(blocks_of(n)):
+        partials[b, :9] = 0.0
+        lo, hi = span(b, n)
+        for k in range(first[lo], first[hi]):
+            f = row(force, k)
+            if f[0] != 0.0 or f[1] != 0.0 or f[2] != 0.0:
+                d = separation(x, pi[k], pj[k], image)
+                for a in range(3):
+                    for c in range(3):
+                        partials[b, 3 * a + c] -= d[a] * f[c]
+
+
+stress_sums, stress_sums_parallel = serial_and_parallel(_stress_sums)
+
+
 @jit
 def stress_of(p, pairs, cell):
     """Average stress in the cell, -1/V sum over contacts of d (x) f with d the branch vector
     from i to j and f the force on i (Hanley 2020 Eq 22-23 summed over the particles;
-    compression positive), summed over the pair list in order."""
+    compression positive), summed over the pair list by blocks (`kernels.sums`)."""
+    n = p.x.shape[0]
+    parts = pairs.partials
+    args = (p.x, images(cell), pairs.i, pairs.j, pairs.first, pairs.force, parts)
+    if n > SPAN:
+        stress_sums_parallel(*args)
+    else:
+        stress_sums(*args)
     sigma = cell.stress
     sigma[:, :] = 0.0
-    image = images(cell)
-    for k in range(pairs.count[0]):
-        f = row(pairs.force, k)
-        if f[0] != 0.0 or f[1] != 0.0 or f[2] != 0.0:
-            d = separation(p.x, pairs.i[k], pairs.j[k], image)
-            for a in range(3):
-                for b in range(3):
-                    sigma[a, b] -= d[a] * f[b]
+    for b in range(blocks_of(n)):
+        for a in range(3):
+            for c in range(3):
+                sigma[a, c] += parts[b, 3 * a + c]
     scale = 1.0 / volume(cell)
     for a in range(3):
-        for b in range(3):
-            sigma[a, b] *= scale
+        for c in range(3):
+            sigma[a, c] *= scale
 
 
 @jit

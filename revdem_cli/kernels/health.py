@@ -8,9 +8,12 @@ from a state past that point.
 
 import math
 
-from revdem_cli.kernels import jit
+import numba
+
+from revdem_cli.kernels import jit, serial_and_parallel
 from revdem_cli.kernels.cell import images
 from revdem_cli.kernels.forces import pair_overlap, separation
+from revdem_cli.kernels.sums import SPAN, blocks_of, span
 
 HEALTHY, NOT_FINITE, TOO_DEEP = range(3)
 """What `examine` found, alarm[0]; alarm[1:4] then hold (particle, partner, value): for
@@ -19,32 +22,58 @@ for TOO_DEEP the pair (a wall as partner -1 - wall index) with the deepest overl
 overlap / the smaller radius."""
 
 
-@jit
-def _first_not_finite(a):
-    for q in range(a.shape[0]):
-        for d in range(3):
-            if not math.isfinite(a[q, d]):
-                return q
-    return -1
+def _scan(x, v, w, radius, image, pi, pj, first, partials):
+    """Of each block of particles (`kernels.sums`): the first particle whose position,
+    velocity or angular velocity is not finite, partials[b, 0:3] (-1: none), and, of the
+    pairs listed under the block, the deepest overlap / the smaller radius (0 if none
+    overlaps) and its pair, the first in list order, partials[b, 3:6]."""
+    n = x.shape[0]
+    for b in numba.prange(blocks_of(n)):
+        lo, hi = span(b, n)
+        for quantity, values in enumerate((x, v, w)):
+            partials[b, quantity] = -1
+            for q in range(lo, hi):
+                if not (
+                    math.isfinite(values[q, 0])
+                    and math.isfinite(values[q, 1])
+                    and math.isfinite(values[q, 2])
+                ):
+                    partials[b, quantity] = q
+                    break
+        deepest, who, partner = 0.0, -1, -1
+        for k in range(first[lo], first[hi]):
+            i, j = pi[k], pj[k]
+            overlap, _ = pair_overlap(separation(x, i, j, image), radius[i] + radius[j])
+            depth = overlap / min(radius[i], radius[j])
+            if depth > deepest:
+                deepest, who, partner = depth, i, j
+        partials[b, 3], partials[b, 4], partials[b, 5] = deepest, who, partner
+
+
+scan, scan_parallel = serial_and_parallel(_scan)
 
 
 @jit
 def examine(p, pairs, walls, cell, limit, alarm):
     """Whether the state is HEALTHY, or what is wrong with it (see above), filling `alarm`.
     `limit`: the deepest overlap allowed, as a fraction of the smaller radius of a contact."""
-    for quantity, values in enumerate((p.x, p.v, p.omega)):
-        q = _first_not_finite(values)
-        if q >= 0:
-            alarm[0], alarm[1], alarm[2], alarm[3] = NOT_FINITE, q, -1, quantity
-            return NOT_FINITE
+    n = p.x.shape[0]
+    parts = pairs.partials
+    args = (p.x, p.v, p.omega, p.radius, images(cell), pairs.i, pairs.j, pairs.first, parts)
+    if n > SPAN:
+        scan_parallel(*args)
+    else:
+        scan(*args)
+    for quantity in range(3):
+        for b in range(blocks_of(n)):
+            q = parts[b, quantity]
+            if q >= 0:
+                alarm[0], alarm[1], alarm[2], alarm[3] = NOT_FINITE, q, -1, quantity
+                return NOT_FINITE
     deepest, who, partner = 0.0, -1, -1
-    image = images(cell)
-    for k in range(pairs.count[0]):
-        i, j = pairs.i[k], pairs.j[k]
-        overlap, _ = pair_overlap(separation(p.x, i, j, image), p.radius[i] + p.radius[j])
-        depth = overlap / min(p.radius[i], p.radius[j])
-        if depth > deepest:
-            deepest, who, partner = depth, i, j
+    for b in range(blocks_of(n)):
+        if parts[b, 3] > deepest:
+            deepest, who, partner = parts[b, 3], int(parts[b, 4]), int(parts[b, 5])
     for q in range(walls.overlap.shape[0]):
         for b in range(walls.overlap.shape[1]):
             depth = walls.overlap[q, b] / p.radius[q]

@@ -6,7 +6,9 @@ stored contact forces, so the stepping loop stores no more per contact than it s
 
 import math
 
-from revdem_cli.kernels import jit
+import numba
+
+from revdem_cli.kernels import jit, serial_and_parallel
 from revdem_cli.kernels.cell import images
 from revdem_cli.kernels.contact import NO_SHEAR, contact_energy, dot
 from revdem_cli.kernels.forces import (
@@ -18,6 +20,7 @@ from revdem_cli.kernels.forces import (
     stress_of,
     wall_normal,
 )
+from revdem_cli.kernels.sums import SPAN, blocks_of, span
 
 SCALARS = (
     "kinetic_energy",  # translational and rotational, J
@@ -44,42 +47,97 @@ def normal_and_shear(f, n):
     return abs(fn), math.sqrt(max(dot(f, f) - fn * fn, 0.0))
 
 
+def _particle_energies(x, v, w, mass, inertia, gravity, partials):
+    """Kinetic and gravitational energy of each block of particles, partials[b, 0:2]."""
+    n = x.shape[0]
+    g = (gravity[0], gravity[1], gravity[2])
+    for b in numba.prange(blocks_of(n)):
+        kinetic = 0.0
+        potential = 0.0
+        lo, hi = span(b, n)
+        for q in range(lo, hi):
+            v2 = v[q, 0] ** 2 + v[q, 1] ** 2 + v[q, 2] ** 2
+            w2 = w[q, 0] ** 2 + w[q, 1] ** 2 + w[q, 2] ** 2
+            kinetic += 0.5 * mass[q] * v2 + 0.5 * inertia[q] * w2
+            potential -= mass[q] * (g[0] * x[q, 0] + g[1] * x[q, 1] + g[2] * x[q, 2])
+        partials[b, 0] = kinetic
+        partials[b, 1] = potential
+
+
+def _pair_energies(
+    x, radius, material, estar, gstar, image, pi, pj, first, force, history, law, partials
+):
+    """Of the pairs listed under each block of particles, in list order: elastic energy,
+    largest normal and shear force, contacts, partials[b, 0:4]. A pair is in contact where
+    the pair loop takes it to be."""
+    n = x.shape[0]
+    shear_law = law.tangential != NO_SHEAR
+    for b in numba.prange(blocks_of(n)):
+        elastic = 0.0
+        max_normal = 0.0
+        max_shear = 0.0
+        contacts = 0
+        lo, hi = span(b, n)
+        for k in range(first[lo], first[hi]):
+            i, j = pi[k], pj[k]
+            d = separation(x, i, j, image)
+            reach = radius[i] + radius[j]
+            overlap, dist = pair_overlap(d, reach)
+            if overlap <= 0.0:
+                continue
+            contacts += 1
+            m_i, m_j = material[i], material[j]
+            shear = row(history, k) if shear_law else ZERO
+            rstar = radius[i] * radius[j] / reach
+            elastic += contact_energy(law, overlap, rstar, estar[m_i, m_j], gstar[m_i, m_j], shear)
+            n_ij = (d[0] / dist, d[1] / dist, d[2] / dist)
+            fn, fs = normal_and_shear(row(force, k), n_ij)
+            max_normal = max(max_normal, fn)
+            max_shear = max(max_shear, fs)
+        partials[b, 0] = elastic
+        partials[b, 1] = max_normal
+        partials[b, 2] = max_shear
+        partials[b, 3] = contacts
+
+
+particle_energies, particle_energies_parallel = serial_and_parallel(_particle_energies)
+pair_energies, pair_energies_parallel = serial_and_parallel(_pair_energies)
+
+
 @jit
 def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
     """Fill row_out[1:] with SCALARS, each wall's force, each wall's position, and in a
-    periodic cell the stress and the edges (row_out[0] holds the step)."""
-    g = dyn.gravity
+    periodic cell the stress and the edges (row_out[0] holds the step). Particles and pairs
+    are summed in blocks (`kernels.sums`), then the wall contacts in order."""
+    count = p.x.shape[0]
+    parts = pairs.partials
+    bodies = (p.x, p.v, p.omega, p.mass, p.inertia, dyn.gravity, parts)
+    if count > SPAN:
+        particle_energies_parallel(*bodies)
+    else:
+        particle_energies(*bodies)
     kinetic = 0.0
     potential = 0.0
-    for q in range(p.x.shape[0]):
-        v2 = p.v[q, 0] ** 2 + p.v[q, 1] ** 2 + p.v[q, 2] ** 2
-        w2 = p.omega[q, 0] ** 2 + p.omega[q, 1] ** 2 + p.omega[q, 2] ** 2
-        kinetic += 0.5 * p.mass[q] * v2 + 0.5 * p.inertia[q] * w2
-        potential -= p.mass[q] * (g[0] * p.x[q, 0] + g[1] * p.x[q, 1] + g[2] * p.x[q, 2])
-    shear_law = law.tangential != NO_SHEAR
+    for b in range(blocks_of(count)):
+        kinetic += parts[b, 0]
+        potential += parts[b, 1]
+    contact_args = (
+        p.x, p.radius, p.material, moduli.estar, moduli.gstar, images(cell), pairs.i, pairs.j,
+        pairs.first, pairs.force, pairs.history, law, parts,
+    )  # fmt: skip
+    if count > SPAN:
+        pair_energies_parallel(*contact_args)
+    else:
+        pair_energies(*contact_args)
     elastic = 0.0
     max_normal = 0.0
     max_shear = 0.0
     contacts = 0
-    image = images(cell)
-    for k in range(pairs.count[0]):
-        i, j = pairs.i[k], pairs.j[k]
-        d = separation(p.x, i, j, image)
-        reach = p.radius[i] + p.radius[j]
-        overlap, dist = pair_overlap(d, reach)  # as the pair loop decides contact
-        if overlap <= 0.0:
-            continue
-        contacts += 1
-        a, b = p.material[i], p.material[j]
-        shear = row(pairs.history, k) if shear_law else ZERO
-        rstar = p.radius[i] * p.radius[j] / reach
-        elastic += contact_energy(
-            law, overlap, rstar, moduli.estar[a, b], moduli.gstar[a, b], shear
-        )
-        n = (d[0] / dist, d[1] / dist, d[2] / dist)
-        fn, fs = normal_and_shear(row(pairs.force, k), n)
-        max_normal = max(max_normal, fn)
-        max_shear = max(max_shear, fs)
+    for b in range(blocks_of(count)):
+        elastic += parts[b, 0]
+        max_normal = max(max_normal, parts[b, 1])
+        max_shear = max(max_shear, parts[b, 2])
+        contacts += int(parts[b, 3])
     nwalls = walls.force.shape[1]
     for b in range(nwalls):
         row_out[WALL_FORCES + 3 * b : WALL_FORCES + 3 * b + 3] = 0.0

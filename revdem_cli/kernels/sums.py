@@ -1,0 +1,35 @@
+"""System-wide sums (observables, the health check, the cell's stress) in an order that
+does not depend on the thread count.
+
+The particles are cut into blocks of SPAN; a sum over particles, or over the pairs listed
+under them, is summed block by block in order, each block by one thread into its row of a
+`partials` array, and the rows are then added in block order. A system of at most SPAN
+particles is one block, summed in plain order on one thread.
+"""
+
+import numpy as np
+
+from revdem_cli.kernels import inline
+
+SPAN = 4096
+"""Particles in a block of a system-wide sum."""
+
+COLUMNS = 16
+"""Partial sums a block can hold (the most any sum needs)."""
+
+
+@inline
+def blocks_of(n):
+    """Blocks of SPAN particles that n particles make."""
+    return (n + SPAN - 1) // SPAN
+
+
+@inline
+def span(b, n):
+    """(first, one past the last) particle of block b of n particles."""
+    return b * SPAN, min((b + 1) * SPAN, n)
+
+
+def empty_partials(n_particles: int) -> np.ndarray:
+    """Rows for the partial sums of every block of `n_particles` particles."""
+    return np.zeros((max(1, -(-n_particles // SPAN)), COLUMNS))
