@@ -61,7 +61,6 @@ from revdem_cli.kernels.contact import (
     unwind_shear,
 )
 from revdem_cli.kernels.events import note_destroyed
-from revdem_cli.kernels.neighbours import build_scale, reach_of
 from revdem_cli.kernels.sums import SPAN, blocks_of, span
 from revdem_cli.kernels.walls import wall_overlap
 
@@ -519,10 +518,6 @@ def _gather_loop(
     fixed_v,
     fixed_w,
     grid,
-    x,
-    x_built,
-    dt,
-    scale,
 ):
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
     (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21);
@@ -532,8 +527,7 @@ def _gather_loop(
     In fixed-point arithmetic (fixed_v not empty) each term is rounded to the force or moment
     grid and summed as an integer, so the sum does not depend on the order of its terms,
     and the kick lands on the velocity grids. Returns (particles whose sum or velocity left
-    its grid, the last of them, the largest `neighbours.reach_of` after the kick: what the
-    next step's rebuild check needs, while the particle is at hand)."""
+    its grid, the last of them)."""
     torques = moment.shape[0] > 0
     on_grid = fixed_v.shape[0] > 0
     f_step = grid[fx.FORCE] if on_grid else 1.0
@@ -541,7 +535,6 @@ def _gather_loop(
     per_f, per_t = 1.0 / f_step, 1.0 / t_step
     out = 0
     last = -1
-    reach = 0.0
     for q in numba.prange(f_out.shape[0]):
         weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
         f_int = (np.int64(0), np.int64(0), np.int64(0))
@@ -610,8 +603,7 @@ def _gather_loop(
         if not ok:
             out += 1
             last = max(last, q)
-        reach = max(reach, reach_of(x, x_built, v, f_out, inv_mass, q, h, dt, scale))
-    return out, last, reach
+    return out, last
 
 
 @jit
@@ -713,8 +705,7 @@ unwind_wall_loop, unwind_wall_loop_parallel = serial_and_parallel(_unwind_wall_l
 def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, events, step):
     """Forces at the current positions (Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed),
     the half kick h that follows them, and the stress a servo needs; the shear force the
-    step destroyed goes into the event log at `step`. Returns the largest reach of a
-    particle after the next drift (`neighbours.reach_of`, with h the next kick's)."""
+    step destroyed goes into the event log at `step`."""
     deforming = deforms(cell)
     particle_args = (p.x, p.v, p.omega, p.radius, p.mass, p.material, moduli.estar, moduli.gstar)
     pair_args = (
@@ -783,10 +774,6 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         fixed.v,
         fixed.omega,
         fixed.grid,
-        p.x,
-        pairs.x_built,
-        dt,
-        build_scale(cell.length, cell.built),
     )
     periodic = cell.periodic[0] or cell.periodic[1] or cell.periodic[2]
     if p.x.shape[0] >= PARALLEL_FROM:
@@ -807,10 +794,9 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         if holds_stress(cell):
             stress_of(p, pairs, cell)
         gathered = gather_loop(*gather_args)
-    fx.note_overflow(fixed, fx.OF_FORCE, gathered[:2])
+    fx.note_overflow(fixed, fx.OF_FORCE, gathered)
     servo_forces(cell, dyn.local_damping)
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)
-    return gathered[2]
 
 
 def _stress_sums(x, image, pi, pj, first, force, partials):

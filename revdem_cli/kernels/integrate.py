@@ -12,7 +12,6 @@ from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces, unwind_shea
 from revdem_cli.kernels.health import HEALTHY, examine
 from revdem_cli.kernels.neighbours import (
     build_pairs,
-    build_scale,
     carry_history,
     index_by_particle,
     largest_reach,
@@ -205,11 +204,9 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     move_cell(cell, fixed, dt, elapsed)
     drift(p, cell, fixed, dt, events, step + 1)
     place_walls(walls, elapsed)
-    system = (p, pairs, walls, cell, fixed, law, moduli, dyn)
-    reach = compute_forces(*system, FORWARD, dt, h, events, step + 1)
+    compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, FORWARD, dt, h, events, step + 1)
     note_damping(events, step + 1, law, dyn)
     kick_cell(cell, fixed, h)
-    return reach
 
 
 @jit
@@ -234,11 +231,9 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)
         scale(p, fixed, 1.0 / dyn.drag)
-    system = (p, pairs, walls, cell, fixed, law, moduli, dyn)
-    reach = compute_forces(*system, REVERSE, dt, h, events, step - 1)
+    compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, REVERSE, dt, h, events, step - 1)
     note_damping(events, step - 1, law, dyn)
     kick_cell(cell, fixed, h)
-    return reach
 
 
 @jit
@@ -273,18 +268,18 @@ def rebuild_pairs(p, pairs, cell, skin):
 
 
 @jit
-def needs_rebuild(p, pairs, cell, dt, skin, direction, reach):
+def needs_rebuild(p, pairs, cell, dt, skin, direction):
     """Whether some pair could close half the skin in the next step: twice the largest
-    reach of a particle from its place at the last build (`neighbours.reach_of`: `reach`,
-    as the last step's gather found it, or where that is negative, found here), plus the
-    relative change of the cell's edges times the largest contact reach, exceeds the skin."""
-    if reach < 0.0:
-        scale = build_scale(cell.length, cell.built)
-        mine = (p.x, pairs.x_built, p.v, p.f, p.inv_mass, direction * 0.5 * dt, dt, scale)
-        if p.x.shape[0] >= PARALLEL_FROM:
-            reach = largest_reach_parallel(*mine)
-        else:
-            reach = largest_reach(*mine)
+    reach of a particle from its place at the last build, plus the relative change of the
+    cell's edges times the largest contact reach, exceeds the skin."""
+    if p.x.shape[0] >= PARALLEL_FROM:
+        reach = largest_reach_parallel(
+            p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction, cell.length, cell.built
+        )
+    else:
+        reach = largest_reach(
+            p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction, cell.length, cell.built
+        )
     strain = 0.0
     for d in range(3):
         ahead = dt * abs(cell.rate[d]) / cell.length[d]
@@ -311,9 +306,8 @@ def advance(p, pairs, walls, cell, fixed, law, moduli, dyn, events, run, step, s
     first, last, every = int(run[2]), int(run[3]), int(run[4])
     direction = 1 if stop > step else -1
     rows = 0
-    reach = -1.0  # of the particles after the next drift, as the last step found it; unknown
     while step != stop:
-        if needs_rebuild(p, pairs, cell, dt, skin, direction, reach):
+        if needs_rebuild(p, pairs, cell, dt, skin, direction):
             if examine(p, pairs, walls, cell, limit, alarm) != HEALTHY:  # not worth a search
                 return BLOWN_UP, step, rows
             status = rebuild_pairs(p, pairs, cell, skin)
@@ -322,9 +316,9 @@ def advance(p, pairs, walls, cell, fixed, law, moduli, dyn, events, run, step, s
         elapsed = (step + direction - first) * dt
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
         if direction > 0:
-            reach = forward_step(*system, dt, step, elapsed)
+            forward_step(*system, dt, step, elapsed)
         else:
-            reach = reverse_step(*system, dt, step, elapsed)
+            reverse_step(*system, dt, step, elapsed)
         step += direction
         if fixed.overflow[0] != 0:
             return FIXED_OVERFLOW, step, rows

@@ -12,7 +12,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import inline, jit, serial_and_parallel
+from revdem_cli.kernels import jit, serial_and_parallel
 from revdem_cli.kernels.cell import nearest_image
 
 
@@ -232,33 +232,23 @@ def index_by_particle(pair_i, pair_j, n_pairs, first, start, slots):
         fill[pair_j[k]] += 1
 
 
-@inline
-def reach_of(x, x_built, v, f, inv_mass, q, h, dt, scale):
-    """How far particle q can be from its position at the last build, carried with the cell
-    (`scale`: L / L_built of each edge), after the next drift: |x - x_built L / L_built| +
-    dt |v + h f/m|, with the half-step velocity of the next kick (Hanley 2020 Eq 1; h =
-    +-dt/2, the direction of stepping)."""
-    d0 = x[q, 0] - x_built[q, 0] * scale[0]
-    d1 = x[q, 1] - x_built[q, 1] * scale[1]
-    d2 = x[q, 2] - x_built[q, 2] * scale[2]
-    step = 0.0
-    for d in range(3):
-        vh = v[q, d] + h * f[q, d] * inv_mass[q]
-        step += vh * vh
-    return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) + dt * math.sqrt(step)
-
-
-@inline
-def build_scale(length, built):
-    """L / L_built of each edge, for `reach_of`."""
-    return (length[0] / built[0], length[1] / built[1], length[2] / built[2])
-
-
-def _largest_reach(x, x_built, v, f, inv_mass, h, dt, scale):
-    """The largest `reach_of` of the particles."""
+def _largest_reach(x, x_built, v, f, inv_mass, dt, direction, length, built):
+    """Largest distance a particle can be from its position at the last build, carried with
+    the cell, after the next drift: |x - x_built L / L_built| + dt |v + direction dt/2 f/m|
+    (half-step velocity, Hanley 2020 Eq 1)."""
+    r0 = length[0] / built[0]
+    r1 = length[1] / built[1]
+    r2 = length[2] / built[2]
     worst = 0.0
-    for q in numba.prange(x.shape[0]):
-        worst = max(worst, reach_of(x, x_built, v, f, inv_mass, q, h, dt, scale))
+    for p in numba.prange(x.shape[0]):
+        d0 = x[p, 0] - x_built[p, 0] * r0
+        d1 = x[p, 1] - x_built[p, 1] * r1
+        d2 = x[p, 2] - x_built[p, 2] * r2
+        step = 0.0
+        for d in range(3):
+            vh = v[p, d] + direction * 0.5 * dt * f[p, d] * inv_mass[p]
+            step += vh * vh
+        worst = max(worst, math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) + dt * math.sqrt(step))
     return worst
 
 
