@@ -94,3 +94,63 @@ def test_each_particle_lists_its_pairs_in_partner_order():
         [1, 3],
         [0, 2],
     ]
+
+
+def test_the_list_holds_every_contact_while_spheres_fly_through_many_rebuilds():
+    """A periodic gas of 500 spheres at up to 2 m/s, a skin of 0.3 mm: after every few
+    steps, each pair of spheres that touch (found by brute force) is in the list."""
+    from revdem_cli.config import Scenario
+    from revdem_cli.engine import Model, stepping_bundles
+    from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, advance
+    from revdem_cli.state import empty_events, initial_state
+
+    cells, spacing, dt, skin = 5, 0.016, 1e-5, 3e-4
+    scenario = Scenario.model_validate(
+        {
+            "name": "gas",
+            "materials": {"m": {"density": 1000, "shear_modulus": 2e6, "poisson_ratio": 0.2}},
+            "contact": {"model": "hertz", "tangential": "mindlin", "friction": 0.5},
+            "lattices": [
+                {
+                    "material": "m",
+                    "radius": 0.005,
+                    "cells": [cells] * 3,
+                    "spacing": spacing,
+                    "random_velocity": 2.0,
+                    "seed": 11,
+                }
+            ],
+            "cell": {"size": [cells * spacing] * 3},
+            "integrator": {"dt": dt},
+            "neighbours": {"skin": skin},
+            "stages": [{"name": "fly", "steps": 1}],
+        }
+    )
+    model = Model.of(scenario)
+    state = initial_state(scenario)
+    box = state.cell.length.copy()
+    x = state.particles.x
+    obs, alarm = np.zeros((2, model.observables_row)), np.zeros(4)
+    step, rebuilds, contacts = 0, 0, 0
+    built = state.pairs.x_built.copy()
+    while step < 1500:
+        run = np.array([dt, skin, 0, 10**6, 10**6, 0.5])
+        bundles = stepping_bundles(state, model, model.dynamics)
+        status, step, _ = advance(*bundles, empty_events(), run, step, step + 5, obs, alarm)
+        if status == PAIR_OVERFLOW:
+            state.grow_pairs()
+            continue
+        assert status == OK
+        pairs = state.pairs
+        count = int(pairs.count[0])
+        listed_pairs = set(zip(pairs.i[:count].tolist(), pairs.j[:count].tolist(), strict=True))
+        d = x[None, :, :] - x[:, None, :]
+        d -= box * np.floor(d / box + 0.5)
+        radius = state.particles.radius
+        overlapping = np.linalg.norm(d, axis=2) < radius[:, None] + radius[None, :]
+        touching = list(zip(*np.nonzero(np.triu(overlapping, 1)), strict=True))
+        assert set(touching) <= listed_pairs, f"step {step}"
+        contacts += len(touching)
+        rebuilds += not np.array_equal(built, pairs.x_built)
+        built = pairs.x_built.copy()
+    assert rebuilds >= 30 and contacts >= 100  # the list was tested, and often rebuilt
