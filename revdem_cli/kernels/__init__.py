@@ -16,6 +16,9 @@ from functools import partial
 from pathlib import Path
 
 import numba
+from llvmlite import ir
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 
 def _cache_dir() -> str:
@@ -57,3 +60,35 @@ def serial_and_parallel(loop):
     twin.__qualname__ = loop.__qualname__ + "_parallel"
     twin.__doc__ = loop.__doc__
     return jit(loop), pjit(twin)
+
+
+@intrinsic
+def prefetch(typingctx, array, index):
+    """Ask the memory system for row `index` of an array ahead of its use (llvm.prefetch:
+    a read, kept in every cache level); a hint only: it changes no value."""
+    if not isinstance(array, numba.types.Array):
+        return None
+
+    def codegen(context, builder, signature, args):
+        array_type, index_type = signature.args
+        data = context.make_array(array_type)(context, builder, args[0])
+        row = context.cast(builder, args[1], index_type, numba.types.intp)
+        zero = context.get_constant(numba.types.intp, 0)
+        pointer = cgutils.get_item_pointer2(
+            context,
+            builder,
+            data=data.data,
+            shape=cgutils.unpack_tuple(builder, data.shape),
+            strides=cgutils.unpack_tuple(builder, data.strides),
+            layout=array_type.layout,
+            inds=[row] + [zero] * (array_type.ndim - 1),
+            wraparound=False,
+            boundscheck=False,
+        )
+        i32 = ir.IntType(32)
+        hint = ir.FunctionType(ir.VoidType(), [pointer.type, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, hint, "llvm.prefetch.p0")
+        builder.call(fn, [pointer, ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)])
+        return context.get_dummy_value()
+
+    return numba.types.void(array, index), codegen

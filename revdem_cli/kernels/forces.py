@@ -34,7 +34,7 @@ import numba
 import numpy as np
 
 from revdem_cli.kernels import fixed as fx
-from revdem_cli.kernels import inline, jit, serial_and_parallel
+from revdem_cli.kernels import inline, jit, prefetch, serial_and_parallel
 from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.cell import (
     affine_velocity,
@@ -69,6 +69,12 @@ ZERO = (0.0, 0.0, 0.0)
 PARALLEL_FROM = 256
 """Systems of at least this many particles step with parallel loops; smaller ones serially.
 Results are the same either way."""
+
+AHEAD = 8
+"""The gather asks for the reactions of the particle this many ahead of the one it sums:
+they lie under earlier particles, far back in the pair arrays, and the hardware does not
+see them coming (at 10^6 fcc spheres the gather is a quarter to a third faster; 16 and 4
+ahead are slower)."""
 
 APART = 1.0 + 1e-12
 """Pairs farther apart than (1 + 1e-12) (r_i + r_j) are certainly not touching, so their
@@ -535,7 +541,15 @@ def _gather_loop(
     per_f, per_t = 1.0 / f_step, 1.0 / t_step
     out = 0
     last = -1
-    for q in numba.prange(f_out.shape[0]):
+    n = f_out.shape[0]
+    for q in numba.prange(n):
+        if q + AHEAD < n:
+            for s in range(start[q + AHEAD], start[q + AHEAD + 1]):
+                k = np.uint32(slots[s])
+                prefetch(pair_force, k)
+                if torques:
+                    prefetch(moment, k)
+                    prefetch(overlaps, k)
         weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
         f_int = (np.int64(0), np.int64(0), np.int64(0))
         t_int = (np.int64(0), np.int64(0), np.int64(0))
