@@ -33,8 +33,8 @@ import math
 import numba
 import numpy as np
 
+from revdem_cli.kernels import fence, inline, jit, prefetch, serial_and_parallel, stream
 from revdem_cli.kernels import fixed as fx
-from revdem_cli.kernels import inline, jit, prefetch, serial_and_parallel
 from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.cell import (
     affine_velocity,
@@ -98,6 +98,14 @@ def row(a, k):
 @inline
 def put(a, k, vector):
     a[k, 0], a[k, 1], a[k, 2] = vector
+
+
+@inline
+def put_streaming(a, k, vector):
+    """`put` with non-temporal stores (`kernels.stream`)."""
+    stream(a, (k, 0), vector[0])
+    stream(a, (k, 1), vector[1])
+    stream(a, (k, 2), vector[2])
 
 
 @jit
@@ -329,13 +337,13 @@ def scatter_pairs(block, first, size, force, history, moment, overlaps, destroye
     for k in range(size):
         p = first + k
         u = np.uint64(p)  # unsigned, as in `gather_pairs`
-        put(force, u, entries(block, FORCE, k))
+        put_streaming(force, u, entries(block, FORCE, k))
         if shear_law:
             overlap = entry(block, OVERLAP, k)
             lost = norm(row(history, u)) if overlap <= 0.0 and mode == FORWARD else 0.0
             put(history, u, entries(block, NEW_SHEAR, k))
-            put(moment, u, entries(block, MOMENT, k))
-            overlaps[u] = overlap
+            put_streaming(moment, u, entries(block, MOMENT, k))
+            stream(overlaps, u, overlap)
             slipped = entry(block, SLIPPED, k)
             if slipped > 0.0:  # `destroyed` is read only where something was
                 destroyed[p] = slipped
@@ -404,6 +412,7 @@ def _pair_loop(
             last_slip = max(last_slip, s_last)
             losses += lost
             last_loss = max(last_loss, lost_last)
+        fence()  # the streamed results, before the gather reads them on other threads
     return slips, last_slip, losses, last_loss
 
 
