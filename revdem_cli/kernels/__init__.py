@@ -44,22 +44,25 @@ pjit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", para
 """Compiled function with `numba.prange` loops; each iteration writes only its own slot."""
 
 
-def serial_and_parallel(loop):
-    """A serial and a parallel build of one `prange` loop.
-
-    The parallel build is compiled from a copy with its own name: numba's disk cache is
-    keyed by the function's name, and would otherwise hand one build's code to the other.
-    """
+def renamed(function, name, **constants):
+    """A copy of `function` under its own name, with `constants` in place of globals of
+    its module (numba compiles globals as constants). numba's disk cache is keyed by the
+    function's name, and would otherwise hand one copy's code to the other."""
     twin = types.FunctionType(
-        loop.__code__,
-        loop.__globals__,
-        loop.__name__ + "_parallel",
-        loop.__defaults__,
-        loop.__closure__,
+        function.__code__,
+        {**function.__globals__, **constants} if constants else function.__globals__,
+        name,
+        function.__defaults__,
+        function.__closure__,
     )
-    twin.__qualname__ = loop.__qualname__ + "_parallel"
-    twin.__doc__ = loop.__doc__
-    return jit(loop), pjit(twin)
+    twin.__qualname__ = function.__qualname__.replace(function.__name__, name)
+    twin.__doc__ = function.__doc__
+    return twin
+
+
+def serial_and_parallel(loop):
+    """A serial and a parallel build of one `prange` loop (the parallel one `renamed`)."""
+    return jit(loop), pjit(renamed(loop, loop.__name__ + "_parallel"))
 
 
 def _pointer(context, builder, array_type, array, indices):

@@ -22,7 +22,8 @@ quantity and a column per pair, and goes through three stages:
   the spin correction's cos and sin as their series; a block where some angle is too large
   for that is done again with them in full);
 - scatter: each column's force, history, moment and overlap into the pair arrays, counting
-  the shear force destroyed (scalar, branches).
+  the shear force destroyed (scalar, branches); in a long list, force, moment and overlap
+  with non-temporal stores (STREAM_FROM).
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
 cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each chunk worked
 through with its own block, so the loop allocates nothing.
@@ -33,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import fence, inline, jit, prefetch, serial_and_parallel, stream
+from revdem_cli.kernels import fence, inline, jit, prefetch, renamed, serial_and_parallel, stream
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.cell import (
@@ -75,6 +76,13 @@ AHEAD = 8
 they lie under earlier particles, far back in the pair arrays, and the hardware does not
 see them coming (at 10^6 fcc spheres the gather is a quarter to a third faster; 16 and 4
 ahead are slower)."""
+
+STREAM_FROM = 200_000
+"""Lists of at least this many pairs send the pair loop's results (force, n x f, overlap)
+to memory with non-temporal stores: read back only by the gather, after the loop, they
+would not stay in cache, and a store that first reads its cache line in costs twice the
+traffic (the pair loop 9-24 % faster at n = 24 and 64 fcc). Smaller lists keep them in
+cache (at n = 10 and 14 streaming made the gather 20-30 % slower, at n = 18 it broke even)."""
 
 APART = 1.0 + 1e-12
 """Pairs farther apart than (1 + 1e-12) (r_i + r_j) are certainly not touching, so their
@@ -324,8 +332,13 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, unwound):
         contacts(block, size, law, mode, dt, strain, deforming, unwound, False)
 
 
-@inline
-def scatter_pairs(block, first, size, force, history, moment, overlaps, destroyed, law, mode):
+STREAMING = False
+"""Whether `scatter_pairs` streams (see STREAM_FROM); its streaming build has it True. A
+constant, not an argument: numba optimises the helper before inlining it, and LLVM merges
+the two branches' stores into one plain store."""
+
+
+def _scatter_pairs(block, first, size, force, history, moment, overlaps, destroyed, law, mode):
     """The block's results into the pair arrays; returns (slips, last pair that slipped,
     losses, last pair that lost its shear force) of the block. A pair apart loses its
     history (the shear force is counted lost when stepping forward)."""
@@ -337,13 +350,20 @@ def scatter_pairs(block, first, size, force, history, moment, overlaps, destroye
     for k in range(size):
         p = first + k
         u = np.uint64(p)  # unsigned, as in `gather_pairs`
-        put_streaming(force, u, entries(block, FORCE, k))
+        if STREAMING:
+            put_streaming(force, u, entries(block, FORCE, k))
+        else:
+            put(force, u, entries(block, FORCE, k))
         if shear_law:
             overlap = entry(block, OVERLAP, k)
             lost = norm(row(history, u)) if overlap <= 0.0 and mode == FORWARD else 0.0
             put(history, u, entries(block, NEW_SHEAR, k))
-            put_streaming(moment, u, entries(block, MOMENT, k))
-            stream(overlaps, u, overlap)
+            if STREAMING:
+                put_streaming(moment, u, entries(block, MOMENT, k))
+                stream(overlaps, u, overlap)
+            else:
+                put(moment, u, entries(block, MOMENT, k))
+                overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
             if slipped > 0.0:  # `destroyed` is read only where something was
                 destroyed[p] = slipped
@@ -354,6 +374,10 @@ def scatter_pairs(block, first, size, force, history, moment, overlaps, destroye
                 losses += 1
                 last_loss = p
     return slips, last_slip, losses, last_loss
+
+
+scatter_pairs = inline(_scatter_pairs)
+scatter_pairs_streaming = inline(renamed(_scatter_pairs, "_scatter_streaming", STREAMING=True))
 
 
 def _pair_loop(
@@ -390,6 +414,7 @@ def _pair_loop(
     Returns (slips, last pair that slipped, losses, last pair that lost its shear force)."""
     strain = strain_rates(rate, length)
     unwound = normal_new.shape[0] > 0
+    streaming = n_pairs >= STREAM_FROM
     chunks = blocks.shape[0]
     slips = 0
     last_slip = -1
@@ -405,14 +430,17 @@ def _pair_loop(
                 pj, history, normal_new, law,
             )  # fmt: skip
             contact_stage(block, size, law, mode, dt, strain, deforming, unwound)
-            s, s_last, lost, lost_last = scatter_pairs(
-                block, first, size, force, history, moment, overlaps, destroyed, law, mode
-            )
+            results = (force, history, moment, overlaps, destroyed, law, mode)
+            if streaming:
+                scattered = scatter_pairs_streaming(block, first, size, *results)
+            else:
+                scattered = scatter_pairs(block, first, size, *results)
+            s, s_last, lost, lost_last = scattered
             slips += s
             last_slip = max(last_slip, s_last)
             losses += lost
             last_loss = max(last_loss, lost_last)
-        fence()  # the streamed results, before the gather reads them on other threads
+        fence()  # any streamed results, before the gather reads them on other threads
     return slips, last_slip, losses, last_loss
 
 
