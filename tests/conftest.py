@@ -26,6 +26,26 @@ FLOOR = {
 """The plane z = 0 facing up, of material 'plane'."""
 
 
+def periodic_fcc(cells: int, spacing: float, random_velocity: float, seed: int) -> dict:
+    """Scenario fields of a periodic fcc lattice of `cells`^3 unit cells of 5 mm spheres of
+    SPHERE with frictional Mindlin contacts (mu = 0.5), shaken with random velocities."""
+    return {
+        "materials": {"m": SPHERE},
+        "contact": {"model": "hertz", "tangential": "mindlin", "friction": 0.5},
+        "lattices": [
+            {
+                "material": "m",
+                "radius": 0.005,
+                "cells": [cells] * 3,
+                "spacing": spacing,
+                "random_velocity": random_velocity,
+                "seed": seed,
+            }
+        ],
+        "cell": {"size": [cells * spacing] * 3},
+    }
+
+
 def assert_one_line_error(result, *fragments):
     """A command that failed on bad input: exit 2, one line "error: ..." holding the
     fragments, no traceback."""

@@ -10,6 +10,7 @@ import pytest
 
 from revdem_cli.config import Scenario
 from revdem_cli.kernels.forces import PARALLEL_FROM
+from tests.conftest import periodic_fcc
 
 
 def pile(n_side: int = 7) -> Scenario:
@@ -64,22 +65,12 @@ def lattice(arithmetic: str = "float") -> Scenario:
     random velocities, frictional Mindlin contacts; the lateral edges held at 5 kPa by the
     inertial servo while z is compressed."""
     spacing = 0.999 * 0.01 * 2**0.5
+    fcc = periodic_fcc(4, spacing, random_velocity=0.01, seed=3)
     return Scenario.model_validate(
         {
             "name": "lattice",
-            "materials": {"m": {"density": 1000, "shear_modulus": 2e6, "poisson_ratio": 0.2}},
-            "contact": {"model": "hertz", "tangential": "mindlin", "friction": 0.5},
-            "lattices": [
-                {
-                    "material": "m",
-                    "radius": 0.005,
-                    "cells": [4, 4, 4],
-                    "spacing": spacing,
-                    "random_velocity": 0.01,
-                    "seed": 3,
-                }
-            ],
-            "cell": {"size": [4 * spacing] * 3, "servo_mass": 0.01},
+            **fcc,
+            "cell": fcc["cell"] | {"servo_mass": 0.01},
             "integrator": {"dt": 1e-6, "arithmetic": arithmetic},
             "stages": [
                 {

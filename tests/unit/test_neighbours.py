@@ -103,24 +103,13 @@ def test_the_list_holds_every_contact_while_spheres_fly_through_many_rebuilds():
     from revdem_cli.engine import Model, stepping_bundles
     from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, advance
     from revdem_cli.state import empty_events, initial_state
+    from tests.conftest import periodic_fcc
 
     cells, spacing, dt, skin = 5, 0.016, 1e-5, 3e-4
     scenario = Scenario.model_validate(
         {
             "name": "gas",
-            "materials": {"m": {"density": 1000, "shear_modulus": 2e6, "poisson_ratio": 0.2}},
-            "contact": {"model": "hertz", "tangential": "mindlin", "friction": 0.5},
-            "lattices": [
-                {
-                    "material": "m",
-                    "radius": 0.005,
-                    "cells": [cells] * 3,
-                    "spacing": spacing,
-                    "random_velocity": 2.0,
-                    "seed": 11,
-                }
-            ],
-            "cell": {"size": [cells * spacing] * 3},
+            **periodic_fcc(cells, spacing, random_velocity=2.0, seed=11),
             "integrator": {"dt": dt},
             "neighbours": {"skin": skin},
             "stages": [{"name": "fly", "steps": 1}],

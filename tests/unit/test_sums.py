@@ -13,6 +13,7 @@ from revdem_cli.engine import Model
 from revdem_cli.kernels.health import HEALTHY, NOT_FINITE, TOO_DEEP, examine
 from revdem_cli.kernels.sums import SPAN
 from revdem_cli.state import initial_state
+from tests.conftest import periodic_fcc
 
 CELLS = 11
 """4 x 11^3 = 5324 spheres: two blocks of the sums."""
@@ -25,19 +26,7 @@ def shaken_lattice() -> Scenario:
     return Scenario.model_validate(
         {
             "name": "lattice",
-            "materials": {"m": {"density": 1000, "shear_modulus": 2e6, "poisson_ratio": 0.2}},
-            "contact": {"model": "hertz", "tangential": "mindlin", "friction": 0.5},
-            "lattices": [
-                {
-                    "material": "m",
-                    "radius": 0.005,
-                    "cells": [CELLS] * 3,
-                    "spacing": spacing,
-                    "random_velocity": 0.01,
-                    "seed": 5,
-                }
-            ],
-            "cell": {"size": [CELLS * spacing] * 3},
+            **periodic_fcc(CELLS, spacing, random_velocity=0.01, seed=5),
             "integrator": {"dt": 1e-6},
             "stages": [{"name": "run", "steps": 1}],
         }
