@@ -74,15 +74,16 @@ Results are the same either way."""
 AHEAD = 8
 """The gather asks for the reactions of the particle this many ahead of the one it sums:
 they lie under earlier particles, far back in the pair arrays, and the hardware does not
-see them coming (at 10^6 fcc spheres the gather is a quarter to a third faster; 16 and 4
-ahead are slower)."""
+see them coming (at 10^6 fcc spheres the gather takes 26-31 % less time; 8 ahead did best
+overall: 16 was 6 % faster frictionless at 10^6 but 9-12 % slower with history, 4 slower)."""
 
 STREAM_FROM = 200_000
 """Lists of at least this many pairs send the pair loop's results (force, n x f, overlap)
 to memory with non-temporal stores: read back only by the gather, after the loop, they
 would not stay in cache, and a store that first reads its cache line in costs twice the
-traffic (the pair loop 9-24 % faster at n = 24 and 64 fcc). Smaller lists keep them in
-cache (at n = 10 and 14 streaming made the gather 20-30 % slower, at n = 18 it broke even)."""
+traffic (the pair loop takes 9-20 % less time at n = 24 and 64 fcc). Smaller lists keep
+them in cache (at n = 10 and 14 streaming made the gather 20-30 % slower, at n = 18 it
+broke even)."""
 
 APART = 1.0 + 1e-12
 """Pairs farther apart than (1 + 1e-12) (r_i + r_j) are certainly not touching, so their
