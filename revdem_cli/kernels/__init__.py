@@ -47,7 +47,9 @@ pjit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", para
 def renamed(function, name, **constants):
     """A copy of `function` under its own name, with `constants` in place of globals of
     its module (numba compiles globals as constants). numba's disk cache is keyed by the
-    function's name, and would otherwise hand one copy's code to the other."""
+    function's name, and would otherwise hand one copy's code to the other. With
+    `constants`, the copy sees its module's globals as they are when this is called: call
+    it after everything the function uses is defined."""
     twin = types.FunctionType(
         function.__code__,
         {**function.__globals__, **constants} if constants else function.__globals__,

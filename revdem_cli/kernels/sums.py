@@ -14,8 +14,8 @@ from revdem_cli.kernels import inline
 SPAN = 4096
 """Particles in a block of a system-wide sum."""
 
-COLUMNS = 16
-"""Partial sums a block can hold (the most any sum needs)."""
+COLUMNS = 9
+"""Partial sums a block holds: the most any sum needs (the stress's nine components)."""
 
 
 @inline
@@ -32,4 +32,4 @@ def span(b, n):
 
 def empty_partials(n_particles: int) -> np.ndarray:
     """Rows for the partial sums of every block of `n_particles` particles."""
-    return np.zeros((max(1, -(-n_particles // SPAN)), COLUMNS))
+    return np.zeros((max(1, blocks_of.py_func(n_particles)), COLUMNS))
