@@ -22,9 +22,11 @@ from pydantic import (
     Field,
     PrivateAttr,
     ValidationError,
+    create_model,
     model_validator,
 )
 
+from revdem_cli import laws
 from revdem_cli.errors import InputError
 
 if TYPE_CHECKING:
@@ -61,24 +63,23 @@ class Material(_Model):
     poisson_ratio: Float = Field(gt=-1, lt=0.5, description="Poisson's ratio nu, -")
 
 
-class ContactLaw(_Model):
-    """Contact law between spheres and between spheres and walls (Hanley 2020 Eq 6-10)."""
+def _choice(family: str) -> object:
+    """The [contact] field that chooses the law of a family, from the laws found."""
+    info = laws.FAMILIES[family]
+    names = (["none"] if info.optional else []) + list(laws.LAWS[family])
+    described = "; ".join(f"'{name}', {law.SUMMARY}" for name, law in laws.LAWS[family].items()) + (
+        "; 'none'" if info.optional else ""
+    )
+    kind = Literal[tuple(names)]
+    if info.optional:
+        return (kind, Field(default="none", description=f"{family} law: {described}"))
+    return (kind, Field(description=f"{family} law: {described}"))
 
-    model: Literal["hertz", "linear"] = Field(
-        description="normal law: 'hertz', F = 4/3 E* sqrt(R*) d^1.5 from the materials; "
-        "'linear', F = kn d"
-    )
-    kn: Float | None = Field(
-        default=None, gt=0, description="normal spring stiffness for the linear law, N/m"
-    )
-    tangential: Literal["none", "linear", "mindlin"] = Field(
-        default="none",
-        description="shear force with history: 'linear' with ks, 'mindlin' with "
-        "k_s = 8 G* sqrt(R* d); 'none' for frictionless spheres",
-    )
-    ks: Float | None = Field(
-        default=None, gt=0, description="shear spring stiffness for tangential='linear', N/m"
-    )
+
+class _Contact(_Model):
+    """The parts of a contact that belong to no one law: Coulomb friction, viscous damping
+    and how a wall's moduli combine."""
+
     friction: FloatOrInf | None = Field(
         default=None,
         ge=0,
@@ -98,22 +99,35 @@ class ContactLaw(_Model):
     )
 
     @model_validator(mode="after")
-    def _parameters_match_laws(self) -> ContactLaw:
-        if self.model == "linear" and self.kn is None:
-            raise ValueError("the linear contact law needs kn (N/m)")
-        if self.model == "hertz" and self.kn is not None:
-            raise ValueError(
-                "kn belongs to the linear law; the Hertz law takes its stiffness from the materials"
-            )
-        if self.tangential == "linear" and self.ks is None:
-            raise ValueError("tangential = 'linear' needs ks (N/m)")
-        if self.tangential != "linear" and self.ks is not None:
-            raise ValueError("ks belongs to tangential = 'linear'")
+    def _parameters_match_laws(self) -> _Contact:
+        for field in laws.fields():
+            owners = laws.owners(field)
+            chosen = [(f, n) for f, n in owners if getattr(self, laws.FAMILIES[f].selector) == n]
+            given = getattr(self, field) is not None
+            if given and not chosen:
+                laws_named = " or ".join(f"{laws.FAMILIES[f].selector} = '{n}'" for f, n in owners)
+                raise ValueError(f"{field} belongs to {laws_named}")
+            for family, name in chosen:
+                law = laws.LAWS[family][name]
+                if field in law.REQUIRED and not given:
+                    selector = laws.FAMILIES[family].selector
+                    description = law.FIELDS[field].description
+                    raise ValueError(f"{selector} = '{name}' needs {field}: {description}")
         if self.tangential != "none" and self.friction is None:
             raise ValueError("a tangential law needs friction (mu; inf for no sliding)")
         if self.friction is not None and math.isnan(self.friction):
             raise ValueError("friction must be a number or inf")
         return self
+
+
+ContactLaw = create_model(
+    "ContactLaw",
+    __base__=_Contact,
+    __doc__="Contact between spheres and between spheres and walls: a law of each family "
+    "(revdem_cli/laws), each with its coefficients (Hanley 2020 Eq 6-10).",
+    **{info.selector: _choice(family) for family, info in laws.FAMILIES.items()},
+    **{name: (Float | None, info) for name, info in laws.fields().items()},
+)
 
 
 class Damping(_Model):

@@ -26,10 +26,11 @@ from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli
 from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
 from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
-from revdem_cli.kernels.fixed import EDGE, EDGE_RATE
-from revdem_cli.kernels.forces import compute_forces, particle_stress
+from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, onto_grid
+from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import BLOWN_UP, CELL_TOO_SMALL, FIXED_OVERFLOW, OK, advance
 from revdem_cli.kernels.observables import SCALARS, observe
+from revdem_cli.kernels.stress import particle_stress
 from revdem_cli.state import (
     BlownUp,
     CellTooSmall,
@@ -342,12 +343,8 @@ def set_cell_motion(cell: Cell, fixed: Fixed, stage: Stage, forward: bool) -> No
             elif motion.strain_rate is not None:
                 cell.rate[a] = motion.strain_rate * cell.length[a]
     if forward and fixed.v.shape[0] > 0:
-        for values, grid, step in (
-            (cell.length, fixed.length, fixed.grid[EDGE]),
-            (cell.rate, fixed.rate, fixed.grid[EDGE_RATE]),
-        ):
-            grid[:] = np.trunc(values / step + np.copysign(0.5, values)).astype(np.int64)
-            values[:] = grid * step
+        fixed.length[:] = onto_grid(cell.length, fixed.grid[EDGE])
+        fixed.rate[:] = onto_grid(cell.rate, fixed.grid[EDGE_RATE])
         cell.start[:] = cell.length
 
 

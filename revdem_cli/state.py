@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from revdem_cli import laws
 from revdem_cli.config import Damping, Material, Scenario
 from revdem_cli.errors import RunFailed
 from revdem_cli.kernels import cell, contact, fixed, health, walls
@@ -22,9 +23,10 @@ from revdem_cli.kernels.arrays import (
     Walls,
 )
 from revdem_cli.kernels.events import COLUMNS, KINDS
-from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces, empty_blocks
+from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, rebuild_pairs
 from revdem_cli.kernels.neighbours import build_pairs
+from revdem_cli.kernels.pairs import empty_blocks
 from revdem_cli.kernels.sums import empty_partials
 
 
@@ -50,9 +52,6 @@ def effective_shear_modulus(a: Material, b: Material) -> float:
     )
 
 
-_TANGENTIAL = {"none": contact.NO_SHEAR, "linear": contact.LINEAR_SHEAR, "mindlin": contact.MINDLIN}
-
-
 def pair_moduli(scenario: Scenario, a: str, b: str) -> tuple[float, float]:
     """(E*, G*) of a contact between materials a and b (names). With contact.wall_moduli =
     'wall', a contact with a wall's material takes that material alone: E* = G/(1 - nu) and
@@ -74,15 +73,16 @@ def moduli(scenario: Scenario) -> Moduli:
 
 
 def contact_law(scenario: Scenario) -> ContactLaw:
-    law = scenario.contact
+    """The compiled record of the scenario's contact: its laws by number, the Coulomb and
+    viscous coefficients, and every law's parameters."""
+    spec = scenario.contact
     return ContactLaw(
-        model=contact.LINEAR if law.model == "linear" else contact.HERTZ,
-        kn=float(law.kn or 0.0),
-        tangential=_TANGENTIAL[law.tangential],
-        ks=float(law.ks or 0.0),
-        mu=math.inf if law.friction is None else float(law.friction),
-        beta_n=law.normal_damping,
-        beta_t=law.tangential_damping,
+        laws.number("normal", spec.model),
+        laws.number("tangential", spec.tangential),
+        math.inf if spec.friction is None else float(spec.friction),
+        spec.normal_damping,
+        spec.tangential_damping,
+        *laws.parameters(spec),
     )
 
 
@@ -338,12 +338,7 @@ def fixed_grid(scenario: Scenario) -> np.ndarray:
     masses = densities[spheres.material] * 4.0 / 3.0 * math.pi * spheres.radius**3
     estar = float(moduli(scenario).estar.max())
     overlap = 0.01 * r_max
-    law = scenario.contact
-    contact = (
-        law.kn * overlap
-        if law.model == "linear"
-        else 4.0 / 3.0 * estar * math.sqrt(r_max) * overlap**1.5  # Hanley 2020 Eq 6
-    )
+    contact = laws.evaluate(scenario.contact, "normal", "force", overlap, r_max, estar)[0]
     force = max(float(masses.max()) * gravity, contact)
     edge = max(scenario.cell.size) if scenario.cell is not None else 1.0
     position = 1.0 if scenario.cell is not None and cell_deforms(scenario) else extent
@@ -370,17 +365,12 @@ def fixed_arrays(scenario: Scenario, p: Particles, cell_now: Cell) -> Fixed:
     in_cell = p.s.shape[0] > 0
     coordinates = p.s if in_cell else p.x
 
-    def onto(values: np.ndarray, step) -> np.ndarray:
-        n = np.trunc(values / step + np.copysign(0.5, values)).astype(np.int64)
-        values[...] = n * step
-        return n
-
     state = Fixed(
-        x=onto(coordinates, position),
-        v=onto(p.v, grid[fixed.VELOCITY]),
-        omega=onto(p.omega, grid[fixed.ANGULAR_VELOCITY]),
-        length=onto(cell_now.length, grid[fixed.EDGE]),
-        rate=onto(cell_now.rate, grid[fixed.EDGE_RATE]),
+        x=fixed.onto_grid(coordinates, position),
+        v=fixed.onto_grid(p.v, grid[fixed.VELOCITY]),
+        omega=fixed.onto_grid(p.omega, grid[fixed.ANGULAR_VELOCITY]),
+        length=fixed.onto_grid(cell_now.length, grid[fixed.EDGE]),
+        rate=fixed.onto_grid(cell_now.rate, grid[fixed.EDGE_RATE]),
         grid=grid,
         overflow=np.zeros(2, dtype=np.int64),
     )
@@ -411,10 +401,7 @@ def initial_state(scenario: Scenario) -> State:
     integers = fixed_arrays(scenario, p, cell_now)
     skin = default_skin(scenario)
     nothing = np.zeros(0, dtype=np.int32)
-    parallel = len(p.x) >= PARALLEL_FROM
-    needed = build_pairs(
-        p.x, p.radius, skin, cell_now.periodic, cell_now.length, nothing, nothing, parallel
-    )
+    needed = build_pairs(p.x, p.radius, skin, cell_now.periodic, cell_now.length, nothing, nothing)
     state = State(
         p,
         empty_pairs(len(p.x), pair_capacity(needed), shear, reversing=False),

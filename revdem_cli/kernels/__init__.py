@@ -5,8 +5,8 @@ and would break the reversibility that is the point of revdem.
 
 Compiled code is cached on disk. numba invalidates a cached function only when its own file
 changes, yet a caller's cache holds the compiled code of the functions it calls from other
-files; so the cache directory is keyed by a hash of every kernel source file, and any change
-to any kernel starts a fresh cache.
+files; so the cache directory is keyed by a hash of every kernel source file and every
+contact law (revdem_cli/laws), and any change to any of them starts a fresh cache.
 """
 
 import hashlib
@@ -22,7 +22,8 @@ from numba.extending import intrinsic
 
 
 def _cache_dir() -> str:
-    sources = sorted(Path(__file__).parent.glob("*.py"))
+    package = Path(__file__).parent
+    sources = sorted(package.glob("*.py")) + sorted(package.parent.joinpath("laws").glob("*.py"))
     digest = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()[:16]
     base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "revdem", "numba"
@@ -62,9 +63,26 @@ def renamed(function, name, **constants):
     return twin
 
 
-def serial_and_parallel(loop):
-    """A serial and a parallel build of one `prange` loop (the parallel one `renamed`)."""
-    return jit(loop), pjit(renamed(loop, loop.__name__ + "_parallel"))
+PARALLEL_FROM = 256
+"""Loops over at least this many particles run in parallel, smaller ones serially. Results
+are the same either way."""
+
+SERIAL = PARALLEL = FROM = None  # the globals `_by_size` sees as constants in each copy
+
+
+def _by_size(n, *args):
+    if n >= FROM:
+        return PARALLEL(*args)
+    return SERIAL(*args)
+
+
+def by_size(loop, threshold=PARALLEL_FROM):
+    """One compiled entry to a `prange` loop, called as f(n, *args): its parallel build for
+    n >= threshold items, its serial build below. The one place the choice is made."""
+    name = loop.__name__.lstrip("_")
+    serial = jit(renamed(loop, name + "_serial"))
+    parallel = pjit(renamed(loop, name + "_parallel"))
+    return jit(renamed(_by_size, name, SERIAL=serial, PARALLEL=parallel, FROM=threshold))
 
 
 def _pointer(context, builder, array_type, array, indices):

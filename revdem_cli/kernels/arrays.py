@@ -7,6 +7,8 @@ and what only the reversed step needs, in a forward run.
 
 from collections import namedtuple
 
+from revdem_cli.laws import PARAMETERS
+
 Particles = namedtuple(
     "Particles",
     [
@@ -104,18 +106,17 @@ Fixed = namedtuple(
 """The integer state of fixed-point arithmetic (kernels/fixed.py); every array has length 0
 in floating-point runs."""
 
-ContactLaw = namedtuple(
-    "ContactLaw",
-    [
-        "model",  # contact.HERTZ or contact.LINEAR
-        "kn",  # linear normal stiffness, N/m
-        "tangential",  # contact.NO_SHEAR, LINEAR_SHEAR or MINDLIN
-        "ks",  # linear shear stiffness, N/m
-        "mu",  # Coulomb friction coefficient (inf: no sliding)
-        "beta_n",  # normal viscous damping, fraction of critical
-        "beta_t",  # tangential viscous damping, fraction of critical
-    ],
+CONTACT = (
+    "normal",  # number of the normal law (revdem_cli.laws)
+    "tangential",  # number of the tangential law, laws.NONE for frictionless spheres
+    "mu",  # Coulomb friction coefficient (inf: no sliding)
+    "beta_n",  # normal viscous damping, fraction of critical
+    "beta_t",  # tangential viscous damping, fraction of critical
 )
+ContactLaw = namedtuple("ContactLaw", CONTACT + PARAMETERS)
+"""The compiled record of a contact: the fields of CONTACT, then every law's coefficients by
+name (laws.PARAMETERS, 0 where not given). Flat: numba's parallel loops take no nested
+records."""
 
 Moduli = namedtuple(
     "Moduli",

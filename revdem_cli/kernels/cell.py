@@ -20,7 +20,7 @@ Servos, for an axis a holding the stress target s*_a:
 import numpy as np
 
 from revdem_cli.kernels import inline, jit
-from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, OF_CELL, RANGE, note_overflow, rounded
+from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, OF_CELL, moved_on_grid, note_overflow
 
 FIXED = 0
 STRAIN_RATE = 1
@@ -31,14 +31,13 @@ INERTIAL = 1
 
 
 @jit
-def add_on_grid(fixed, n, increment, step):
+def edge_on_grid(fixed, n, increment, step):
     """n + round(increment / step): an edge or its rate on its grid; a value that would
     leave the grid stays, and is counted as an overflow of the cell."""
-    rounded_increment = rounded(increment / step)
-    if abs(rounded_increment) > RANGE or abs(n + np.int64(rounded_increment)) > RANGE:
+    moved, ok = moved_on_grid(n, increment / step)
+    if not ok:
         note_overflow(fixed, OF_CELL, (1, -1))
-        return n
-    return n + np.int64(rounded_increment)
+    return moved
 
 
 @jit
@@ -129,7 +128,7 @@ def kick_cell(cell, fixed, h):
         if cell.control[a] == STRESS:
             if on_grid:
                 kick = h * cell.force[a] / cell.mass
-                fixed.rate[a] = add_on_grid(fixed, fixed.rate[a], kick, step)
+                fixed.rate[a] = edge_on_grid(fixed, fixed.rate[a], kick, step)
                 cell.rate[a] = fixed.rate[a] * step
             else:
                 cell.rate[a] += h * cell.force[a] / cell.mass
@@ -155,7 +154,7 @@ def move_cell(cell, fixed, dt, elapsed):
                 cell.rate[a] = (cell.gain if dt > 0.0 else -cell.gain) * error * before
             if on_grid:
                 step = fixed.grid[EDGE]
-                fixed.length[a] = add_on_grid(fixed, fixed.length[a], dt * cell.rate[a], step)
+                fixed.length[a] = edge_on_grid(fixed, fixed.length[a], dt * cell.rate[a], step)
                 cell.length[a] = fixed.length[a] * step
             else:
                 cell.length[a] = before + dt * cell.rate[a]

@@ -1,5 +1,6 @@
-"""One contact, sphere-sphere or sphere-wall: normal law (Hanley 2020 Eq 6), tangential
-force with history (Eq 7-10) and its exact inverse, Coulomb limit, viscous damping.
+"""One contact, sphere-sphere or sphere-wall: its laws (`revdem_cli.laws`: the normal force
+of Hanley 2020 Eq 6, the shear stiffness of Eq 10) put together with the tangential force
+with history (Eq 7-10) and its exact inverse, the Coulomb limit and viscous damping.
 
 Vectors are 3-tuples. Convention: n points from particle i to its partner j (or to the
 wall); forces are those on i; the tangential history is the elastic shear force on i.
@@ -8,64 +9,30 @@ wall); forces are those on i; the tangential history is the elastic shear force 
 import math
 
 from revdem_cli.kernels import inline
+from revdem_cli.kernels.vectors import axpy, cross, dot, scaled
+from revdem_cli.laws import NONE, dispatch
 
-HERTZ = 0
-LINEAR = 1
-
-NO_SHEAR = 0
-LINEAR_SHEAR = 1
-MINDLIN = 2
+NO_SHEAR = NONE  # ContactLaw.tangential of frictionless spheres
 
 FORWARD = 0  # shear history advanced by the step (Eq 7-10)
 REVERSE = 1  # shear history mapped back (the inverse of Eq 7-10)
 STATIC = 2  # shear history used as it is: forces of a state that is not stepping
 
-
-@inline
-def dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@inline
-def cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-@inline
-def axpy(s, a, b):
-    """s a + b."""
-    return (s * a[0] + b[0], s * a[1] + b[1], s * a[2] + b[2])
-
-
-@inline
-def scaled(s, a):
-    return (s * a[0], s * a[1], s * a[2])
-
-
-@inline
-def norm(a):
-    return math.sqrt(dot(a, a))
+_normal_force = dispatch("normal", "force")
+_shear_stiffness = dispatch("tangential", "stiffness")
 
 
 @inline
 def normal_law(law, overlap, rstar, estar):
-    """(elastic normal force, its stiffness dF/dd, stored energy) of one contact."""
-    if law.model == LINEAR:
-        force = law.kn * overlap  # Hanley 2020 Eq 6, linear
-        return force, law.kn, 0.5 * force * overlap
-    # Hanley 2020 Eq 6, Hertz: F = H d^1.5 with H = 4/3 E* sqrt(R*) (= 4G/(3(1-nu)) sqrt(R*)),
-    # written F = 4/3 E* d sqrt(R* d): the root Mindlin's k_s takes too
-    root = math.sqrt(rstar * overlap)
-    force = 4.0 / 3.0 * estar * overlap * root
-    return force, 2.0 * estar * root, 0.4 * force * overlap  # dF/dd = 2 E* sqrt(R* d), U = 2/5 F d
+    """(elastic normal force, its stiffness dF/dd, stored energy) of one contact in overlap,
+    from its normal law."""
+    return _normal_force(law.normal, law, overlap, rstar, estar)
 
 
 @inline
 def shear_stiffness(law, overlap, rstar, gstar):
-    """k_s: constant, or Mindlin H^s = H^n sqrt(U^n) 3(1-nu)/(2-nu) = 8 G* sqrt(R* d) (Eq 10)."""
-    if law.tangential == LINEAR_SHEAR:
-        return law.ks
-    return 8.0 * gstar * math.sqrt(rstar * overlap)
+    """k_s of one contact in overlap, from its tangential law."""
+    return _shear_stiffness(law.tangential, law, overlap, rstar, gstar)
 
 
 SMALL_ANGLE = 1e-3

@@ -19,7 +19,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import jit, serial_and_parallel
+from revdem_cli.kernels import by_size, jit
 
 RANGE = 2**62 - 1
 """Largest magnitude of a value on a grid, in grid steps: the sum of two such values still
@@ -46,21 +46,50 @@ def in_range(n):
     return abs(n) <= RANGE
 
 
+@jit
+def moved_on_grid(n, steps):
+    """n + round(steps), `steps` a value in grid steps, and whether it stayed in range: a value
+    that would leave it stays n (nothing wraps around)."""
+    increment = rounded(steps)
+    if abs(increment) > RANGE or abs(n + np.int64(increment)) > RANGE:
+        return n, False
+    return n + np.int64(increment), True
+
+
+@jit
+def add_on_grid(total, value, factor, per_step):
+    """total + factor value on a grid of 1 / per_step: total a 3-tuple of integers, factor
+    value rounded to the grid first (the steps are powers of two, so multiplying by per_step
+    divides by the step exactly). Returns (sum, whether it stayed in range)."""
+    n0 = rounded(factor * value[0] * per_step)
+    n1 = rounded(factor * value[1] * per_step)
+    n2 = rounded(factor * value[2] * per_step)
+    if max(abs(n0), abs(n1), abs(n2)) > RANGE:
+        return total, False
+    result = (total[0] + np.int64(n0), total[1] + np.int64(n1), total[2] + np.int64(n2))
+    return result, max(abs(result[0]), abs(result[1]), abs(result[2])) <= RANGE
+
+
+@jit
+def kick_row(n, mirror, f, inv_m, q, h, step):
+    """The half kick of particle q on its grid, n += round(h f / m / step), mirror = n step;
+    whether it stayed in range."""
+    ok = True
+    per_step = 1.0 / step  # grid steps are powers of two: multiplying divides exactly
+    for d in range(3):
+        n[q, d], fine = moved_on_grid(n[q, d], h * f[q, d] * inv_m[q] * per_step)
+        ok = ok and fine
+        mirror[q, d] = n[q, d] * step
+    return ok
+
+
 def _kick(n, mirror, f, inv_m, h, step):
-    """n += round(h f / m / step), mirror = n step: a half kick on the grid. Returns (values
-    out of range, the last particle with one)."""
+    """`kick_row` of every particle. Returns (values out of range, the last particle with
+    one)."""
     out = 0
     last = -1
-    per_step = 1.0 / step  # grid steps are powers of two: multiplying divides exactly
     for q in numba.prange(n.shape[0]):
-        bad = False
-        for d in range(3):
-            increment = rounded(h * f[q, d] * inv_m[q] * per_step)
-            value = n[q, d] + np.int64(increment) if abs(increment) <= RANGE else n[q, d]
-            bad = bad or not (abs(increment) <= RANGE and in_range(value))
-            n[q, d] = value
-            mirror[q, d] = value * step
-        if bad:
+        if not kick_row(n, mirror, f, inv_m, q, h, step):
             out += 1
             last = max(last, q)
     return out, last
@@ -73,14 +102,12 @@ def _drift(n, v, h, step, mid, in_cell):
     out = 0
     last = -1
     for q in numba.prange(n.shape[0]):
-        bad = False
+        ok = True
         for d in range(3):
             size = step[d] * mid[d] if in_cell else step[d]
-            increment = rounded(h * v[q, d] / size)
-            value = n[q, d] + np.int64(increment) if abs(increment) <= RANGE else n[q, d]
-            bad = bad or not (abs(increment) <= RANGE and in_range(value))
-            n[q, d] = value
-        if bad:
+            n[q, d], fine = moved_on_grid(n[q, d], h * v[q, d] / size)
+            ok = ok and fine
+        if not ok:
             out += 1
             last = max(last, q)
     return out, last
@@ -99,9 +126,9 @@ def _mirror_positions(n, x, s, step, length):
                 x[q, d] = n[q, d] * step[d]
 
 
-kick_serial, kick_parallel = serial_and_parallel(_kick)
-drift_serial, drift_parallel = serial_and_parallel(_drift)
-mirror_serial, mirror_parallel = serial_and_parallel(_mirror_positions)
+kick = by_size(_kick)
+drift = by_size(_drift)
+mirror = by_size(_mirror_positions)
 
 
 @jit
@@ -113,7 +140,9 @@ def note_overflow(fixed, quantity, counts):
         fixed.overflow[1] = last
 
 
-@jit
-def on_grid(value, step):
-    """A floating-point value's nearest grid point, as an integer (of a value in range)."""
-    return np.int64(rounded(value / step))
+def onto_grid(values: np.ndarray, step) -> np.ndarray:
+    """Round floating-point values to their grid in place (half away from zero, as
+    `rounded`); returns the integers."""
+    n = np.trunc(values / step + np.copysign(0.5, values)).astype(np.int64)
+    values[...] = n * step
+    return n

@@ -10,10 +10,10 @@ import math
 
 import numba
 
-from revdem_cli.kernels import jit, serial_and_parallel
+from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import images
-from revdem_cli.kernels.forces import pair_overlap, separation
-from revdem_cli.kernels.sums import SPAN, blocks_of, span
+from revdem_cli.kernels.pairs import pair_overlap, separation
+from revdem_cli.kernels.sums import blocks_of, by_blocks, span
 
 HEALTHY, NOT_FINITE, TOO_DEEP = range(3)
 """What `examine` found, alarm[0]; alarm[1:4] then hold (particle, partner, value): for
@@ -50,7 +50,7 @@ def _scan(x, v, w, radius, image, pi, pj, first, partials):
         partials[b, 3], partials[b, 4], partials[b, 5] = deepest, who, partner
 
 
-scan, scan_parallel = serial_and_parallel(_scan)
+scan = by_blocks(_scan)
 
 
 @jit
@@ -60,10 +60,7 @@ def examine(p, pairs, walls, cell, limit, alarm):
     n = p.x.shape[0]
     parts = pairs.partials
     args = (p.x, p.v, p.omega, p.radius, images(cell), pairs.i, pairs.j, pairs.first, parts)
-    if n > SPAN:
-        scan_parallel(*args)
-    else:
-        scan(*args)
+    scan(n, *args)
     for quantity in range(3):
         for b in range(blocks_of(n)):
             q = parts[b, quantity]

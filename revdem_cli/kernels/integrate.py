@@ -3,21 +3,21 @@
 import numba
 import numpy as np
 
+from revdem_cli.kernels import by_size, jit
 from revdem_cli.kernels import fixed as fx
-from revdem_cli.kernels import jit, serial_and_parallel
 from revdem_cli.kernels.cell import kick_cell, move_cell
 from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE
 from revdem_cli.kernels.events import MOTION_LOST, note, note_damping, note_fixed_points
-from revdem_cli.kernels.forces import PARALLEL_FROM, compute_forces, unwind_shear_history
+from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.health import HEALTHY, examine
 from revdem_cli.kernels.neighbours import (
     build_pairs,
     carry_history,
     index_by_particle,
     largest_reach,
-    largest_reach_parallel,
 )
 from revdem_cli.kernels.observables import observe
+from revdem_cli.kernels.unwind import unwind_shear_history
 from revdem_cli.kernels.walls import place_walls
 
 OK = 0
@@ -89,27 +89,11 @@ def _drift_in_cell(x, s, v, h, mid, length):
     return lost, last
 
 
-kick_serial, kick_parallel = serial_and_parallel(_kick)
-scale_serial, scale_parallel = serial_and_parallel(_scale)
-scale_fixed_serial, scale_fixed_parallel = serial_and_parallel(_scale_fixed)
-drift_serial, drift_parallel = serial_and_parallel(_drift)
-drift_in_cell_serial, drift_in_cell_parallel = serial_and_parallel(_drift_in_cell)
-
-
-@jit
-def kick(v, f, inv_m, h):
-    if v.shape[0] >= PARALLEL_FROM:
-        kick_parallel(v, f, inv_m, h)
-    else:
-        kick_serial(v, f, inv_m, h)
-
-
-@jit
-def kick_on_grid(n, v, f, inv_m, h, step, fixed, quantity):
-    if v.shape[0] >= PARALLEL_FROM:
-        fx.note_overflow(fixed, quantity, fx.kick_parallel(n, v, f, inv_m, h, step))
-    else:
-        fx.note_overflow(fixed, quantity, fx.kick_serial(n, v, f, inv_m, h, step))
+kick = by_size(_kick)
+scale = by_size(_scale)
+scale_on_grid = by_size(_scale_fixed)
+drift_free = by_size(_drift)
+drift_in_cell = by_size(_drift_in_cell)
 
 
 @jit
@@ -117,31 +101,28 @@ def kick_particles(p, fixed, law, h):
     """The half kick of the velocities and, where there are moments (a tangential law), of
     the angular velocities: on their grids in fixed-point arithmetic."""
     moments = law.tangential != NO_SHEAR  # without shear forces the moments are zero
+    n = p.v.shape[0]
     if fixed.v.shape[0] > 0:
         grid = fixed.grid
-        kick_on_grid(fixed.v, p.v, p.f, p.inv_mass, h, grid[fx.VELOCITY], fixed, fx.OF_VELOCITY)
+        moved = fx.kick(n, fixed.v, p.v, p.f, p.inv_mass, h, grid[fx.VELOCITY])
+        fx.note_overflow(fixed, fx.OF_VELOCITY, moved)
         if moments:
             step = grid[fx.ANGULAR_VELOCITY]
-            omega = (fixed.omega, p.omega, p.torque, p.inv_inertia)
-            kick_on_grid(*omega, h, step, fixed, fx.OF_ANGULAR_VELOCITY)
+            moved = fx.kick(n, fixed.omega, p.omega, p.torque, p.inv_inertia, h, step)
+            fx.note_overflow(fixed, fx.OF_ANGULAR_VELOCITY, moved)
         return
-    kick(p.v, p.f, p.inv_mass, h)
+    kick(n, p.v, p.f, p.inv_mass, h)
     if moments:
-        kick(p.omega, p.torque, p.inv_inertia, h)
+        kick(n, p.omega, p.torque, p.inv_inertia, h)
 
 
 @jit
-def scale(p, fixed, factor):
-    parallel = p.v.shape[0] >= PARALLEL_FROM
+def drag(p, fixed, factor):
+    """v *= factor (Hanley 2020 Eq 25), on the velocity grid in fixed-point arithmetic."""
     if fixed.v.shape[0] > 0:
-        if parallel:
-            scale_fixed_parallel(fixed.v, p.v, factor, fixed.grid[fx.VELOCITY])
-        else:
-            scale_fixed_serial(fixed.v, p.v, factor, fixed.grid[fx.VELOCITY])
-    elif parallel:
-        scale_parallel(p.v, factor)
+        scale_on_grid(p.v.shape[0], fixed.v, p.v, factor, fixed.grid[fx.VELOCITY])
     else:
-        scale_serial(p.v, factor)
+        scale(p.v.shape[0], p.v, factor)
 
 
 @jit
@@ -150,14 +131,10 @@ def drift_on_grid(p, cell, fixed, h):
     below the grid is not lost information: the reversed drift rounds the same increment."""
     in_cell = p.s.shape[0] > 0  # positions are the coordinates of a deforming cell
     step = fixed.grid[fx.X : fx.Z + 1]
-    if p.x.shape[0] >= PARALLEL_FROM:
-        moved = fx.drift_parallel(fixed.x, p.v, h, step, cell.mid, in_cell)
-        fx.note_overflow(fixed, fx.OF_POSITION, moved)
-        fx.mirror_parallel(fixed.x, p.x, p.s, step, cell.length)
-    else:
-        moved = fx.drift_serial(fixed.x, p.v, h, step, cell.mid, in_cell)
-        fx.note_overflow(fixed, fx.OF_POSITION, moved)
-        fx.mirror_serial(fixed.x, p.x, p.s, step, cell.length)
+    n = p.x.shape[0]
+    moved = fx.drift(n, fixed.x, p.v, h, step, cell.mid, in_cell)
+    fx.note_overflow(fixed, fx.OF_POSITION, moved)
+    fx.mirror(n, fixed.x, p.x, p.s, step, cell.length)
 
 
 @jit
@@ -168,20 +145,14 @@ def drift(p, cell, fixed, h, events, step):
     if fixed.v.shape[0] > 0:
         drift_on_grid(p, cell, fixed, h)
         return
-    parallel = p.x.shape[0] >= PARALLEL_FROM
+    n = p.x.shape[0]
     in_cell = p.s.shape[0] > 0
     if in_cell:
         pos = p.s
-        if parallel:
-            lost, last = drift_in_cell_parallel(p.x, p.s, p.v, h, cell.mid, cell.length)
-        else:
-            lost, last = drift_in_cell_serial(p.x, p.s, p.v, h, cell.mid, cell.length)
+        lost, last = drift_in_cell(n, p.x, p.s, p.v, h, cell.mid, cell.length)
     else:
         pos = p.x
-        if parallel:
-            lost, last = drift_parallel(p.x, p.v, h)
-        else:
-            lost, last = drift_serial(p.x, p.v, h)
+        lost, last = drift_free(n, p.x, p.v, h)
     if lost > 0:
         amount = 0.0
         for d in range(3):
@@ -199,7 +170,7 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     kick_particles(p, fixed, law, h)
     kick_cell(cell, fixed, h)
     if dyn.drag != 1.0:
-        scale(p, fixed, dyn.drag)
+        drag(p, fixed, dyn.drag)
         note_fixed_points(p.v, p.v_drift, step + 1, events)
     move_cell(cell, fixed, dt, elapsed)
     drift(p, cell, fixed, dt, events, step + 1)
@@ -230,7 +201,7 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     place_walls(walls, elapsed)
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)
-        scale(p, fixed, 1.0 / dyn.drag)
+        drag(p, fixed, 1.0 / dyn.drag)
     compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, REVERSE, dt, h, events, step - 1)
     note_damping(events, step - 1, law, dyn)
     kick_cell(cell, fixed, h)
@@ -248,10 +219,7 @@ def rebuild_pairs(p, pairs, cell, skin):
     for d in range(3):
         if cell.periodic[d] and cell.length[d] <= 2.0 * cutoff:
             return CELL_TOO_SMALL
-    parallel = p.x.shape[0] >= PARALLEL_FROM
-    needed = build_pairs(
-        p.x, p.radius, skin, cell.periodic, cell.length, pairs.new_i, pairs.new_j, parallel
-    )
+    needed = build_pairs(p.x, p.radius, skin, cell.periodic, cell.length, pairs.new_i, pairs.new_j)
     pairs.count[1] = needed
     if needed > pairs.i.shape[0]:
         return PAIR_OVERFLOW
@@ -272,14 +240,10 @@ def needs_rebuild(p, pairs, cell, dt, skin, direction):
     """Whether some pair could close half the skin in the next step: twice the largest
     reach of a particle from its place at the last build, plus the relative change of the
     cell's edges times the largest contact reach, exceeds the skin."""
-    if p.x.shape[0] >= PARALLEL_FROM:
-        reach = largest_reach_parallel(
-            p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction, cell.length, cell.built
-        )
-    else:
-        reach = largest_reach(
-            p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction, cell.length, cell.built
-        )
+    reach = largest_reach(
+        p.x.shape[0], p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction, cell.length,
+        cell.built,
+    )  # fmt: skip
     strain = 0.0
     for d in range(3):
         ahead = dt * abs(cell.rate[d]) / cell.length[d]

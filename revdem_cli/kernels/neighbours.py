@@ -12,7 +12,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import jit, serial_and_parallel
+from revdem_cli.kernels import by_size, jit
 from revdem_cli.kernels.cell import nearest_image
 
 
@@ -130,11 +130,11 @@ def _partners(x, radius, skin, periodic, length, dims, cell, start, members, off
             offsets[i + 1] = found
 
 
-partners, partners_parallel = serial_and_parallel(_partners)
+partners = by_size(_partners)
 
 
 @jit
-def build_pairs(x, radius, skin, periodic, length, pair_i, pair_j, parallel):
+def build_pairs(x, radius, skin, periodic, length, pair_i, pair_j):
     """Fill pair_i/pair_j with the sorted pairs within reach; return how many there are.
 
     When that exceeds the arrays' capacity they are left as they were, and the caller must
@@ -147,19 +147,13 @@ def build_pairs(x, radius, skin, periodic, length, pair_i, pair_j, parallel):
     offsets = np.zeros(n + 1, dtype=np.int64)
     grid = (x, radius, skin, periodic, length, dims, cell, start, members, offsets)
     counting = np.empty(0, dtype=np.int32)
-    if parallel:
-        partners_parallel(*grid, counting)
-    else:
-        partners(*grid, counting)
+    partners(n, *grid, counting)
     for i in range(n):
         offsets[i + 1] += offsets[i]
     count = offsets[n]
     if count > pair_i.shape[0]:
         return count
-    if parallel:
-        partners_parallel(*grid, pair_j)
-    else:
-        partners(*grid, pair_j)
+    partners(n, *grid, pair_j)
     for i in range(n):
         for k in range(offsets[i], offsets[i + 1]):
             pair_i[k] = i
@@ -252,4 +246,4 @@ def _largest_reach(x, x_built, v, f, inv_mass, dt, direction, length, built):
     return worst
 
 
-largest_reach, largest_reach_parallel = serial_and_parallel(_largest_reach)
+largest_reach = by_size(_largest_reach)

@@ -8,19 +8,14 @@ import math
 
 import numba
 
-from revdem_cli.kernels import jit, serial_and_parallel
+from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import images
-from revdem_cli.kernels.contact import NO_SHEAR, contact_energy, dot
-from revdem_cli.kernels.forces import (
-    ZERO,
-    cell_of,
-    pair_overlap,
-    row,
-    separation,
-    stress_of,
-    wall_normal,
-)
-from revdem_cli.kernels.sums import SPAN, blocks_of, span
+from revdem_cli.kernels.contact import NO_SHEAR, contact_energy
+from revdem_cli.kernels.pairs import pair_overlap, separation
+from revdem_cli.kernels.stress import stress_of
+from revdem_cli.kernels.sums import blocks_of, by_blocks, span
+from revdem_cli.kernels.vectors import ZERO, cell_of, dot, row
+from revdem_cli.kernels.wall_contacts import wall_normal
 
 SCALARS = (
     "kinetic_energy",  # translational and rotational, J
@@ -100,8 +95,8 @@ def _pair_energies(
         partials[b, 3] = contacts
 
 
-particle_energies, particle_energies_parallel = serial_and_parallel(_particle_energies)
-pair_energies, pair_energies_parallel = serial_and_parallel(_pair_energies)
+particle_energies = by_blocks(_particle_energies)
+pair_energies = by_blocks(_pair_energies)
 
 
 @jit
@@ -112,10 +107,7 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
     count = p.x.shape[0]
     parts = pairs.partials
     bodies = (p.x, p.v, p.omega, p.mass, p.inertia, dyn.gravity, parts)
-    if count > SPAN:
-        particle_energies_parallel(*bodies)
-    else:
-        particle_energies(*bodies)
+    particle_energies(count, *bodies)
     kinetic = 0.0
     potential = 0.0
     for b in range(blocks_of(count)):
@@ -125,10 +117,7 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
         p.x, p.radius, p.material, moduli.estar, moduli.gstar, images(cell), pairs.i, pairs.j,
         pairs.first, pairs.force, pairs.history, law, parts,
     )  # fmt: skip
-    if count > SPAN:
-        pair_energies_parallel(*contact_args)
-    else:
-        pair_energies(*contact_args)
+    pair_energies(count, *contact_args)
     elastic = 0.0
     max_normal = 0.0
     max_shear = 0.0

@@ -9,7 +9,7 @@ particles is one block, summed in plain order on one thread.
 
 import numpy as np
 
-from revdem_cli.kernels import inline
+from revdem_cli.kernels import by_size, inline
 
 SPAN = 4096
 """Particles in a block of a system-wide sum."""
@@ -28,6 +28,12 @@ def blocks_of(n):
 def span(b, n):
     """(first, one past the last) particle of block b of n particles."""
     return b * SPAN, min((b + 1) * SPAN, n)
+
+
+def by_blocks(loop):
+    """`kernels.by_size` for a loop over blocks: parallel above SPAN particles, where there is
+    more than one block."""
+    return by_size(loop, SPAN + 1)
 
 
 def empty_partials(n_particles: int) -> np.ndarray:

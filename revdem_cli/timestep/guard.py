@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from revdem_cli import laws
 from revdem_cli.config import Material, Scenario
 from revdem_cli.state import pair_moduli
 from revdem_cli.timestep.criteria import dt_velocity_verlet
@@ -101,22 +102,16 @@ def contact_kinds(scenario: Scenario) -> list[Kind]:
 
 
 def impact_stiffness(scenario: Scenario, kind: Kind) -> tuple[float, float]:
-    """(k_n, k_s) in N/m at the largest overlap of a head-on impact at kind.speed; k_s = 0
-    without shear springs. The overlap stores the impact's kinetic energy, ½ m* v²."""
-    law = scenario.contact
+    """(k_n, k_s) in N/m at the largest overlap of a head-on impact at kind.speed, from the
+    scenario's laws (for Hertz, Hanley 2020 Eq 6 and 10); k_s = 0 without shear springs. The
+    overlap stores the impact's kinetic energy, ½ m* v²."""
+    contact = scenario.contact
     energy = 0.5 * kind.speed**2 / kind.inverse_mass
-    if law.model == "linear":
-        kn = law.kn
-        overlap = math.sqrt(2.0 * energy / kn)  # ½ k_n δ² = ½ m* v²
-    else:
-        hertz = 4.0 / 3.0 * kind.estar * math.sqrt(kind.rstar)  # Hanley 2020 Eq 6
-        overlap = (2.5 * energy / hertz) ** 0.4  # U = 2/5 H δ^(5/2) (Hanley 2020 Eq 6)
-        kn = 1.5 * hertz * math.sqrt(overlap)  # dF/dδ of Hanley 2020 Eq 6
-    if law.tangential == "none":
+    overlap = laws.evaluate(contact, "normal", "impact_overlap", energy, kind.rstar, kind.estar)
+    kn = laws.evaluate(contact, "normal", "force", overlap, kind.rstar, kind.estar)[1]
+    if laws.chosen(contact, "tangential") is None:
         return kn, 0.0
-    if law.tangential == "linear":
-        return kn, law.ks
-    return kn, 8.0 * kind.gstar * math.sqrt(kind.rstar * overlap)  # Hanley 2020 Eq 10
+    return kn, laws.evaluate(contact, "tangential", "stiffness", overlap, kind.rstar, kind.gstar)
 
 
 def _limit(stiffness: float, beta: float, inverse_mass: float, reduced_mass: float) -> float:
@@ -144,9 +139,10 @@ def critical_time_step(scenario: Scenario) -> tuple[float, str]:
         return math.inf, "one particle and no walls: no contact, no stability limit"
     name, (contact, kind) = min(estimates.items(), key=lambda item: item[1][0])
     shear = "" if scenario.contact.tangential == "none" else " with shear springs"
-    if scenario.contact.model == "linear":
+    normal = laws.chosen(scenario.contact, "normal")
+    if not normal.FROM_MATERIALS:
         return contact, (
-            f"linear contact: {contact:.3g} s, the velocity-Verlet limit of a {name}{shear} "
+            f"{normal.NAME} contact: {contact:.3g} s, the velocity-Verlet limit of a {name}{shear} "
             f"(Peng 2020 Eq 47-49) with the smallest particle mass"
         )
     spheres = scenario.spheres
@@ -156,7 +152,8 @@ def critical_time_step(scenario: Scenario) -> tuple[float, str]:
         if (spheres.material == k).any()
     )
     return min(rayleigh, contact), (
-        f"Hertz contact: the smaller of the Rayleigh time step {rayleigh:.3g} s and "
-        f"{contact:.3g} s, the velocity-Verlet limit of a {name}{shear} at the Hertz "
-        f"stiffness of a head-on impact at {kind.speed:.3g} m/s (Peng 2020 Eq 47, Hanley 2020 Eq 6)"
+        f"{normal.NAME.capitalize()} contact: the smaller of the Rayleigh time step "
+        f"{rayleigh:.3g} s and {contact:.3g} s, the velocity-Verlet limit of a {name}{shear} at "
+        f"the {normal.NAME.capitalize()} stiffness of a head-on impact at {kind.speed:.3g} m/s "
+        f"(Peng 2020 Eq 47, {normal.EQUATION.split(' (')[0]})"
     )

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from revdem_cli.config import Scenario
-from revdem_cli.kernels.forces import PARALLEL_FROM
+from revdem_cli.kernels import PARALLEL_FROM
 from tests.conftest import periodic_fcc
 
 

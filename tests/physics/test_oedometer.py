@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from revdem_cli.config import load_scenario
-from revdem_cli.kernels.forces import PARALLEL_FROM
+from revdem_cli.kernels import PARALLEL_FROM
 from tests.conftest import CONFIGS
 
 SMOKE = CONFIGS / "smoke" / "oedometer.toml"

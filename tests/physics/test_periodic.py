@@ -9,7 +9,7 @@ import pytest
 
 from revdem_cli.config import Scenario
 from revdem_cli.engine import Model, run_scenario
-from revdem_cli.kernels.forces import particle_stress
+from revdem_cli.kernels.stress import particle_stress
 from revdem_cli.state import initial_state
 
 KN = 1.0e5  # N/m

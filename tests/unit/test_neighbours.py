@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from revdem_cli.kernels import PARALLEL_FROM
 from revdem_cli.kernels.neighbours import build_pairs, carry_history, index_by_particle
 
 OPEN = (np.zeros(3, np.int64), np.ones(3))
@@ -25,17 +26,17 @@ def random_packing(n, seed, size=0.05):
     return rng.uniform(0, size, (n, 3)), rng.uniform(0.004, 0.006, n)
 
 
-def listed(x, radius, skin, periodic, length, parallel):
+def listed(x, radius, skin, periodic, length):
     cap = 20000
     pi, pj = np.zeros(cap, np.int32), np.zeros(cap, np.int32)
-    n = build_pairs(x, radius, skin, periodic, length, pi, pj, parallel)
+    n = build_pairs(x, radius, skin, periodic, length, pi, pj)
     return n, list(zip(pi[:n].tolist(), pj[:n].tolist(), strict=True))
 
 
-@pytest.mark.parametrize("parallel", [False, True])
-def test_cell_list_pairs_equal_brute_force_and_are_sorted(parallel):
-    x, radius = random_packing(400, 1)
-    n, pairs = listed(x, radius, 0.001, *OPEN, parallel)
+@pytest.mark.parametrize("count", [PARALLEL_FROM - 56, PARALLEL_FROM + 144])  # serial, parallel
+def test_cell_list_pairs_equal_brute_force_and_are_sorted(count):
+    x, radius = random_packing(count, 1)
+    n, pairs = listed(x, radius, 0.001, *OPEN)
     expected = brute_force_pairs(x, radius, 0.001)
     assert n == len(expected) > 0
     assert pairs == expected
@@ -45,7 +46,7 @@ def test_cell_list_pairs_equal_brute_force_and_are_sorted(parallel):
 def test_periodic_pairs_reach_across_faces_to_the_nearest_image(size):
     x, radius = random_packing(300, 3, size)
     box = np.full(3, size)
-    n, pairs = listed(x, radius, 0.001, np.ones(3, np.int64), box, True)
+    n, pairs = listed(x, radius, 0.001, np.ones(3, np.int64), box)
     expected = brute_force_pairs(x, radius, 0.001, box)
     assert pairs == expected
     across = [(i, j) for i, j in expected if np.abs(x[j] - x[i]).max() > size / 2]
@@ -56,7 +57,7 @@ def test_too_small_arrays_report_the_size_needed_and_stay_as_they_were():
     x, radius = random_packing(200, 2)
     needed = len(brute_force_pairs(x, radius, 0.001))
     pi, pj = np.full(needed // 2, 7, np.int32), np.full(needed // 2, 7, np.int32)
-    assert build_pairs(x, radius, 0.001, *OPEN, pi, pj, False) == needed
+    assert build_pairs(x, radius, 0.001, *OPEN, pi, pj) == needed
     assert (pi == 7).all() and (pj == 7).all()
 
 

@@ -1,0 +1,355 @@
+"""The pair loop: the force on i from j of every listed pair (Hanley 2020 Eq 4-10), each
+computed once and written to its own slot, with the shear force it destroyed counted.
+
+The pair loop works in blocks of BLOCK pairs, so that LLVM can vectorise the contact
+physics (AVX-512: eight pairs at a time). A block is ROWS x BLOCK doubles, a row per
+quantity and a column per pair, and goes through three stages:
+- gather: each pair's separation, radii, moduli, velocities and history into its column
+  (scalar: the particles' rows are scattered in memory);
+- contact stage: `contact.contact_force` and its geometry and kinematics, column by column,
+  reading and writing the block only, so the loop is elementwise over contiguous rows (with
+  the spin correction's cos and sin as their series; a block where some angle is too large
+  for that is done again with them in full);
+- scatter: each column's force, history, moment and overlap into the pair arrays, counting
+  the shear force destroyed (scalar, branches); in a long list, force, moment and overlap
+  with non-temporal stores (STREAM_FROM).
+Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
+cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each chunk worked
+through with its own block, so the loop allocates nothing.
+"""
+
+import math
+
+import numba
+import numpy as np
+
+from revdem_cli.kernels import by_size, fence, inline, renamed, stream
+from revdem_cli.kernels.arrays import ContactLaw
+from revdem_cli.kernels.cell import affine_velocity, nearest_image, strain_rates
+from revdem_cli.kernels.contact import (
+    FORWARD,
+    NO_SHEAR,
+    SMALL_ANGLE,
+    contact_force,
+    contact_velocity,
+)
+from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
+
+STREAM_FROM = 200_000
+"""Lists of at least this many pairs send the pair loop's results (force, n x f, overlap)
+to memory with non-temporal stores: read back only by the gather, after the loop, they
+would not stay in cache, and a store that first reads its cache line in costs twice the
+traffic (the pair loop takes 9-20 % less time at n = 24 and 64 fcc). Smaller lists keep
+them in cache (at n = 10 and 14 streaming made the gather 20-30 % slower, at n = 18 it
+broke even)."""
+
+APART = 1.0 + 1e-12
+"""Pairs farther apart than (1 + 1e-12) (r_i + r_j) are certainly not touching, so their
+distance needs no square root."""
+
+
+@inline
+def separation(x, i, j, image):
+    """x_j - x_i, across periodic boundaries to the nearest image (`cell.nearest_image`)."""
+    return nearest_image(axpy(-1.0, row(x, i), row(x, j)), image)
+
+
+@inline
+def pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming):
+    """(velocity of j relative to i at the contact, mean spin about n) of a pair with radii
+    r_i, r_j, separation d, normal n, centres' relative velocity v_ij = v_j - v_i and spins
+    w_i, w_j; in a deforming cell the relative velocity includes the cell's affine motion
+    (`strain` from `cell.strain_rates`)."""
+    vrel = contact_velocity(n, r_i - 0.5 * overlap, r_j - 0.5 * overlap, v_ij, w_i, w_j)
+    if deforming:
+        vrel = axpy(1.0, affine_velocity(d, strain), vrel)
+    return vrel, 0.5 * (dot(w_i, n) + dot(w_j, n))
+
+
+@inline
+def pair_overlap(d, reach):
+    """(overlap, distance) of a pair with separation d and reach r_i + r_j; pairs certainly
+    apart (by more than APART) get overlap -1 and distance 0 without a square root."""
+    dist2 = dot(d, d)
+    if dist2 > (APART * reach) ** 2:
+        return -1.0, 0.0
+    dist = math.sqrt(dist2)
+    return reach - dist, dist
+
+
+BLOCK = 64
+"""Pairs in a block of the pair loop; its ROWS x BLOCK values (17 KB) stay in the
+first-level cache."""
+
+# The rows of a block, BLOCK values each, one column per pair (see the module docstring)
+SEPARATION = 0  # x_j - x_i to the nearest image: 3 rows
+RADIUS_I = 3
+RADIUS_J = 4
+E_STAR = 5
+G_STAR = 6
+M_STAR = 7  # reduced mass, with viscous damping
+VELOCITY = 8  # v_j - v_i: 3 rows
+OMEGA_I = 11  # 3 rows
+OMEGA_J = 14  # 3 rows
+SHEAR = 17  # the shear history: 3 rows
+NORMAL_NEW = 20  # reversed runs: the unwinding normal: 3 rows
+FORCE = 23  # 3 rows
+NEW_SHEAR = 26  # the new shear history: 3 rows
+MOMENT = 29  # n x force: 3 rows
+OVERLAP = 32
+SLIPPED = 33  # shear force removed by the Coulomb cap
+ROWS = 34
+
+
+def empty_blocks(chunks: int) -> np.ndarray:
+    """Working rows of the pair loop: a block for each of `chunks` parts of the pair list."""
+    return np.zeros((chunks, ROWS * BLOCK))
+
+
+@inline
+def entry(block, r, k):
+    """Row r of a block, column k."""
+    return block[r * BLOCK + k]
+
+
+@inline
+def enter(block, r, k, value):
+    block[r * BLOCK + k] = value
+
+
+@inline
+def entries(block, r, k):
+    """Rows r to r + 2 of a block, column k, as a 3-tuple."""
+    return (block[r * BLOCK + k], block[(r + 1) * BLOCK + k], block[(r + 2) * BLOCK + k])
+
+
+@inline
+def enter3(block, r, k, vector):
+    block[r * BLOCK + k], block[(r + 1) * BLOCK + k], block[(r + 2) * BLOCK + k] = vector
+
+
+@inline
+def gather_pairs(
+    block, first, size, x, v, w, radius, mass, material, estar, gstar, image, pi, pj, history,
+    normal_new, law,
+):  # fmt: skip
+    """Columns 0 to size - 1 of the block: what the contact stage needs of pairs first to
+    first + size - 1, from their particles and their history."""
+    shear_law = law.tangential != NO_SHEAR
+    moving = shear_law or law.beta_n > 0.0  # the force depends on the relative velocity
+    damped = law.beta_n > 0.0 or law.beta_t > 0.0
+    unwound = normal_new.shape[0] > 0
+    for k in range(size):
+        p = np.uint64(first + k)  # unsigned indices: numba skips the check for negative ones
+        i = np.uint32(pi[p])
+        j = np.uint32(pj[p])
+        enter3(block, SEPARATION, k, separation(x, i, j, image))
+        enter(block, RADIUS_I, k, radius[i])
+        enter(block, RADIUS_J, k, radius[j])
+        a, b = np.uint32(material[i]), np.uint32(material[j])
+        enter(block, E_STAR, k, estar[a, b])
+        enter(block, G_STAR, k, gstar[a, b])
+        if damped:
+            enter(block, M_STAR, k, mass[i] * mass[j] / (mass[i] + mass[j]))
+        if moving:
+            enter3(block, VELOCITY, k, axpy(-1.0, row(v, i), row(v, j)))
+            enter3(block, OMEGA_I, k, row(w, i))
+            enter3(block, OMEGA_J, k, row(w, j))
+        if shear_law:
+            enter3(block, SHEAR, k, row(history, p))
+        if unwound:
+            enter3(block, NORMAL_NEW, k, row(normal_new, p))
+
+
+@inline
+def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
+    """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
+    with a tangential law, the new history, n x force, the overlap and the shear force the
+    Coulomb cap removed, column by column, reading and writing the block only: one loop
+    body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
+    The rows read are left as they were, so that a block can be done again. `small`: the
+    spin corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`).
+    Returns how many angles were not."""
+    shear_law = law.tangential != NO_SHEAR
+    moving = shear_law or law.beta_n > 0.0
+    damped = law.beta_n > 0.0 or law.beta_t > 0.0
+    large = 0
+    for k in range(size):
+        d = entries(block, SEPARATION, k)
+        r_i = entry(block, RADIUS_I, k)
+        r_j = entry(block, RADIUS_J, k)
+        reach = r_i + r_j
+        overlap, dist = pair_overlap(d, reach)
+        n = scaled(1.0 / dist, d)
+        vrel = ZERO
+        spin = 0.0
+        if moving:
+            w_i = entries(block, OMEGA_I, k)
+            w_j = entries(block, OMEGA_J, k)
+            v_ij = entries(block, VELOCITY, k)
+            vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
+            large += abs(spin * dt) >= SMALL_ANGLE  # the angle of contact_force's Eq 9
+        f, shear, slipped = contact_force(
+            law,
+            mode,
+            dt,
+            overlap,
+            n,
+            r_i * r_j / reach,
+            entry(block, M_STAR, k) if damped else 0.0,
+            entry(block, E_STAR, k),
+            entry(block, G_STAR, k),
+            vrel,
+            spin,
+            entries(block, SHEAR, k) if shear_law else ZERO,
+            entries(block, NORMAL_NEW, k) if unwound else ZERO,
+            small,
+        )
+        touching = overlap > 0.0
+        enter3(block, FORCE, k, f if touching else ZERO)
+        if shear_law:
+            enter3(block, NEW_SHEAR, k, shear if touching else ZERO)
+            enter3(block, MOMENT, k, cross(n, f) if touching else ZERO)
+            enter(block, OVERLAP, k, overlap)
+            enter(block, SLIPPED, k, slipped if touching else 0.0)
+    return large
+
+
+@inline
+def undamped(law, tangential):
+    """`law` without viscous damping and with the tangential law `tangential`."""
+    return ContactLaw(law.normal, tangential, law.mu, 0.0, 0.0, *law[5:])  # CONTACT is 5
+
+
+@inline
+def contact_stage(block, size, law, mode, dt, strain, deforming, unwound):
+    """`contacts`, compiled apart for the common cases (stepping forward without viscous
+    damping, with and without shear), where the law's constants remove the branches those
+    cases never take from the vectorised loop: an elementwise loop computes both sides of
+    every branch in it. With shear, the block is done with small spin corrections, and
+    again with any where some angle is not small (rare: |spin dt| >= 1e-3)."""
+    if mode == FORWARD and law.beta_n == 0.0 and law.beta_t == 0.0:
+        if law.tangential == NO_SHEAR:
+            frictionless = undamped(law, NO_SHEAR)
+            contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True)
+        else:
+            forward = undamped(law, law.tangential)
+            if contacts(block, size, forward, FORWARD, dt, strain, deforming, False, True) > 0:
+                contacts(block, size, forward, FORWARD, dt, strain, deforming, False, False)
+    else:
+        contacts(block, size, law, mode, dt, strain, deforming, unwound, False)
+
+
+STREAMING = False
+"""Whether `scatter_pairs` streams (see STREAM_FROM); its streaming build has it True. A
+constant, not an argument: numba optimises the helper before inlining it, and LLVM merges
+the two branches' stores into one plain store."""
+
+
+def _scatter_pairs(block, first, size, force, history, moment, overlaps, destroyed, law, mode):
+    """The block's results into the pair arrays; returns (slips, last pair that slipped,
+    losses, last pair that lost its shear force) of the block. A pair apart loses its
+    history (the shear force is counted lost when stepping forward)."""
+    slips = 0
+    last_slip = -1
+    losses = 0
+    last_loss = -1
+    shear_law = law.tangential != NO_SHEAR
+    for k in range(size):
+        p = first + k
+        u = np.uint64(p)  # unsigned, as in `gather_pairs`
+        if STREAMING:
+            put_streaming(force, u, entries(block, FORCE, k))
+        else:
+            put(force, u, entries(block, FORCE, k))
+        if shear_law:
+            overlap = entry(block, OVERLAP, k)
+            lost = norm(row(history, u)) if overlap <= 0.0 and mode == FORWARD else 0.0
+            put(history, u, entries(block, NEW_SHEAR, k))
+            if STREAMING:
+                put_streaming(moment, u, entries(block, MOMENT, k))
+                stream(overlaps, u, overlap)
+            else:
+                put(moment, u, entries(block, MOMENT, k))
+                overlaps[u] = overlap
+            slipped = entry(block, SLIPPED, k)
+            if slipped > 0.0:  # `destroyed` is read only where something was
+                destroyed[p] = slipped
+                slips += 1
+                last_slip = p
+            if lost > 0.0:
+                destroyed[p] = lost
+                losses += 1
+                last_loss = p
+    return slips, last_slip, losses, last_loss
+
+
+scatter_pairs = inline(_scatter_pairs)
+scatter_pairs_streaming = inline(renamed(_scatter_pairs, "_scatter_streaming", STREAMING=True))
+
+
+def _pair_loop(
+    x,
+    v,
+    w,
+    radius,
+    mass,
+    material,
+    estar,
+    gstar,
+    image,
+    rate,
+    length,
+    deforming,
+    pi,
+    pj,
+    n_pairs,
+    force,
+    history,
+    moment,
+    overlaps,
+    destroyed,
+    normal_new,
+    law,
+    mode,
+    dt,
+    blocks,
+):
+    """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
+    law, n x force, the overlap and the shear force destroyed: by the Coulomb cap, or at
+    separation, where the history is zeroed. The list is cut into as many chunks as there
+    are `blocks`, each done block by block in its own: gather, contact stage, scatter.
+    Returns (slips, last pair that slipped, losses, last pair that lost its shear force)."""
+    strain = strain_rates(rate, length)
+    unwound = normal_new.shape[0] > 0
+    streaming = n_pairs >= STREAM_FROM
+    chunks = blocks.shape[0]
+    slips = 0
+    last_slip = -1
+    losses = 0
+    last_loss = -1
+    for c in numba.prange(chunks):
+        block = blocks[c]
+        end = (c + 1) * n_pairs // chunks
+        for first in range(c * n_pairs // chunks, end, BLOCK):
+            size = min(BLOCK, end - first)
+            gather_pairs(
+                block, first, size, x, v, w, radius, mass, material, estar, gstar, image, pi,
+                pj, history, normal_new, law,
+            )  # fmt: skip
+            contact_stage(block, size, law, mode, dt, strain, deforming, unwound)
+            results = (force, history, moment, overlaps, destroyed, law, mode)
+            if streaming:
+                scattered = scatter_pairs_streaming(block, first, size, *results)
+            else:
+                scattered = scatter_pairs(block, first, size, *results)
+            s, s_last, lost, lost_last = scattered
+            slips += s
+            last_slip = max(last_slip, s_last)
+            losses += lost
+            last_loss = max(last_loss, lost_last)
+        fence()  # any streamed results, before the gather reads them on other threads
+    return slips, last_slip, losses, last_loss
+
+
+pair_loop = by_size(_pair_loop)

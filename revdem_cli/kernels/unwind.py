@@ -1,0 +1,133 @@
+"""The reversed step's first half at the later positions: the shear update of the forward
+step undone (the inverse of Hanley 2020 Eq 10 and 9), for every pair and wall contact."""
+
+import numba
+
+from revdem_cli.kernels import by_size, jit
+from revdem_cli.kernels.cell import deforms, images, strain_rates
+from revdem_cli.kernels.contact import NO_SHEAR, unwind_shear
+from revdem_cli.kernels.pairs import pair_velocity, separation
+from revdem_cli.kernels.vectors import axpy, cell_of, norm, place, put, row, scaled
+from revdem_cli.kernels.wall_contacts import wall_kinematics
+
+
+def _unwind_pair_loop(
+    x,
+    v,
+    w,
+    radius,
+    material,
+    gstar,
+    image,
+    rate,
+    length,
+    deforming,
+    pi,
+    pj,
+    n_pairs,
+    history,
+    normal_new,
+    law,
+    dt,
+):
+    """Reversed step, before drifting back: undo Eq 10 and 9 for every pair, in place."""
+    strain = strain_rates(rate, length)
+    for k in numba.prange(n_pairs):
+        i = pi[k]
+        j = pj[k]
+        d = separation(x, i, j, image)
+        dist = norm(d)
+        overlap = radius[i] + radius[j] - dist
+        n = scaled(1.0 / dist, d)
+        w_i = row(w, i)
+        w_j = row(w, j)
+        v_ij = axpy(-1.0, row(v, i), row(v, j))
+        vrel, spin = pair_velocity(
+            d, n, overlap, radius[i], radius[j], v_ij, w_i, w_j, strain, deforming
+        )
+        rstar = radius[i] * radius[j] / (radius[i] + radius[j])
+        gs = gstar[material[i], material[j]]
+        put(history, k, unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, row(history, k)))
+        put(normal_new, k, n)
+
+
+def _unwind_wall_loop(
+    x,
+    v,
+    w,
+    radius,
+    material,
+    gstar,
+    kind,
+    point,
+    axis,
+    wall_radius,
+    wall_velocity,
+    wall_material,
+    history,
+    normal_new,
+    law,
+    dt,
+):
+    """Reversed step, before drifting back: undo Eq 10 and 9 for every wall contact."""
+    for q in numba.prange(x.shape[0]):
+        for b in range(kind.shape[0]):
+            overlap, n, _, vrel, spin = wall_kinematics(
+                q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_velocity
+            )
+            gs = gstar[material[q], wall_material[b]]
+            shear = unwind_shear(
+                law, dt, overlap, n, radius[q], gs, vrel, spin, cell_of(history, q, b)
+            )
+            place(history, q, b, shear)
+            place(normal_new, q, b, n)
+
+
+unwind_pair_loop = by_size(_unwind_pair_loop)
+unwind_wall_loop = by_size(_unwind_wall_loop)
+
+
+@jit
+def unwind_shear_history(p, pairs, walls, cell, law, moduli, dt):
+    """Undo the shear update of the forward step (inverse of Eq 10, 9) at the later positions."""
+    if law.tangential == NO_SHEAR:
+        return
+    pair_args = (
+        p.x,
+        p.v,
+        p.omega,
+        p.radius,
+        p.material,
+        moduli.gstar,
+        images(cell),
+        cell.rate,
+        cell.length,
+        deforms(cell),
+        pairs.i,
+        pairs.j,
+        pairs.count[0],
+        pairs.history,
+        pairs.normal_new,
+        law,
+        dt,
+    )
+    wall_args = (
+        p.x,
+        p.v,
+        p.omega,
+        p.radius,
+        p.material,
+        moduli.gstar,
+        walls.kind,
+        walls.point,
+        walls.axis,
+        walls.radius,
+        walls.velocity,
+        walls.material,
+        walls.history,
+        walls.normal_new,
+        law,
+        dt,
+    )
+    unwind_pair_loop(p.x.shape[0], *pair_args)
+    unwind_wall_loop(p.x.shape[0], *wall_args)

@@ -1,0 +1,111 @@
+"""Sphere-wall contacts: the force and moment on each particle from each wall (Hanley 2020
+Eq 4-10 with R* = r), each particle's contacts in wall order."""
+
+import numba
+
+from revdem_cli.kernels import by_size, jit
+from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, contact_force, relative_velocity
+from revdem_cli.kernels.vectors import ZERO, cell_of, cross, dot, norm, place, row, scaled
+from revdem_cli.kernels.walls import wall_overlap
+
+
+@jit
+def wall_kinematics(q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_velocity):
+    """(overlap, normal n towards the wall, lever arm, velocity of the wall relative to the
+    particle at the contact, half the particle's spin about n) of particle q and wall b."""
+    overlap, n = wall_overlap(
+        kind[b], row(point, b), row(axis, b), wall_radius[b], row(x, q), radius[q]
+    )
+    arm = radius[q] - 0.5 * overlap
+    w_q = row(w, q)
+    vrel = relative_velocity(n, arm, 0.0, row(v, q), w_q, row(wall_velocity, b), ZERO)
+    return overlap, n, arm, vrel, 0.5 * dot(w_q, n)
+
+
+def _wall_loop(
+    x,
+    v,
+    w,
+    radius,
+    mass,
+    material,
+    estar,
+    gstar,
+    kind,
+    point,
+    axis,
+    wall_radius,
+    wall_velocity,
+    wall_material,
+    force,
+    torque,
+    overlaps,
+    history,
+    destroyed,
+    normal_new,
+    law,
+    mode,
+    dt,
+):
+    """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r).
+    Returns (slips, last contact q W + b that slipped, losses, last that lost its shear)."""
+    shear_law = law.tangential != NO_SHEAR
+    walls = kind.shape[0]
+    slips = 0
+    last_slip = -1
+    losses = 0
+    last_loss = -1
+    for q in numba.prange(x.shape[0]):
+        for b in range(walls):
+            overlap, n, arm, vrel, spin = wall_kinematics(
+                q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_velocity
+            )
+            overlaps[q, b] = overlap
+            shear = cell_of(history, q, b)
+            if overlap > 0.0:
+                m = wall_material[b]
+                n_new = cell_of(normal_new, q, b) if normal_new.shape[0] > 0 else ZERO
+                f, shear, slipped = contact_force(
+                    law,
+                    mode,
+                    dt,
+                    overlap,
+                    n,
+                    radius[q],
+                    mass[q],
+                    estar[material[q], m],
+                    gstar[material[q], m],
+                    vrel,
+                    spin,
+                    shear,
+                    n_new,
+                )
+                t = cross(scaled(arm, n), f) if shear_law else ZERO
+                dropped = 0.0
+            else:
+                f = ZERO
+                t = ZERO
+                slipped = 0.0
+                dropped = norm(shear) if mode == FORWARD else 0.0
+                shear = ZERO
+            place(history, q, b, shear)
+            place(force, q, b, f)
+            place(torque, q, b, t)
+            destroyed[q, b] = slipped + dropped
+            if slipped > 0.0:
+                slips += 1
+                last_slip = max(last_slip, q * walls + b)
+            if dropped > 0.0:
+                losses += 1
+                last_loss = max(last_loss, q * walls + b)
+    return slips, last_slip, losses, last_loss
+
+
+wall_loop = by_size(_wall_loop)
+
+
+@jit
+def wall_normal(p, walls, q, b):
+    """Unit normal from particle q towards wall b (for observables, not per step)."""
+    point, axis = row(walls.point, b), row(walls.axis, b)
+    return wall_overlap(walls.kind[b], point, axis, walls.radius[b], row(p.x, q), p.radius[q])[1]
