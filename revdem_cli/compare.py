@@ -169,6 +169,10 @@ def _cause(kind: int, entry, walls: list[str]) -> dict:
         "velocity_fixed_point_under_drag": f"particle {q} reached a fixed point of the drag "
         f"map at step {step} (|v| = {amount:.4g} m/s, terminal velocity or rest): the time spent "
         "there cannot be recovered",
+        "rolling_limit": f"{contact} rolled at step {step}: the limit of its rolling law "
+        f"removed {amount:.3g} N m of rolling moment, which cannot be recovered",
+        "contact_lost_with_rolling_moment": f"{contact} lost rolling moment {amount:.3g} N m "
+        f"at step {step}: the moment zeroed at separation cannot be recovered",
         "motion_below_round_off": f"particle {q} moved {amount:.3g} m in a step at step {step}, "
         "too little to change its position in floating point: the motion is lost (the "
         "particle is at rest to round-off)",

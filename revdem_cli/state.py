@@ -79,6 +79,7 @@ def contact_law(scenario: Scenario) -> ContactLaw:
     return ContactLaw(
         laws.number("normal", spec.model),
         laws.number("tangential", spec.tangential),
+        laws.number("rolling", spec.rolling),
         math.inf if spec.friction is None else float(spec.friction),
         spec.normal_damping,
         spec.tangential_damping,
@@ -137,6 +138,7 @@ def wall_arrays(scenario: Scenario, n_particles: int, reversing: bool = False) -
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     point = np.array([w.point for w in ws], dtype=np.float64).reshape(count, 3)
     unwinding = reversing and scenario.contact.tangential != "none"
+    rolling = count_if(rolls(scenario), n_particles)
     return Walls(
         kind=np.array(
             [walls.CYLINDER if w.type == "cylinder" else walls.PLANE for w in ws], dtype=np.int64
@@ -152,6 +154,8 @@ def wall_arrays(scenario: Scenario, n_particles: int, reversing: bool = False) -
         overlap=np.zeros((n_particles, count)),
         history=np.zeros((n_particles, count, 3)),
         destroyed=np.zeros((n_particles, count)),
+        rolling=np.zeros((rolling, count, 3)),
+        rolled=np.zeros((rolling, count)),
         normal_new=np.zeros((n_particles if unwinding else 0, count, 3)),
     )
 
@@ -181,8 +185,19 @@ def cell_arrays(scenario: Scenario) -> Cell:
     )
 
 
-_PAIR_SHEAR_VECTORS = ("history", "moment")
-_PAIR_SHEAR_SCALARS = ("overlap", "destroyed")
+PAIR_HISTORY = ("history", "moment", "overlap", "destroyed", "rolling", "rolled")
+"""The per-pair arrays a growing list carries over besides the pairs and their forces (those
+a run does not need are empty)."""
+
+
+def count_if(needed: bool, count: int) -> int:
+    """The length of an array a run has only if it needs it."""
+    return count if needed else 0
+
+
+def rolls(scenario: Scenario) -> bool:
+    """Whether the scenario's contacts have rolling resistance."""
+    return scenario.contact.rolling != "none"
 
 
 def pair_capacity(needed: int) -> int:
@@ -191,10 +206,14 @@ def pair_capacity(needed: int) -> int:
     return needed + needed // 16 + 16
 
 
-def empty_pairs(n_particles: int, capacity: int, shear: bool, reversing: bool) -> Pairs:
+def empty_pairs(
+    n_particles: int, capacity: int, shear: bool, reversing: bool, rolling: bool
+) -> Pairs:
     """A pair list with room for `capacity` pairs; shear state only with a tangential law,
-    and the unwinding normal only in a reversed run with one."""
-    per_shear = capacity if shear else 0
+    rolling state only with a rolling law, and the unwinding normal only in a reversed run
+    with a tangential law."""
+    per_shear = count_if(shear, capacity)
+    per_rolling = count_if(rolling, capacity)
     return Pairs(
         count=np.zeros(2, dtype=np.int64),
         i=np.zeros(capacity, dtype=np.int32),
@@ -204,6 +223,8 @@ def empty_pairs(n_particles: int, capacity: int, shear: bool, reversing: bool) -
         moment=np.zeros((per_shear, 3)),
         overlap=np.zeros(per_shear),
         destroyed=np.zeros(per_shear),
+        rolling=np.zeros((per_rolling, 3)),
+        rolled=np.zeros(per_rolling),
         normal_new=np.zeros((per_shear if reversing else 0, 3)),
         first=np.zeros(n_particles + 1, dtype=np.int64),
         start=np.zeros(n_particles + 1, dtype=np.int64),
@@ -217,18 +238,20 @@ def empty_pairs(n_particles: int, capacity: int, shear: bool, reversing: bool) -
 
 
 def grown(pairs: Pairs, capacity: int) -> Pairs:
-    """A copy of `pairs` with room for `capacity` pairs; the listed pairs, their history and
-    the particle index kept. (A list always has room for some pairs, so its shear arrays
-    are empty only without a tangential law.)"""
-    shear = pairs.history.shape[0] > 0
+    """A copy of `pairs` with room for `capacity` pairs; the listed pairs, their histories and
+    the particle index kept. (A list always has room for some pairs, so its shear and rolling
+    arrays are empty only without those laws.)"""
     bigger = empty_pairs(
-        pairs.start.shape[0] - 1, capacity, shear, reversing=pairs.normal_new.shape[0] > 0
+        pairs.start.shape[0] - 1,
+        capacity,
+        shear=pairs.history.shape[0] > 0,
+        reversing=pairs.normal_new.shape[0] > 0,
+        rolling=pairs.rolling.shape[0] > 0,
     )
     n = int(pairs.count[0])
-    for name in ("i", "j", "force") + (
-        (_PAIR_SHEAR_VECTORS + _PAIR_SHEAR_SCALARS) if shear else ()
-    ):
-        getattr(bigger, name)[:n] = getattr(pairs, name)[:n]
+    for name in ("i", "j", "force") + PAIR_HISTORY:
+        if getattr(pairs, name).shape[0] > 0:
+            getattr(bigger, name)[:n] = getattr(pairs, name)[:n]
     bigger.count[:] = pairs.count
     bigger.first[:] = pairs.first
     bigger.start[:] = pairs.start
@@ -404,7 +427,7 @@ def initial_state(scenario: Scenario) -> State:
     needed = build_pairs(p.x, p.radius, skin, cell_now.periodic, cell_now.length, nothing, nothing)
     state = State(
         p,
-        empty_pairs(len(p.x), pair_capacity(needed), shear, reversing=False),
+        empty_pairs(len(p.x), pair_capacity(needed), shear, False, rolls(scenario)),
         wall_arrays(scenario, len(p.x)),
         cell_now,
         integers,

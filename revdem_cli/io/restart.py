@@ -25,11 +25,18 @@ from revdem_cli.io import (
 )
 from revdem_cli.kernels.arrays import Cell, Fixed, Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
-from revdem_cli.state import State, cell_arrays, empty_pairs, pair_capacity, wall_arrays
+from revdem_cli.state import (
+    State,
+    cell_arrays,
+    empty_pairs,
+    pair_capacity,
+    rolls,
+    wall_arrays,
+)
 
-PAIR_FIELDS = ("i", "j", "force", "history")
+PAIR_FIELDS = ("i", "j", "force", "history", "rolling")
 """The per-pair arrays a restart keeps: the list, the contact forces of its step (which its
-observables read) and, with a tangential law, the contact history."""
+observables read) and the contact histories of the laws it has (shear, rolling)."""
 
 WALL_FIELDS = tuple(name for name in Walls._fields if name != "normal_new")
 """The wall arrays a restart keeps; the reversed step's scratch is allocated on reading."""
@@ -91,9 +98,9 @@ def write_restart(path: Path, restart: Restart) -> None:
         for name in Fixed._fields:
             f.create_dataset(f"fixed/{name}", data=getattr(s.fixed, name))
         n = int(s.pairs.count[0])
-        shear = s.pairs.history.shape[0] > 0
-        for name in PAIR_FIELDS[: 4 if shear else 3]:
-            f.create_dataset(f"pairs/{name}", data=getattr(s.pairs, name)[:n])
+        for name in PAIR_FIELDS:
+            if getattr(s.pairs, name).shape[0] > 0:  # arrays of the laws it has
+                f.create_dataset(f"pairs/{name}", data=getattr(s.pairs, name)[:n])
         f.create_dataset("pairs/x_built", data=s.pairs.x_built)
         if restart.resumption is not None:
             _write_resumption(meta.create_group("checkpoint"), restart.resumption)
@@ -174,9 +181,10 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         getattr(cell, name)[...] = read(f"cell/{name}")
     integers = Fixed(*(read(f"fixed/{name}") for name in Fixed._fields))
     n = f["pairs/i"].shape[0]
-    pairs: Pairs = empty_pairs(n_particles, pair_capacity(n), shear, reversing)
-    for name in PAIR_FIELDS[: 4 if shear else 3]:
-        getattr(pairs, name)[:n] = read(f"pairs/{name}")
+    pairs: Pairs = empty_pairs(n_particles, pair_capacity(n), shear, reversing, rolls(scenario))
+    for name in PAIR_FIELDS:
+        if getattr(pairs, name).shape[0] > 0:
+            getattr(pairs, name)[:n] = read(f"pairs/{name}")
     pairs.x_built[:] = read("pairs/x_built")
     pairs.count[:] = n
     index_by_particle(pairs.i, pairs.j, n, pairs.first, pairs.start, pairs.slots)

@@ -39,6 +39,8 @@ Pairs = namedtuple(
         "moment",  # n x force: the moment about i's centre over its lever arm, N, (P, 3)
         "overlap",  # overlap at the current step (< 0: apart), m, (P,)
         "destroyed",  # shear force destroyed this step: Coulomb cap or separation, N, (P,)
+        "rolling",  # rolling moment on i: the rolling history, N m, (P, 3)
+        "rolled",  # rolling moment destroyed this step: its limit or separation, N m, (P,)
         "normal_new",  # reversed step: the contact normal the unwound history lies across
         "first",  # the pairs (q, j) of particle q are slots first[q] to first[q + 1], (N + 1,)
         "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, (N + 1,)
@@ -51,7 +53,8 @@ Pairs = namedtuple(
     ],
 )
 """history, moment, overlap and destroyed have length P with a tangential law, else 0;
-normal_new has length P in a reversed run with a tangential law, else 0."""
+rolling and rolled length P with a rolling law, else 0; normal_new has length P in a
+reversed run with a tangential law, else 0."""
 
 Walls = namedtuple(
     "Walls",
@@ -64,10 +67,12 @@ Walls = namedtuple(
         "velocity",  # m/s, (W, 3)
         "material",  # material index, (W,)
         "force",  # force on the particle from the wall, N, (N, W, 3)
-        "torque",  # moment of that force about the particle's centre, N m, (N, W, 3)
+        "torque",  # moment on the particle (of that force, and rolling), N m, (N, W, 3)
         "overlap",  # m, (N, W)
         "history",  # elastic shear force on the particle, N, (N, W, 3)
         "destroyed",  # shear force destroyed this step, N, (N, W)
+        "rolling",  # rolling moment on the particle, N m, (N, W, 3); (0, W, 3) without rolling
+        "rolled",  # rolling moment destroyed this step, N m, (N, W); (0, W) without rolling
         "normal_new",  # reversed step, as in Pairs, (N, W, 3)
     ],
 )
@@ -109,6 +114,7 @@ in floating-point runs."""
 CONTACT = (
     "normal",  # number of the normal law (revdem_cli.laws)
     "tangential",  # number of the tangential law, laws.NONE for frictionless spheres
+    "rolling",  # number of the rolling law, laws.NONE without rolling resistance
     "mu",  # Coulomb friction coefficient (inf: no sliding)
     "beta_n",  # normal viscous damping, fraction of critical
     "beta_t",  # tangential viscous damping, fraction of critical

@@ -1,9 +1,13 @@
 """One contact, sphere-sphere or sphere-wall: its laws (`revdem_cli.laws`: the normal force
-of Hanley 2020 Eq 6, the shear stiffness of Eq 10) put together with the tangential force
-with history (Eq 7-10) and its exact inverse, the Coulomb limit and viscous damping.
+of Hanley 2020 Eq 6, the shear stiffness of Eq 10, a rolling spring and its limit) put
+together with the tangential force with history (Eq 7-10) and its exact inverse, the Coulomb
+limit, viscous damping, and the rolling moment with history, carried as the shear history
+is and capped by its law as the shear force is by Coulomb's (§5.3).
 
 Vectors are 3-tuples. Convention: n points from particle i to its partner j (or to the
-wall); forces are those on i; the tangential history is the elastic shear force on i.
+wall); forces and moments are those on i (j takes the opposite rolling moment); the
+tangential history is the elastic shear force on i, the rolling history the rolling
+moment on i.
 """
 
 import math
@@ -13,6 +17,7 @@ from revdem_cli.kernels.vectors import axpy, cross, dot, scaled
 from revdem_cli.laws import NONE, dispatch
 
 NO_SHEAR = NONE  # ContactLaw.tangential of frictionless spheres
+NO_ROLLING = NONE  # ContactLaw.rolling without rolling resistance
 
 FORWARD = 0  # shear history advanced by the step (Eq 7-10)
 REVERSE = 1  # shear history mapped back (the inverse of Eq 7-10)
@@ -20,6 +25,8 @@ STATIC = 2  # shear history used as it is: forces of a state that is not steppin
 
 _normal_force = dispatch("normal", "force")
 _shear_stiffness = dispatch("tangential", "stiffness")
+_rolling_stiffness = dispatch("rolling", "stiffness")
+_rolling_limit = dispatch("rolling", "limit")
 
 
 @inline
@@ -110,6 +117,53 @@ def contact_velocity(n, arm_i, arm_j, v_ij, w_i, w_j):
 
 
 @inline
+def spring_forward(history, n, spin, dt, k, rate, small=False):
+    """A spring with history, shear or rolling, one step on: remapped onto the new contact
+    plane (Hanley 2020 Eq 7-8), turned with the contact's spin (Eq 9), then k dt `rate`
+    added (Eq 10: `rate` the tangential velocity, or angular velocity, of j relative to i).
+    `small`: |spin dt| < SMALL_ANGLE (see `cos_sin`)."""
+    rotated = rotate_about(remap(history, n), n, spin * dt, small)  # Eq 7-9
+    return axpy(k * dt, rate, rotated)  # Eq 10
+
+
+@inline
+def spring_unwound(history, n, spin, dt, k, rate):
+    """`spring_forward` undone, but for its remap: the reversed step at the later positions
+    undoes the increment of Eq 10 and the turn of Eq 9; `unmap` undoes Eq 7-8 once the
+    particles have moved back."""
+    return rotate_about(axpy(-k * dt, rate, history), n, -spin * dt)
+
+
+@inline
+def spring(mode, history, n, n_new, spin, dt, k, rate, small=False):
+    """A spring's new history: FORWARD `spring_forward`; REVERSE, `history` unwound across the
+    normal `n_new` of the later positions (`spring_unwound`) and mapped onto this contact
+    plane (`unmap`, the inverse of Eq 7-8); STATIC, the history as is."""
+    if mode == FORWARD:
+        return spring_forward(history, n, spin, dt, k, rate, small)
+    if mode == REVERSE:
+        return unmap(history, n_new, n)
+    return history
+
+
+@inline
+def tangential(a, n):
+    """The part of a in the plane normal to n."""
+    return axpy(-dot(a, n), n, a)
+
+
+@inline
+def normal_force(law, overlap, rstar, mstar, estar, vrel, n):
+    """(normal force magnitude, compression positive, with viscous damping; k_n) of one
+    contact in overlap > 0, j moving at vrel relative to i."""
+    elastic, stiffness, _ = normal_law(law, overlap, rstar, estar)
+    normal = elastic
+    if law.beta_n > 0.0:
+        normal -= 2.0 * law.beta_n * math.sqrt(mstar * stiffness) * dot(vrel, n)  # viscous
+    return normal, stiffness
+
+
+@inline
 def contact_force(
     law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, spin, history, n_new, small=False
 ):
@@ -123,23 +177,13 @@ def contact_force(
     the history as is. Returns (force on i, history, amount the Coulomb cap removed).
     `small`: |spin dt| < SMALL_ANGLE (see `cos_sin`).
     """
-    elastic, stiffness, _ = normal_law(law, overlap, rstar, estar)
-    vn = dot(vrel, n)
-    normal = elastic
-    if law.beta_n > 0.0:
-        normal -= 2.0 * law.beta_n * math.sqrt(mstar * stiffness) * vn  # viscous, normal
+    normal, _ = normal_force(law, overlap, rstar, mstar, estar, vrel, n)
     force = scaled(-normal, n)
     if law.tangential == NO_SHEAR:
         return force, history, 0.0
-    vt = axpy(-vn, n, vrel)
+    vt = tangential(vrel, n)
     ks = shear_stiffness(law, overlap, rstar, gstar)
-    if mode == FORWARD:
-        rotated = rotate_about(remap(history, n), n, spin * dt, small)  # Eq 7-9
-        shear = axpy(ks * dt, vt, rotated)  # Eq 10
-    elif mode == REVERSE:
-        shear = unmap(history, n_new, n)
-    else:
-        shear = history
+    shear = spring(mode, history, n, n_new, spin, dt, ks, vt, small)
     shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
     if law.beta_t > 0.0:
         shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), vt, shear)  # viscous
@@ -148,20 +192,51 @@ def contact_force(
 
 
 @inline
-def contact_energy(law, overlap, rstar, estar, gstar, shear):
-    """Elastic energy stored in a contact in overlap > 0: normal spring and shear spring."""
+def rolling_moment(
+    law, mode, dt, overlap, n, rstar, mstar, estar, vrel, w_i, w_j, spin, history, n_new,
+    small=False,
+):  # fmt: skip
+    """Rolling resistance moment on i at one contact in overlap > 0, and its new history:
+    the rolling spring of the contact's rolling law, wound by the rotation of j relative to
+    i in the contact plane, (w_j - w_i)_t dt, and carried across steps as the shear history
+    is (`spring`), then capped at the law's limit (Hanley 2020 §5.3: a limit destroys
+    information as the Coulomb cap does). Returns (the moment on i, which is the new
+    history, and the amount the cap removed); j takes the opposite moment."""
+    normal, _ = normal_force(law, overlap, rstar, mstar, estar, vrel, n)
+    kr = _rolling_stiffness(law.rolling, law, overlap, rstar)
+    rate = tangential(axpy(-1.0, w_i, w_j), n)
+    moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)
+    return coulomb_cap(moment, _rolling_limit(law.rolling, law, normal, rstar))
+
+
+@inline
+def contact_energy(law, overlap, rstar, estar, gstar, shear, rolling):
+    """Elastic energy stored in a contact in overlap > 0: normal, shear and rolling springs
+    (`rolling`, the rolling moment; ignored without a rolling law)."""
     energy = normal_law(law, overlap, rstar, estar)[2]
     if law.tangential == NO_SHEAR:
         return energy
-    return energy + 0.5 * dot(shear, shear) / shear_stiffness(law, overlap, rstar, gstar)
+    energy += 0.5 * dot(shear, shear) / shear_stiffness(law, overlap, rstar, gstar)
+    if law.rolling == NO_ROLLING:
+        return energy
+    return energy + 0.5 * dot(rolling, rolling) / _rolling_stiffness(
+        law.rolling, law, overlap, rstar
+    )
 
 
 @inline
 def unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, history):
-    """Reversed step, at the later positions: undo Eq 10 and Eq 9. The result is mapped back
-    onto the earlier contact plane by `unmap` once the particles have moved back."""
+    """Reversed step, at the later positions: undo Eq 10 and Eq 9 of the shear history."""
     if overlap <= 0.0:
         return (0.0, 0.0, 0.0)
-    vt = axpy(-dot(vrel, n), n, vrel)
     ks = shear_stiffness(law, overlap, rstar, gstar)
-    return rotate_about(axpy(-ks * dt, vt, history), n, -spin * dt)
+    return spring_unwound(history, n, spin, dt, ks, tangential(vrel, n))
+
+
+@inline
+def unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, history):
+    """Reversed step, at the later positions: undo the rolling spring's increment and turn."""
+    if overlap <= 0.0:
+        return (0.0, 0.0, 0.0)
+    kr = _rolling_stiffness(law.rolling, law, overlap, rstar)
+    return spring_unwound(history, n, spin, dt, kr, tangential(axpy(-1.0, w_i, w_j), n))

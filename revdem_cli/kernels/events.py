@@ -13,10 +13,19 @@ KINDS = (
     "viscous_damping",  # contact damping (§5.2)
     "velocity_fixed_point_under_drag",  # drag map at a fixed point (§5.2, case C), m/s
     "motion_below_round_off",  # x + dt v == x for v != 0 (§5.2, case B: at rest), m
+    "rolling_limit",  # rolling moment capped by its law's limit (§5.3); amount removed, N m
+    "contact_lost_with_rolling_moment",  # rolling history zeroed at separation, N m
 )
-CONTACT_LOST, COULOMB_SLIP, LOCAL_DAMPING, VISCOUS_DAMPING, FIXED_POINT, MOTION_LOST = range(
-    len(KINDS)
-)
+(
+    CONTACT_LOST,
+    COULOMB_SLIP,
+    LOCAL_DAMPING,
+    VISCOUS_DAMPING,
+    FIXED_POINT,
+    MOTION_LOST,
+    ROLLING_LIMIT,
+    ROLLING_LOST,
+) = range(len(KINDS))
 COLUMNS = ("count", "first_step", "last_step", "particle", "partner", "amount")
 COUNT, FIRST, LAST, PARTICLE, PARTNER, AMOUNT = range(len(COLUMNS))
 
@@ -35,22 +44,26 @@ def note(events, kind, step, particle, partner, amount, times):
 
 @jit
 def note_destroyed(events, step, pairs, walls, pair_counts, wall_counts):
-    """Log the shear force destroyed at `step`, as the force loops counted it: (slips, last
-    pair that slipped, losses, last pair that lost its shear force) for the pairs, and the
-    same for the wall contacts, numbered q W + b. The last occurrence is the one a scan of
-    the pairs in order, then of the wall contacts, would meet last."""
+    """Log what the contacts destroyed at `step`, as the force loops counted it: (slips, last
+    pair that slipped, losses, last pair that lost its shear force, then the same for the
+    rolling moment: caps, last capped, losses, last lost) for the pairs, and the same for the
+    wall contacts, numbered q W + b. The last occurrence is the one a scan of the pairs in
+    order, then of the wall contacts, would meet last."""
     walls_per_particle = walls.destroyed.shape[1]
-    for kind, offset in ((COULOMB_SLIP, 0), (CONTACT_LOST, 2)):
+    kinds = ((COULOMB_SLIP, 0), (CONTACT_LOST, 2), (ROLLING_LIMIT, 4), (ROLLING_LOST, 6))
+    for kind, offset in kinds:
         pair_count, last_pair = pair_counts[offset], pair_counts[offset + 1]
         wall_count, last_wall = wall_counts[offset], wall_counts[offset + 1]
         if pair_count + wall_count == 0:
             continue
+        rolling = offset >= 4
         if wall_count > 0:
             q, b = last_wall // walls_per_particle, last_wall % walls_per_particle
-            particle, partner, amount = q, -1 - b, walls.destroyed[q, b]
+            amount = walls.rolled[q, b] if rolling else walls.destroyed[q, b]
+            particle, partner = q, -1 - b
         else:
             particle, partner = pairs.i[last_pair], pairs.j[last_pair]
-            amount = pairs.destroyed[last_pair]
+            amount = pairs.rolled[last_pair] if rolling else pairs.destroyed[last_pair]
         note(events, kind, step, particle, partner, amount, pair_count + wall_count)
 
 

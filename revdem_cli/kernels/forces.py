@@ -27,8 +27,8 @@ from revdem_cli.kernels.wall_contacts import wall_loop
 @jit
 def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, events, step):
     """Forces at the current positions (Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed),
-    the half kick h that follows them, and the stress a servo needs; the shear force the
-    step destroyed goes into the event log at `step`."""
+    the half kick h that follows them, and the stress a servo needs; the shear force and
+    rolling moment the step destroyed go into the event log at `step`."""
     deforming = deforms(cell)
     particle_args = (p.x, p.v, p.omega, p.radius, p.mass, p.material, moduli.estar, moduli.gstar)
     pair_args = (
@@ -43,6 +43,8 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         pairs.moment,
         pairs.overlap,
         pairs.destroyed,
+        pairs.rolling,
+        pairs.rolled,
         pairs.normal_new,
         law,
         mode,
@@ -69,6 +71,8 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         walls.overlap,
         walls.history,
         walls.destroyed,
+        walls.rolling,
+        walls.rolled,
         walls.normal_new,
         law,
         mode,
@@ -89,6 +93,7 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         pairs.force,
         pairs.moment,
         pairs.overlap,
+        pairs.rolling,
         walls.force,
         walls.torque,
         p.f,

@@ -31,6 +31,7 @@ def _gather_loop(
     pair_force,
     moment,
     overlaps,
+    rolling,
     wall_force,
     wall_torque,
     f_out,
@@ -43,7 +44,9 @@ def _gather_loop(
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
     (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21);
     then the half kick v += h f / m, w += h t / I (Eq 11-12; h = 0: none). Without a
-    tangential law (no `moment`) every moment is zero.
+    tangential law (no `moment`) every moment is zero; with a rolling law (`rolling`, the
+    rolling moment on the pair's first particle) each pair adds its rolling moment, on i,
+    and its opposite, on j.
 
     In fixed-point arithmetic (fixed_v not empty) each term is rounded to the force or moment
     grid and summed as an integer, so the sum does not depend on the order of its terms,
@@ -51,6 +54,7 @@ def _gather_loop(
     its grid, the last of them, what left it there: fixed.OF_FORCE, OF_MOMENT, OF_VELOCITY or
     OF_ANGULAR_VELOCITY, the first of these in that order)."""
     torques = moment.shape[0] > 0
+    rolls = rolling.shape[0] > 0
     on_grid = fixed_v.shape[0] > 0
     f_step = grid[fx.FORCE] if on_grid else 1.0
     t_step = grid[fx.TORQUE] if on_grid else 1.0
@@ -91,6 +95,12 @@ def _gather_loop(
                     turned = turned and fine
                 else:
                     t = axpy(arm, row(moment, k), t)
+            if rolls:  # the opposite of the rolling moment on p
+                if on_grid:
+                    t_int, fine = fx.add_on_grid(t_int, row(rolling, k), -1.0, per_t)
+                    turned = turned and fine
+                else:
+                    t = axpy(-1.0, row(rolling, k), t)
         for kk in range(first[q], first[q + 1]):  # partners j > q
             k = np.uint64(kk)
             if on_grid:
@@ -105,6 +115,12 @@ def _gather_loop(
                     turned = turned and fine
                 else:
                     t = axpy(arm, row(moment, k), t)
+            if rolls:
+                if on_grid:
+                    t_int, fine = fx.add_on_grid(t_int, row(rolling, k), 1.0, per_t)
+                    turned = turned and fine
+                else:
+                    t = axpy(1.0, row(rolling, k), t)
         for b in range(wall_force.shape[1]):
             if on_grid:
                 f_int, fine = fx.add_on_grid(f_int, cell_of(wall_force, q, b), 1.0, per_f)

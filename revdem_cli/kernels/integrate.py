@@ -224,8 +224,9 @@ def rebuild_pairs(p, pairs, cell, skin):
     if needed > pairs.i.shape[0]:
         return PAIR_OVERFLOW
     old = pairs.count[0]
-    if pairs.history.shape[0] > 0:
-        carry_history(pairs.i, pairs.j, old, pairs.new_i, pairs.new_j, needed, pairs.history)
+    for history in (pairs.history, pairs.rolling):  # those of the laws a run has
+        if history.shape[0] > 0:
+            carry_history(pairs.i, pairs.j, old, pairs.new_i, pairs.new_j, needed, history)
     pairs.i[:needed] = pairs.new_i[:needed]
     pairs.j[:needed] = pairs.new_j[:needed]
     pairs.count[0] = needed

@@ -10,7 +10,7 @@ import numba
 
 from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import images
-from revdem_cli.kernels.contact import NO_SHEAR, contact_energy
+from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, contact_energy
 from revdem_cli.kernels.pairs import pair_overlap, separation
 from revdem_cli.kernels.stress import stress_of
 from revdem_cli.kernels.sums import blocks_of, by_blocks, span
@@ -60,13 +60,15 @@ def _particle_energies(x, v, w, mass, inertia, gravity, partials):
 
 
 def _pair_energies(
-    x, radius, material, estar, gstar, image, pi, pj, first, force, history, law, partials
-):
+    x, radius, material, estar, gstar, image, pi, pj, first, force, history, rolling, law,
+    partials,
+):  # fmt: skip
     """Of the pairs listed under each block of particles, in list order: elastic energy,
     largest normal and shear force, contacts, partials[b, 0:4]. A pair is in contact where
     the pair loop takes it to be."""
     n = x.shape[0]
     shear_law = law.tangential != NO_SHEAR
+    rolls = law.rolling != NO_ROLLING
     for b in numba.prange(blocks_of(n)):
         elastic = 0.0
         max_normal = 0.0
@@ -83,8 +85,10 @@ def _pair_energies(
             contacts += 1
             m_i, m_j = material[i], material[j]
             shear = row(history, k) if shear_law else ZERO
+            turned = row(rolling, k) if rolls else ZERO
             rstar = radius[i] * radius[j] / reach
-            elastic += contact_energy(law, overlap, rstar, estar[m_i, m_j], gstar[m_i, m_j], shear)
+            e, g = estar[m_i, m_j], gstar[m_i, m_j]
+            elastic += contact_energy(law, overlap, rstar, e, g, shear, turned)
             n_ij = (d[0] / dist, d[1] / dist, d[2] / dist)
             fn, fs = normal_and_shear(row(force, k), n_ij)
             max_normal = max(max_normal, fn)
@@ -115,7 +119,7 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
         potential += parts[b, 1]
     contact_args = (
         p.x, p.radius, p.material, moduli.estar, moduli.gstar, images(cell), pairs.i, pairs.j,
-        pairs.first, pairs.force, pairs.history, law, parts,
+        pairs.first, pairs.force, pairs.history, pairs.rolling, law, parts,
     )  # fmt: skip
     pair_energies(count, *contact_args)
     elastic = 0.0
@@ -137,9 +141,9 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
                 n = wall_normal(p, walls, q, b)
                 m, mw = p.material[q], walls.material[b]
                 shear = cell_of(walls.history, q, b)
-                elastic += contact_energy(
-                    law, overlap, p.radius[q], moduli.estar[m, mw], moduli.gstar[m, mw], shear
-                )
+                turned = cell_of(walls.rolling, q, b) if law.rolling != NO_ROLLING else ZERO
+                e, g = moduli.estar[m, mw], moduli.gstar[m, mw]
+                elastic += contact_energy(law, overlap, p.radius[q], e, g, shear, turned)
                 f = cell_of(walls.force, q, b)
                 fn, fs = normal_and_shear(f, n)
                 max_normal = max(max_normal, fn)

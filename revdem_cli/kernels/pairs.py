@@ -28,10 +28,12 @@ from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.cell import affine_velocity, nearest_image, strain_rates
 from revdem_cli.kernels.contact import (
     FORWARD,
+    NO_ROLLING,
     NO_SHEAR,
     SMALL_ANGLE,
     contact_force,
     contact_velocity,
+    rolling_moment,
 )
 from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
 
@@ -98,7 +100,10 @@ NEW_SHEAR = 26  # the new shear history: 3 rows
 MOMENT = 29  # n x force: 3 rows
 OVERLAP = 32
 SLIPPED = 33  # shear force removed by the Coulomb cap
-ROWS = 34
+ROLLING = 34  # rolling laws: the rolling history: 3 rows
+NEW_ROLLING = 37  # the new rolling history: 3 rows
+ROLLED = 40  # rolling moment removed by its limit
+ROWS = 41
 
 
 def empty_blocks(chunks: int) -> np.ndarray:
@@ -131,7 +136,7 @@ def enter3(block, r, k, vector):
 @inline
 def gather_pairs(
     block, first, size, x, v, w, radius, mass, material, estar, gstar, image, pi, pj, history,
-    normal_new, law,
+    rolling, normal_new, law,
 ):  # fmt: skip
     """Columns 0 to size - 1 of the block: what the contact stage needs of pairs first to
     first + size - 1, from their particles and their history."""
@@ -157,6 +162,8 @@ def gather_pairs(
             enter3(block, OMEGA_J, k, row(w, j))
         if shear_law:
             enter3(block, SHEAR, k, row(history, p))
+        if law.rolling != NO_ROLLING:
+            enter3(block, ROLLING, k, row(rolling, p))
         if unwound:
             enter3(block, NORMAL_NEW, k, row(normal_new, p))
 
@@ -165,7 +172,8 @@ def gather_pairs(
 def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
     """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
     with a tangential law, the new history, n x force, the overlap and the shear force the
-    Coulomb cap removed, column by column, reading and writing the block only: one loop
+    Coulomb cap removed, with a rolling law the rolling moment and what its limit removed,
+    column by column, reading and writing the block only: one loop
     body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
     The rows read are left as they were, so that a block can be done again. `small`: the
     spin corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`).
@@ -183,6 +191,7 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
         n = scaled(1.0 / dist, d)
         vrel = ZERO
         spin = 0.0
+        w_i = w_j = ZERO
         if moving:
             w_i = entries(block, OMEGA_I, k)
             w_j = entries(block, OMEGA_J, k)
@@ -212,23 +221,45 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
             enter3(block, MOMENT, k, cross(n, f) if touching else ZERO)
             enter(block, OVERLAP, k, overlap)
             enter(block, SLIPPED, k, slipped if touching else 0.0)
+        if law.rolling != NO_ROLLING:
+            rolling, capped = rolling_moment(
+                law,
+                mode,
+                dt,
+                overlap,
+                n,
+                r_i * r_j / reach,
+                entry(block, M_STAR, k) if damped else 0.0,
+                entry(block, E_STAR, k),
+                vrel,
+                w_i,
+                w_j,
+                spin,
+                entries(block, ROLLING, k),
+                entries(block, NORMAL_NEW, k) if unwound else ZERO,
+                small,
+            )
+            enter3(block, NEW_ROLLING, k, rolling if touching else ZERO)
+            enter(block, ROLLED, k, capped if touching else 0.0)
     return large
 
 
 @inline
 def undamped(law, tangential):
-    """`law` without viscous damping and with the tangential law `tangential`."""
-    return ContactLaw(law.normal, tangential, law.mu, 0.0, 0.0, *law[5:])  # CONTACT is 5
+    """`law` without viscous damping or rolling resistance, with the tangential law
+    `tangential`."""
+    return ContactLaw(law.normal, tangential, NO_ROLLING, law.mu, 0.0, 0.0, *law[6:])  # CONTACT
 
 
 @inline
 def contact_stage(block, size, law, mode, dt, strain, deforming, unwound):
     """`contacts`, compiled apart for the common cases (stepping forward without viscous
-    damping, with and without shear), where the law's constants remove the branches those
-    cases never take from the vectorised loop: an elementwise loop computes both sides of
-    every branch in it. With shear, the block is done with small spin corrections, and
-    again with any where some angle is not small (rare: |spin dt| >= 1e-3)."""
-    if mode == FORWARD and law.beta_n == 0.0 and law.beta_t == 0.0:
+    damping or rolling resistance, with and without shear), where the law's constants
+    remove the branches those cases never take from the vectorised loop: an elementwise
+    loop computes both sides of every branch in it. With shear, the block is done with
+    small spin corrections, and again with any where some angle is not small (rare:
+    |spin dt| >= 1e-3)."""
+    if mode == FORWARD and law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING:
         if law.tangential == NO_SHEAR:
             frictionless = undamped(law, NO_SHEAR)
             contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True)
@@ -246,14 +277,21 @@ constant, not an argument: numba optimises the helper before inlining it, and LL
 the two branches' stores into one plain store."""
 
 
-def _scatter_pairs(block, first, size, force, history, moment, overlaps, destroyed, law, mode):
-    """The block's results into the pair arrays; returns (slips, last pair that slipped,
-    losses, last pair that lost its shear force) of the block. A pair apart loses its
-    history (the shear force is counted lost when stepping forward)."""
+def _scatter_pairs(
+    block, first, size, force, history, moment, overlaps, destroyed, rolling, rolled, law, mode
+):
+    """The block's results into the pair arrays; returns the block's counts (`Destroyed`:
+    slips, last pair that slipped, losses, last pair that lost its shear force, and the same
+    for the rolling moment). A pair apart loses its histories (counted lost when stepping
+    forward)."""
     slips = 0
     last_slip = -1
     losses = 0
     last_loss = -1
+    caps = 0
+    last_cap = -1
+    drops = 0
+    last_drop = -1
     shear_law = law.tangential != NO_SHEAR
     for k in range(size):
         p = first + k
@@ -281,7 +319,20 @@ def _scatter_pairs(block, first, size, force, history, moment, overlaps, destroy
                 destroyed[p] = lost
                 losses += 1
                 last_loss = p
-    return slips, last_slip, losses, last_loss
+        if law.rolling != NO_ROLLING:
+            apart = entry(block, OVERLAP, k) <= 0.0 and mode == FORWARD
+            dropped = norm(row(rolling, u)) if apart else 0.0
+            put(rolling, u, entries(block, NEW_ROLLING, k))
+            capped = entry(block, ROLLED, k)
+            if capped > 0.0:
+                rolled[p] = capped
+                caps += 1
+                last_cap = p
+            if dropped > 0.0:
+                rolled[p] = dropped
+                drops += 1
+                last_drop = p
+    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
 
 
 scatter_pairs = inline(_scatter_pairs)
@@ -309,6 +360,8 @@ def _pair_loop(
     moment,
     overlaps,
     destroyed,
+    rolling,
+    rolled,
     normal_new,
     law,
     mode,
@@ -317,9 +370,10 @@ def _pair_loop(
 ):
     """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
     law, n x force, the overlap and the shear force destroyed: by the Coulomb cap, or at
-    separation, where the history is zeroed. The list is cut into as many chunks as there
+    separation, where the history is zeroed; with a rolling law the rolling moment on i and
+    what its limit or a separation destroyed. The list is cut into as many chunks as there
     are `blocks`, each done block by block in its own: gather, contact stage, scatter.
-    Returns (slips, last pair that slipped, losses, last pair that lost its shear force)."""
+    Returns the counts of `events.note_destroyed`."""
     strain = strain_rates(rate, length)
     unwound = normal_new.shape[0] > 0
     streaming = n_pairs >= STREAM_FROM
@@ -328,6 +382,10 @@ def _pair_loop(
     last_slip = -1
     losses = 0
     last_loss = -1
+    caps = 0
+    last_cap = -1
+    drops = 0
+    last_drop = -1
     for c in numba.prange(chunks):
         block = blocks[c]
         end = (c + 1) * n_pairs // chunks
@@ -335,21 +393,24 @@ def _pair_loop(
             size = min(BLOCK, end - first)
             gather_pairs(
                 block, first, size, x, v, w, radius, mass, material, estar, gstar, image, pi,
-                pj, history, normal_new, law,
+                pj, history, rolling, normal_new, law,
             )  # fmt: skip
             contact_stage(block, size, law, mode, dt, strain, deforming, unwound)
-            results = (force, history, moment, overlaps, destroyed, law, mode)
+            results = (force, history, moment, overlaps, destroyed, rolling, rolled, law, mode)
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)
             else:
                 scattered = scatter_pairs(block, first, size, *results)
-            s, s_last, lost, lost_last = scattered
-            slips += s
-            last_slip = max(last_slip, s_last)
-            losses += lost
-            last_loss = max(last_loss, lost_last)
+            slips += scattered[0]
+            last_slip = max(last_slip, scattered[1])
+            losses += scattered[2]
+            last_loss = max(last_loss, scattered[3])
+            caps += scattered[4]
+            last_cap = max(last_cap, scattered[5])
+            drops += scattered[6]
+            last_drop = max(last_drop, scattered[7])
         fence()  # any streamed results, before the gather reads them on other threads
-    return slips, last_slip, losses, last_loss
+    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
 
 
 pair_loop = by_size(_pair_loop)

@@ -1,13 +1,14 @@
 """The reversed step's first half at the later positions: the shear update of the forward
-step undone (the inverse of Hanley 2020 Eq 10 and 9), for every pair and wall contact."""
+step undone (the inverse of Hanley 2020 Eq 10 and 9), and the rolling spring's alike, for
+every pair and wall contact."""
 
 import numba
 
 from revdem_cli.kernels import by_size, jit
 from revdem_cli.kernels.cell import deforms, images, strain_rates
-from revdem_cli.kernels.contact import NO_SHEAR, unwind_shear
+from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, unwind_rolling, unwind_shear
 from revdem_cli.kernels.pairs import pair_velocity, separation
-from revdem_cli.kernels.vectors import axpy, cell_of, norm, place, put, row, scaled
+from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, norm, place, put, row, scaled
 from revdem_cli.kernels.wall_contacts import wall_kinematics
 
 
@@ -26,11 +27,13 @@ def _unwind_pair_loop(
     pj,
     n_pairs,
     history,
+    rolling,
     normal_new,
     law,
     dt,
 ):
     """Reversed step, before drifting back: undo Eq 10 and 9 for every pair, in place."""
+    rolls = law.rolling != NO_ROLLING
     strain = strain_rates(rate, length)
     for k in numba.prange(n_pairs):
         i = pi[k]
@@ -48,6 +51,9 @@ def _unwind_pair_loop(
         rstar = radius[i] * radius[j] / (radius[i] + radius[j])
         gs = gstar[material[i], material[j]]
         put(history, k, unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, row(history, k)))
+        if rolls:
+            turned = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, row(rolling, k))
+            put(rolling, k, turned)
         put(normal_new, k, n)
 
 
@@ -65,11 +71,13 @@ def _unwind_wall_loop(
     wall_velocity,
     wall_material,
     history,
+    rolling,
     normal_new,
     law,
     dt,
 ):
     """Reversed step, before drifting back: undo Eq 10 and 9 for every wall contact."""
+    rolls = law.rolling != NO_ROLLING
     for q in numba.prange(x.shape[0]):
         for b in range(kind.shape[0]):
             overlap, n, _, vrel, spin = wall_kinematics(
@@ -80,6 +88,12 @@ def _unwind_wall_loop(
                 law, dt, overlap, n, radius[q], gs, vrel, spin, cell_of(history, q, b)
             )
             place(history, q, b, shear)
+            if rolls:
+                moment = cell_of(rolling, q, b)
+                turned = unwind_rolling(
+                    law, dt, overlap, n, radius[q], row(w, q), ZERO, spin, moment
+                )
+                place(rolling, q, b, turned)
             place(normal_new, q, b, n)
 
 
@@ -107,6 +121,7 @@ def unwind_shear_history(p, pairs, walls, cell, law, moduli, dt):
         pairs.j,
         pairs.count[0],
         pairs.history,
+        pairs.rolling,
         pairs.normal_new,
         law,
         dt,
@@ -125,6 +140,7 @@ def unwind_shear_history(p, pairs, walls, cell, law, moduli, dt):
         walls.velocity,
         walls.material,
         walls.history,
+        walls.rolling,
         walls.normal_new,
         law,
         dt,

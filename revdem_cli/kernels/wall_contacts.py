@@ -4,8 +4,15 @@ Eq 4-10 with R* = r), each particle's contacts in wall order."""
 import numba
 
 from revdem_cli.kernels import by_size, jit
-from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, contact_force, relative_velocity
-from revdem_cli.kernels.vectors import ZERO, cell_of, cross, dot, norm, place, row, scaled
+from revdem_cli.kernels.contact import (
+    FORWARD,
+    NO_ROLLING,
+    NO_SHEAR,
+    contact_force,
+    relative_velocity,
+    rolling_moment,
+)
+from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, cross, dot, norm, place, row, scaled
 from revdem_cli.kernels.walls import wall_overlap
 
 
@@ -42,19 +49,27 @@ def _wall_loop(
     overlaps,
     history,
     destroyed,
+    rolling,
+    rolled,
     normal_new,
     law,
     mode,
     dt,
 ):
-    """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r).
-    Returns (slips, last contact q W + b that slipped, losses, last that lost its shear)."""
+    """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r; the
+    wall does not turn), the moment with the rolling moment of a rolling law. Returns the
+    counts of `events.note_destroyed`, contacts numbered q W + b."""
     shear_law = law.tangential != NO_SHEAR
+    rolling_law = law.rolling != NO_ROLLING
     walls = kind.shape[0]
     slips = 0
     last_slip = -1
     losses = 0
     last_loss = -1
+    caps = 0
+    last_cap = -1
+    drops = 0
+    last_drop = -1
     for q in numba.prange(x.shape[0]):
         for b in range(walls):
             overlap, n, arm, vrel, spin = wall_kinematics(
@@ -82,23 +97,53 @@ def _wall_loop(
                 )
                 t = cross(scaled(arm, n), f) if shear_law else ZERO
                 dropped = 0.0
+                if rolling_law:
+                    turned, capped = rolling_moment(
+                        law,
+                        mode,
+                        dt,
+                        overlap,
+                        n,
+                        radius[q],
+                        mass[q],
+                        estar[material[q], m],
+                        vrel,
+                        row(w, q),
+                        ZERO,
+                        spin,
+                        cell_of(rolling, q, b),
+                        n_new,
+                    )
+                    t = axpy(1.0, turned, t)
+                    place(rolling, q, b, turned)
+                    rolled[q, b] = capped
             else:
                 f = ZERO
                 t = ZERO
                 slipped = 0.0
                 dropped = norm(shear) if mode == FORWARD else 0.0
                 shear = ZERO
+                if rolling_law:
+                    rolled[q, b] = norm(cell_of(rolling, q, b)) if mode == FORWARD else 0.0
+                    place(rolling, q, b, ZERO)
             place(history, q, b, shear)
             place(force, q, b, f)
             place(torque, q, b, t)
             destroyed[q, b] = slipped + dropped
+            contact = q * walls + b
             if slipped > 0.0:
                 slips += 1
-                last_slip = max(last_slip, q * walls + b)
+                last_slip = max(last_slip, contact)
             if dropped > 0.0:
                 losses += 1
-                last_loss = max(last_loss, q * walls + b)
-    return slips, last_slip, losses, last_loss
+                last_loss = max(last_loss, contact)
+            if rolling_law and overlap > 0.0 and rolled[q, b] > 0.0:
+                caps += 1
+                last_cap = max(last_cap, contact)
+            if rolling_law and overlap <= 0.0 and rolled[q, b] > 0.0:
+                drops += 1
+                last_drop = max(last_drop, contact)
+    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
 
 
 wall_loop = by_size(_wall_loop)

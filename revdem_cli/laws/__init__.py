@@ -18,6 +18,7 @@ of that family. Numbers never leave a process (files store the names).
 from __future__ import annotations
 
 import importlib
+import math
 import pkgutil
 from dataclasses import dataclass
 
@@ -134,6 +135,10 @@ def _last(which, *args):
     return CHOSEN(*args)
 
 
+def _no_law(which, *args):  # a family without laws: validation admits only 'none'
+    return math.nan
+
+
 NUMBER = CHOSEN = OTHERS = None  # the globals each copy of `_pick` sees as constants
 
 
@@ -141,7 +146,7 @@ def dispatch(family: str, function: str):
     """One compiled function that calls `function` of the law of `family` it is given by
     number, f(number, *args): a chain of comparisons that inlines into its caller, built from
     the laws found, so that a new law needs no line here. The last law takes every number
-    the chain did not (validation admits no other)."""
+    the chain did not (validation admits no other); a family without laws gets NaN."""
     from revdem_cli.kernels import inline, renamed
 
     laws = list(LAWS[family].values())
@@ -154,4 +159,6 @@ def dispatch(family: str, function: str):
             chain = inline(renamed(_last, name, CHOSEN=chosen))
         else:
             chain = inline(renamed(_pick, name, NUMBER=k, CHOSEN=chosen, OTHERS=chain))
+    if chain is None:
+        chain = inline(renamed(_no_law, f"{family}_{function}_of_no_law"))
     return chain

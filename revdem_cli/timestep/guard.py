@@ -45,6 +45,7 @@ class Kind:
     estar: float  # largest effective Young's modulus, Pa
     gstar: float  # largest effective shear modulus, Pa
     speed: float  # largest approach speed, m/s
+    inverse_inertia: float  # A_r of the rolling spring: 1/I_1 + 1/I_2, or 1/I on a wall, 1/(kg m²)
 
 
 def rayleigh_dt(radius: float, material: Material) -> float:
@@ -82,7 +83,9 @@ def contact_kinds(scenario: Scenario) -> list[Kind]:
     """The sphere pair (two or more particles) and the sphere on a wall (any wall)."""
     spheres = scenario.spheres
     densities = np.array([m.density for m in scenario.materials.values()])
-    mass = float((densities[spheres.material] * 4.0 / 3.0 * math.pi * spheres.radius**3).min())
+    masses = densities[spheres.material] * 4.0 / 3.0 * math.pi * spheres.radius**3
+    mass = float(masses.min())
+    inertia = float((0.4 * masses * spheres.radius**2).min())  # I = 2/5 m r²
     radius = float(spheres.radius.max())
     used = set(spheres.material_names())
     speeds = np.sort(particle_speeds(scenario))[::-1]
@@ -90,13 +93,27 @@ def contact_kinds(scenario: Scenario) -> list[Kind]:
     if len(scenario.spheres) > 1:
         moduli = _largest_moduli(scenario, [(a, b) for a in used for b in used])
         kinds.append(
-            Kind("sphere pair", 2.0 / mass, radius / 2.0, *moduli, float(speeds[0] + speeds[1]))
+            Kind(
+                "sphere pair",
+                2.0 / mass,
+                radius / 2.0,
+                *moduli,
+                float(speeds[0] + speeds[1]),
+                2.0 / inertia,
+            )
         )
     if scenario.walls:
         moduli = _largest_moduli(scenario, [(a, w.material) for a in used for w in scenario.walls])
         wall_speed = max(math.hypot(*w.velocity) for w in scenario.walls)
         kinds.append(
-            Kind("sphere on a wall", 1.0 / mass, radius, *moduli, float(speeds[0]) + wall_speed)
+            Kind(
+                "sphere on a wall",
+                1.0 / mass,
+                radius,
+                *moduli,
+                float(speeds[0]) + wall_speed,
+                1.0 / inertia,
+            )
         )
     return kinds
 
@@ -123,13 +140,18 @@ def _limit(stiffness: float, beta: float, inverse_mass: float, reduced_mass: flo
 
 
 def contact_dt(scenario: Scenario, kind: Kind) -> float:
-    """Two-body limit of one kind of contact: the smaller of its normal and shear directions."""
+    """Two-body limit of one kind of contact: the smallest of its normal and shear
+    directions and, with a rolling law, its rolling spring on the bodies' rotations."""
     kn, ks = impact_stiffness(scenario, kind)
     law, reduced = scenario.contact, 1.0 / kind.inverse_mass
-    return min(
+    limits = [
         _limit(kn, law.normal_damping, kind.inverse_mass, reduced),
         _limit(ks, law.tangential_damping, SHEAR_LEVER * kind.inverse_mass, reduced),
-    )
+    ]
+    if laws.chosen(law, "rolling") is not None:
+        kr = laws.evaluate(law, "rolling", "stiffness", 0.0, kind.rstar)
+        limits.append(_limit(kr, 0.0, kind.inverse_inertia, 0.0))
+    return min(limits)
 
 
 def critical_time_step(scenario: Scenario) -> tuple[float, str]:
