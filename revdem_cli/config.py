@@ -113,8 +113,6 @@ class _Contact(_Model):
                     selector = laws.FAMILIES[family].selector
                     description = law.FIELDS[field].description
                     raise ValueError(f"{selector} = '{name}' needs {field}: {description}")
-            if given and math.isnan(getattr(self, field)):
-                raise ValueError(f"{field} must be a number or inf")
         if self.tangential != "none" and self.friction is None:
             raise ValueError("a tangential law needs friction (mu; inf for no sliding)")
         if self.rolling != "none" and self.tangential == "none":

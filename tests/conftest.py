@@ -92,3 +92,31 @@ def collision_run(tmp_path_factory):
     """configs/collision.toml run forward and reversed, as `revdem run` does."""
     scenario, text = load_scenario(CONFIGS / "collision.toml")
     return run_scenario(scenario, text, ".toml", tmp_path_factory.mktemp("collision"))
+
+
+def stepped(scenario: Scenario, steps: int, every: int):
+    """The state of a scenario's first stage after every `every` of `steps` steps, as the
+    compiled stage loop leaves it (forward, the stage's dt and damping)."""
+    import numpy as np
+
+    from revdem_cli.engine import Model, stage_dt, stepping_bundles
+    from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, advance
+    from revdem_cli.state import empty_events, initial_state
+
+    model, state = Model.of(scenario), initial_state(scenario)
+    stage = scenario.stages[0]
+    dyn = model.stage_dynamics(stage)
+    state.walls.velocity[:] = model.stage_wall_velocities(stage)
+    limit = scenario.integrator.overlap_limit
+    run = np.array([stage_dt(scenario, stage), model.skin, 0, steps, steps, limit])
+    obs, alarm, events = np.zeros((2, model.observables_row)), np.zeros(4), empty_events()
+    while state.step < steps:
+        target = min(state.step + every, steps)
+        status, state.step, _ = advance(
+            *stepping_bundles(state, model, dyn), events, run, state.step, target, obs, alarm
+        )
+        if status == PAIR_OVERFLOW:
+            state.grow_pairs()
+            continue
+        assert status == OK, f"the stage loop stopped with status {status} at {state.step}"
+        yield state
