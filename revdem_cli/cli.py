@@ -139,7 +139,7 @@ def run(
     from revdem_cli.config import load_scenario
     from revdem_cli.engine import _paths, run_scenario
 
-    spec, text = load_scenario(scenario, overrides or [])
+    spec, text = load_scenario(scenario, overrides or [], host=True)
     paths = _paths(out, spec.name)
     written = [paths["forward"], paths["restart"]]
     if not no_reverse and spec.reversed_stage is not None:

@@ -167,13 +167,14 @@ def _client(scheduler: str | None, workers: int):
         yield client
 
 
-def load_variants(sweep: Sweep) -> list[tuple]:
-    """(scenario, text) of every variant, each validated and its time step checked."""
+def load_variants(sweep: Sweep, host: bool = False) -> list[tuple]:
+    """(scenario, text) of every variant, each validated and its time step checked; with
+    `host`, each also checked against this machine's memory (`config.host`)."""
     from revdem_cli.config import load_scenario
     from revdem_cli.engine import check_time_step
 
     loaded = [
-        load_scenario(sweep.scenario, [f"{key}={value}" for key, value in variant.items()])
+        load_scenario(sweep.scenario, [f"{key}={value}" for key, value in variant.items()], host)
         for variant in sweep.variants()
     ]
     for scenario, _ in loaded:
@@ -193,7 +194,8 @@ def run_sweep(
 
     out_dir = Path(out_dir)
     variants = sweep.variants()
-    loaded = load_variants(sweep)  # bad input stops the sweep before it starts
+    # bad input stops the sweep before it starts; a local cluster runs on this machine
+    loaded = load_variants(sweep, host=scheduler is None)
     varying = [key for key, values in sweep.grid.items() if len(values) > 1]
     folders = [
         folder_name(index, {key: variant[key] for key in varying})

@@ -141,10 +141,10 @@ def _check_trajectory(f, path) -> None:
                     f"than its {rows} steps)"
                 )
     scenario = stored_scenario(attrs.get("scenario_json", ""), path)
-    if len(scenario.spheres) != n:
+    if scenario.sphere_count != n:
         raise InputError(
             f"{path}: particles/all/radius: {n} spheres, but the stored scenario has "
-            f"{len(scenario.spheres)}"
+            f"{scenario.sphere_count}"
         )
 
 
@@ -158,9 +158,9 @@ def _check_restart(f, path) -> None:
             raise InputError(f"{path}: damaged revdem restart (no attribute revdem/{name})")
     scenario = stored_scenario(meta.attrs["scenario_json"], path)
     n = _rows(f, path, "particles/x")
-    if n != len(scenario.spheres):
+    if n != scenario.sphere_count:
         raise InputError(
-            f"{path}: particles/x: {n} spheres, but the stored scenario has {len(scenario.spheres)}"
+            f"{path}: particles/x: {n} spheres, but the stored scenario has {scenario.sphere_count}"
         )
     for name, dataset in f["particles"].items():
         optional = name in ("s", "v_drift")  # arrays a run may not need: then empty
@@ -234,8 +234,9 @@ def stored_scenario(text, path):
 
 @lru_cache(maxsize=2)
 def _validated(text: str):
-    """Scenarios validated from their JSON; a run reads the same one several times (restart,
-    trajectories, figures), and validating a packing generates it."""
+    """Scenarios validated from their JSON (their schema and cross-field checks, nothing
+    generated); a run reads the same one several times (restart, trajectories, figures), and
+    the one object keeps its spheres once they are generated."""
     from revdem_cli.config import Scenario
 
     return Scenario.model_validate_json(text)

@@ -90,7 +90,7 @@ def contact_kinds(scenario: Scenario) -> list[Kind]:
     used = set(spheres.material_names())
     speeds = np.sort(particle_speeds(scenario))[::-1]
     kinds = []
-    if len(scenario.spheres) > 1:
+    if scenario.sphere_count > 1:
         moduli = _largest_moduli(scenario, [(a, b) for a in used for b in used])
         kinds.append(
             Kind(

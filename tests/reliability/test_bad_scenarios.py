@@ -27,6 +27,7 @@ from typer.testing import CliRunner
 
 from revdem_cli import config
 from revdem_cli.cli import app
+from revdem_cli.config import host, schema
 from tests.conftest import CONFIGS, assert_one_line_error
 
 EXAMPLES = 30
@@ -200,7 +201,7 @@ def _set(data, path, value) -> None:
 
 MODELS = {
     (): config.Scenario,
-    ("contact",): config.ContactLaw,
+    ("contact",): config.Contact,
     ("integrator",): config.Integrator,
     ("reversal",): config.Reversal,
     ("output",): config.Output,
@@ -527,13 +528,13 @@ def test_huge_counts_are_refused_before_anything_is_generated(tried, data):
     scenario, suffix = data.draw(base())
     what = data.draw(st.sampled_from(["spheres", "steps", "frames", "observables"]))
     if what == "spheres":
-        fits = MEMORY // config.BYTES_PER_SPHERE  # with no walls at all
+        fits = MEMORY // host.BYTES_PER_SPHERE  # with no walls at all
         count = data.draw(st.integers(fits + 1, 10**15))
         packings = scenario.setdefault("packings", [])
         packings.append(copy.deepcopy(PACKED["packings"][0]) | {"count": count})
         k = len(packings) - 1
         expected = [f"packings[{k}].count: "]
-        limit = config.MAX_GENERATED
+        limit = schema.MAX_GENERATED
         expected.append(f"less than or equal to {limit}" if count > limit else "memory")
     elif what == "steps":
         scenario["stages"][0]["steps"] = data.draw(st.integers(2**53 + 1, 2**63 - 1))
@@ -548,14 +549,14 @@ def test_huge_counts_are_refused_before_anything_is_generated(tried, data):
         stage.update(observables_every=1, output_every=data.draw(st.integers(10**7, 2**62)))
         expected = ["stages[0].observables_every: ", "memory"]
     with (
-        mock.patch.object(config, "memory_bytes", return_value=MEMORY),
-        mock.patch("revdem_cli.build.packing.place_spheres", _no_generation),
+        mock.patch.object(host, "memory_bytes", return_value=MEMORY),
+        mock.patch("revdem_cli.assembly.packing.place_spheres", _no_generation),
     ):
         refused(tried, "huge count", scenario, suffix, *expected)
 
 
 def test_memory_is_this_machines():
-    assert 2**26 < config.memory_bytes() < 2**50
+    assert 2**26 < host.memory_bytes() < 2**50
 
 
 def test_yaml_numbers_are_read_as_yaml_1_2_reads_them():

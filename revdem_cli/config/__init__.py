@@ -1,0 +1,63 @@
+"""Scenarios in layers: `schema` (pure pydantic models), `checks` (how a scenario's fields
+fit together; run by the schema's validation), `geometry` (its spheres, generated and
+checked where they start), `host` (whether a run fits this machine; `revdem run` alone) and
+`loader` (TOML and YAML files, `--set`, errors naming the file and the field path).
+
+Validating a stored scenario (`Scenario.model_validate_json`) runs the first two only.
+"""
+
+from revdem_cli.config.loader import (
+    apply_overrides,
+    describe_validation_error,
+    load_scenario,
+    parse_text,
+    scenario_from_text,
+)
+from revdem_cli.config.schema import (
+    AxisMotion,
+    CellMotion,
+    Contact,
+    Damping,
+    Integrator,
+    Lattice,
+    Material,
+    Neighbours,
+    Output,
+    Packing,
+    Particle,
+    PeriodicCell,
+    Region,
+    Reversal,
+    Scenario,
+    SolidFraction,
+    Stage,
+    StopWhen,
+    Wall,
+)
+
+__all__ = [
+    "AxisMotion",
+    "CellMotion",
+    "Contact",
+    "Damping",
+    "Integrator",
+    "Lattice",
+    "Material",
+    "Neighbours",
+    "Output",
+    "Packing",
+    "Particle",
+    "PeriodicCell",
+    "Region",
+    "Reversal",
+    "Scenario",
+    "SolidFraction",
+    "Stage",
+    "StopWhen",
+    "Wall",
+    "apply_overrides",
+    "describe_validation_error",
+    "load_scenario",
+    "parse_text",
+    "scenario_from_text",
+]

@@ -1,0 +1,144 @@
+"""Cross-field checks of a scenario: how its fields fit together. They generate no spheres
+and read nothing of the machine (`geometry` and `host` do those, at the edge)."""
+
+from __future__ import annotations
+
+import math
+
+MAX_STEPS = 2**53
+"""Most steps of a run: the step counter is exact in float64 up to here."""
+
+
+class FieldError(ValueError):
+    """A consistency error located at a field path inside the scenario."""
+
+    def __init__(self, path: str, message: str):
+        super().__init__(f"{path}: {message}")
+
+
+def check_consistency(scenario) -> None:
+    """How the fields of a scenario fit together: names that refer to materials, walls and
+    stages exist and are unique, one reversed stage and the last, the cell and its
+    servo, the container of [solid_fraction]; FieldError at the first that does not."""
+    for kind, items in (*scenario._sphere_sources(), ("walls", scenario.walls)):
+        for i, item in enumerate(items):
+            if item.material not in scenario.materials:
+                raise FieldError(
+                    f"{kind}[{i}].material",
+                    f"unknown material '{item.material}' (known: {', '.join(scenario.materials)})",
+                )
+    check_wall_materials(scenario)
+    wall_names = [w.name for w in scenario.walls]
+    check_solid_fraction(scenario)
+    for i, stage in enumerate(scenario.stages):
+        stop = stage.stop_when
+        if stop and stop.wall is not None and stop.wall not in wall_names:
+            condition = "wall_force_above" if stop.wall_force_above else "wall_travel_above"
+            raise FieldError(
+                f"stages[{i}].stop_when.{condition}.wall", f"no wall is named '{stop.wall}'"
+            )
+        if stop and stop.solid_fraction_above and scenario.solid_fraction is None:
+            raise FieldError(
+                f"stages[{i}].stop_when.solid_fraction_above",
+                "needs a [solid_fraction] table saying which walls close the container",
+            )
+        for name in stage.wall_velocities:
+            if name not in wall_names:
+                raise FieldError(
+                    f"stages[{i}].wall_velocities.{name}",
+                    f"no wall is named '{name}' (walls: {', '.join(wall_names) or 'none'})",
+                )
+    for i, wall in enumerate(scenario.walls):
+        if wall_names.index(wall.name) != i:
+            raise FieldError(f"walls[{i}].name", f"wall name '{wall.name}' is used twice")
+    names = [stage.name for stage in scenario.stages]
+    for i, name in enumerate(names):
+        if names.index(name) != i:
+            raise FieldError(f"stages[{i}].name", f"stage name '{name}' is used twice")
+    reversed_stages = [i for i, stage in enumerate(scenario.stages) if stage.reverse]
+    if len(reversed_stages) > 1:
+        raise FieldError(f"stages[{reversed_stages[1]}].reverse", "only one stage can be reversed")
+    if reversed_stages and reversed_stages[0] != len(scenario.stages) - 1:
+        raise FieldError(
+            f"stages[{reversed_stages[0]}].reverse", "the reversed stage must be the last stage"
+        )
+    check_cell(scenario)
+    check_step_total(scenario)
+
+
+def check_wall_materials(scenario) -> None:
+    """With contact.wall_moduli = 'wall' a wall's material sets its contacts alone, so no
+    sphere may be of it: a sphere pair of that material would be ambiguous."""
+    if scenario.contact.wall_moduli != "wall":
+        return
+    spheres = {
+        item.material: f"{kind}[{i}]"
+        for kind, items in scenario._sphere_sources()
+        for i, item in enumerate(items)
+    }
+    for i, wall in enumerate(scenario.walls):
+        if wall.material in spheres:
+            raise FieldError(
+                f"walls[{i}].material",
+                f"with contact.wall_moduli = 'wall' a wall needs a material of its own; "
+                f"'{wall.material}' is also the material of {spheres[wall.material]}",
+            )
+
+
+def check_cell(scenario) -> None:
+    """Stages move the cell only if there is one, and hold a stress only with the
+    parameter of its servo; walls and a periodic cell do not go together."""
+    if scenario.cell is not None and scenario.walls:
+        raise FieldError("walls", "walls cannot be combined with a periodic [cell]")
+    for i, stage in enumerate(scenario.stages):
+        if stage.cell is None:
+            continue
+        if scenario.cell is None:
+            raise FieldError(f"stages[{i}].cell", "needs a periodic [cell] to move")
+        holds = any(a is not None and a.stress is not None for a in stage.cell.axes())
+        needed = "servo_mass" if scenario.cell.servo == "inertial" else "servo_gain"
+        if holds and getattr(scenario.cell, needed) is None:
+            raise FieldError(
+                f"cell.{needed}",
+                f"stages[{i}] holds a stress with the {scenario.cell.servo} servo, which "
+                f"needs {needed}",
+            )
+
+
+def check_solid_fraction(scenario) -> None:
+    """The container of [solid_fraction]: a cylinder and two planes across its axis."""
+    if scenario.solid_fraction is None:
+        return
+    walls = {w.name: w for w in scenario.walls}
+    wanted = [("cylinder", scenario.solid_fraction.cylinder, "cylinder")] + [
+        (f"planes[{k}]", name, "plane") for k, name in enumerate(scenario.solid_fraction.planes)
+    ]
+    for field, name, kind in wanted:
+        if name not in walls or walls[name].type != kind:
+            raise FieldError(f"solid_fraction.{field}", f"no {kind} wall is named '{name}'")
+    axis = walls[scenario.solid_fraction.cylinder].normal
+    for k, name in enumerate(scenario.solid_fraction.planes):
+        normal = walls[name].normal
+        cross = math.hypot(
+            axis[1] * normal[2] - axis[2] * normal[1],
+            axis[2] * normal[0] - axis[0] * normal[2],
+            axis[0] * normal[1] - axis[1] * normal[0],
+        )
+        if cross > 1e-9 * math.hypot(*axis) * math.hypot(*normal):
+            raise FieldError(
+                f"solid_fraction.planes[{k}]",
+                f"plane '{name}' is not perpendicular to the axis of the cylinder",
+            )
+
+
+def check_step_total(scenario) -> None:
+    """The stages add up to a number of steps the step counter holds."""
+    total = 0
+    for i, stage in enumerate(scenario.stages):
+        total += stage.steps
+        if total > MAX_STEPS:
+            raise FieldError(
+                f"stages[{i}].steps",
+                f"the stages add up to {total} steps, more than {MAX_STEPS} (2^53), the most "
+                "a step counter holds exactly",
+            )

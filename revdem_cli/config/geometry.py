@@ -1,0 +1,172 @@
+"""The spheres of a scenario: generated from its tables, and checked where they start
+(inside the cell, inside the walls, not overlapping). `loader` runs the checks on every
+scenario file; a scenario stored in an output was checked when it was run."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from revdem_cli.assembly.spheres import Spheres
+from revdem_cli.config.checks import FieldError
+
+
+def check_spheres(scenario) -> None:
+    """Generate the scenario's spheres and check where they start; FieldError naming the
+    first sphere that cannot start there."""
+    check_inside_cell(scenario)
+    check_overlaps(scenario)
+    check_walls(scenario)
+
+
+def generate(scenario) -> Spheres:
+    import numpy as np
+
+    from revdem_cli.assembly.packing import PackingError
+    from revdem_cli.assembly.spheres import Spheres
+
+    materials = tuple(scenario.materials)
+    given = Spheres(
+        np.array([p.radius for p in scenario.particles], dtype=np.float64),
+        np.array([p.position for p in scenario.particles], dtype=np.float64).reshape(-1, 3),
+        np.array([p.velocity for p in scenario.particles], dtype=np.float64).reshape(-1, 3),
+        np.array([p.angular_velocity for p in scenario.particles], dtype=np.float64).reshape(-1, 3),
+        np.array([materials.index(p.material) for p in scenario.particles], dtype=np.int64),
+        materials,
+    )
+    parts = [given]
+    for i, packing in enumerate(scenario.packings):
+        try:
+            parts.append(packing_spheres(packing, materials))
+        except PackingError as exc:
+            raise FieldError(f"packings[{i}]", str(exc)) from None
+    parts += [lattice_spheres(lattice, materials) for lattice in scenario.lattices]
+    spheres = Spheres.join(parts, materials)
+    if not len(spheres):
+        raise FieldError(
+            "particles", "no spheres: give [[particles]], [[packings]] or [[lattices]]"
+        )
+    return spheres
+
+
+def packing_spheres(packing, materials: tuple[str, ...]) -> Spheres:
+    """The spheres of a [[packings]] table; raises PackingError if its region cannot take
+    them."""
+    from revdem_cli.assembly.packing import place_spheres
+    from revdem_cli.assembly.spheres import uniform
+
+    rng = np.random.default_rng(packing.seed)
+    radii = rng.uniform(packing.radius_min, packing.radius_max, packing.count)
+    region = packing.region
+    centres = place_spheres(radii, region.shape, region.origin, region.extent, packing.seed + 1)
+    material = materials.index(packing.material)
+    return uniform(packing.count, radii, material, materials, centres, packing.velocity)
+
+
+def lattice_spheres(lattice, materials: tuple[str, ...]) -> Spheres:
+    """The spheres of a [[lattices]] table."""
+    from revdem_cli.assembly.spheres import fcc_positions, uniform
+
+    x = fcc_positions(lattice.cells, lattice.lattice_constant, lattice.origin)
+    v = np.array(lattice.velocity) + np.random.default_rng(lattice.seed).uniform(
+        -lattice.random_velocity, lattice.random_velocity, x.shape
+    )
+    return uniform(len(x), lattice.radius, materials.index(lattice.material), materials, x, v)
+
+
+def check_inside_cell(scenario) -> None:
+    """Every sphere starts inside the periodic box, which is more than twice as wide as
+    the contact reach (2 r_max + skin), so that two spheres touch through one image."""
+    import numpy as np
+
+    if scenario.cell is None:
+        return
+    x = scenario.spheres.position
+    size = np.array(scenario.cell.size)
+    outside = np.nonzero(((x < 0.0) | (x >= size)).any(axis=1))[0]
+    if len(outside):
+        where, sphere = located(scenario, int(outside[0]))
+        raise FieldError(where, f"{sphere} starts outside the cell [0, L) of size {list(size)}")
+    r_max = float(scenario.spheres.radius.max())
+    reach = 2.0 * r_max + (scenario.neighbours.skin or 0.1 * r_max)
+    for axis, edge in zip("xyz", size, strict=True):
+        if edge <= 2.0 * reach:
+            raise FieldError(
+                "cell.size",
+                f"edge {axis} = {edge:.4g} m is not more than twice the contact reach "
+                f"2 r_max + skin = {reach:.4g} m",
+            )
+
+
+def check_overlaps(scenario) -> None:
+    """Spheres may touch, or overlap by up to 1 % of the smaller radius (a contact already
+    loaded), no more; in a periodic cell, through the nearest image."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    x, r = scenario.spheres.position, scenario.spheres.radius
+    size = np.array(scenario.cell.size) if scenario.cell else None
+    pairs = cKDTree(x, boxsize=size).query_pairs(2.0 * r.max(), output_type="ndarray")
+    if not len(pairs):
+        return
+    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    i, j = pairs[:, 0], pairs[:, 1]
+    d = x[j] - x[i]
+    if size is not None:
+        d -= size * np.round(d / size)
+    gap = np.linalg.norm(d, axis=1) - r[i] - r[j]
+    bad = np.nonzero(gap < -1e-2 * np.minimum(r[i], r[j]))[0]
+    if len(bad):
+        k = bad[0]
+        where, sphere = located(scenario, int(j[k]))
+        raise FieldError(
+            where, f"{sphere} overlaps {located(scenario, int(i[k]))[1]} by {-gap[k]:.3g} m"
+        )
+
+
+def check_walls(scenario) -> None:
+    """Every sphere starts inside the walls: its centre on the inner side of every plane
+    and inside every cylinder, reaching past a wall by at most 1 % of its radius."""
+    import numpy as np
+
+    if not scenario.walls:
+        return
+    x, r = scenario.spheres.position, scenario.spheres.radius
+    for wall in scenario.walls:
+        normal = np.array(wall.normal) / max(abs(c) for c in wall.normal)
+        axis = normal / np.linalg.norm(normal)
+        with np.errstate(all="ignore"):
+            along = (x - np.array(wall.point)) @ axis
+            if wall.type == "plane":
+                past = r - along
+            else:
+                rho = np.linalg.norm(x - np.array(wall.point) - along[:, None] * axis, axis=1)
+                past = r - (wall.radius - rho)
+            outside = np.nonzero(~(past <= 1e-2 * r))[0]
+        if len(outside):
+            j = int(outside[0])
+            where, sphere = located(scenario, j)
+            side = (
+                "on the inner side of every plane (where its normal points)"
+                if wall.type == "plane"
+                else "inside every cylinder"
+            )
+            raise FieldError(
+                where,
+                f"{sphere} (radius {r[j]:.3g} m) reaches {past[j]:.3g} m past the {wall.type} "
+                f"wall '{wall.name}', more than 1 % of its radius: spheres must start {side}",
+            )
+
+
+def located(scenario, index: int) -> tuple[str, str]:
+    """(field path, name) of sphere `index` of `spheres`: particles[i].position and
+    'sphere i', or packings[k] and 'sphere m of packings[k]'."""
+    if index < len(scenario.particles):
+        return f"particles[{index}].position", f"sphere {index}"
+    index -= len(scenario.particles)
+    sources = [("packings", k, p) for k, p in enumerate(scenario.packings)]
+    sources += [("lattices", k, g) for k, g in enumerate(scenario.lattices)]
+    for kind, k, source in sources:
+        if index < source.count:
+            return f"{kind}[{k}]", f"sphere {index} of {kind}[{k}]"
+        index -= source.count
+    raise IndexError(index)

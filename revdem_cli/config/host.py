@@ -1,0 +1,94 @@
+"""What a run of a scenario needs of this machine: its memory, checked by `revdem run`
+before anything is generated (a scenario is valid on any machine; whether it runs here is
+this module's question)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from revdem_cli.config.checks import FieldError
+
+BYTES_PER_FRAME = 128
+"""Memory the engine takes to list the step of a frame (a Python int in a list and a set)."""
+
+OBSERVABLE_COLUMNS = 9
+"""Columns of an observables row besides its 6 per wall: the step, 7 scalars and the solid
+fraction (kernels.observables)."""
+
+BYTES_PER_SPHERE = 2048
+"""Memory a sphere takes in a run, bytes, with room to spare: 0.94 kB measured at a million
+spheres with shear history (benchmarks/fcc_hertz.py: its arrays, its share of the pair list
+and the scenario's copy of its starting state), twice that for a pair list that grows by
+a quarter as a packing densifies and for the checks of a new scenario."""
+
+BYTES_PER_SPHERE_AND_WALL = 160
+"""Memory of the contact history of a sphere with a wall, bytes (5 vectors and 4 scalars)."""
+
+
+def memory_bytes() -> int:
+    """Physical memory of this machine, or the memory limit of its control group if that is
+    lower, bytes."""
+    memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+    except OSError:
+        return memory
+    return min(memory, int(limit)) if limit.isdigit() else memory
+
+
+def _size(nbytes: float) -> str:
+    """A byte count for people: 3.2 GB, 512 MB, 64 kB."""
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{nbytes:.0f} bytes"
+
+
+def check_host(scenario) -> None:
+    """Refuse a scenario whose run would not fit in this machine's memory: its spheres, the
+    list of its frames, the observables buffered between two frames."""
+    check_memory(scenario)
+    check_frames(scenario)
+
+
+def check_memory(scenario) -> None:
+    """Refuse, before generating anything, more spheres than this machine's memory holds."""
+    per_sphere = BYTES_PER_SPHERE + BYTES_PER_SPHERE_AND_WALL * len(scenario.walls)
+    memory = memory_bytes()
+    count = len(scenario.particles)
+    generated = [(f"packings[{k}].count", p) for k, p in enumerate(scenario.packings)]
+    generated += [(f"lattices[{k}].cells", g) for k, g in enumerate(scenario.lattices)]
+    for field, source in generated:
+        count += source.count
+        if count * per_sphere > memory:
+            raise FieldError(
+                field,
+                f"{count} spheres would need about {_size(count * per_sphere)} of memory "
+                f"({per_sphere} bytes each), more than the {_size(memory)} of this machine",
+            )
+
+
+def check_frames(scenario) -> None:
+    """The steps of a stage's frames are listed, and the observables recorded between two
+    frames buffered, in memory."""
+    for i, stage in enumerate(scenario.stages):
+        frames = stage.steps // stage.output_every + 2
+        if frames * BYTES_PER_FRAME > memory_bytes() // 2:
+            raise FieldError(
+                f"stages[{i}].output_every",
+                f"{stage.steps} steps with a frame every {stage.output_every} make {frames} "
+                f"frames, whose list alone needs {_size(frames * BYTES_PER_FRAME)} of memory, "
+                f"more than half of the {_size(memory_bytes())} here; write frames less often",
+            )
+        rows = stage.output_every // stage.observable_interval + 2
+        needed = rows * 8 * (OBSERVABLE_COLUMNS + 6 * len(scenario.walls))
+        if needed > memory_bytes() // 2:
+            field = "observables_every" if stage.observables_every else "output_every"
+            raise FieldError(
+                f"stages[{i}].{field}",
+                f"{rows} rows of observables between two frames (output_every / "
+                f"observables_every) need {_size(needed)} of memory, more than half of the "
+                f"{_size(memory_bytes())} here; record observables less often or write "
+                "frames more often",
+            )

@@ -1,0 +1,150 @@
+"""Scenario files (TOML or YAML) into validated scenarios: parsing, `--set` overrides, and
+every problem as an `InputError` naming the file and the field path, e.g. ``collision.toml:
+particles[1].radius: must be greater than 0``."""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from revdem_cli.config.checks import FieldError
+from revdem_cli.config.geometry import check_spheres
+from revdem_cli.config.host import check_host
+from revdem_cli.config.schema import Scenario
+from revdem_cli.errors import InputError
+
+
+def _field_path(location: tuple) -> str:
+    path = ""
+    for part in location:
+        if isinstance(part, int):
+            path += f"[{part}]"
+        else:
+            path += f".{part}" if path else str(part)
+    return path
+
+
+def describe_validation_error(error: ValidationError) -> str:
+    """The first problem of a validation error as `field.path: message`, and how many more."""
+    first = error.errors()[0]
+    message = first["msg"].removeprefix("Value error, ")
+    path = _field_path(first["loc"])
+    if first["type"] == "missing":
+        message = "missing required field"
+    elif first["type"] == "extra_forbidden":
+        message = "unknown field"
+    text = f"{path}: {message}" if path else message
+    more = len(error.errors()) - 1
+    return text + (f" (and {more} more problem{'s' * (more > 1)})" if more else "")
+
+
+_YAML_FLOAT = re.compile(r"^(?:[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+|[-+]?inf)$", re.I)
+"""A float with an exponent and no dot, 1e-7, and inf as TOML writes it: PyYAML (YAML 1.1)
+reads them as text."""
+
+
+def _yaml_loader():
+    """PyYAML's safe loader, reading 1e-7 as the number YAML 1.2 says it is."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", _YAML_FLOAT, list("-+0123456789iI"))
+    return Loader
+
+
+def parse_text(text: str, suffix: str, origin: str) -> dict:
+    """Parse scenario text as TOML or YAML, chosen by the file suffix."""
+    if suffix in (".yaml", ".yml"):
+        import yaml
+
+        try:
+            data = yaml.load(text, Loader=_yaml_loader())
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            where = f" at line {mark.line + 1}" if mark else ""
+            raise InputError(f"{origin}: not valid YAML{where}") from None
+    elif suffix == ".toml":
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"{origin}: not valid TOML: {exc}") from None
+    else:
+        raise InputError(f"{origin}: unknown scenario format '{suffix}' (use .toml, .yaml or .yml)")
+    if not isinstance(data, dict):
+        raise InputError(f"{origin}: a scenario must be a table of fields")
+    return data
+
+
+def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
+    """Apply ``key.sub=value`` overrides; values are read as TOML values, else as strings."""
+    for item in overrides:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise InputError(f"--set {item}: expected key=value")
+        try:
+            value = tomllib.loads(f"v = {raw}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw
+        node = data
+        parts = key.split(".")
+        for part in parts[:-1]:
+            node = _child(node, part, key)
+        last = parts[-1]
+        if isinstance(node, list):
+            node[_index(node, last, key)] = value
+        else:
+            node[last] = value
+    return data
+
+
+def _child(node, part: str, key: str):
+    if isinstance(node, list):
+        return node[_index(node, part, key)]
+    if not isinstance(node, dict):
+        raise InputError(f"--set {key}: '{part}' is not inside a table")
+    return node.setdefault(part, {})
+
+
+def _index(node: list, part: str, key: str) -> int:
+    if not part.isdigit() or int(part) >= len(node):
+        raise InputError(f"--set {key}: '{part}' is not an index of a list of {len(node)}")
+    return int(part)
+
+
+def scenario_from_text(
+    text: str, suffix: str, origin: str, overrides: list[str] = (), host: bool = False
+) -> Scenario:
+    """A scenario from the text of a file, checked in layers: its schema and how its fields
+    fit together; with `host`, whether a run of it fits this machine (`revdem run`); then its
+    spheres, generated and checked where they start."""
+    data = apply_overrides(parse_text(text, suffix, origin), list(overrides), origin)
+    try:
+        scenario = Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise InputError(f"{origin}: {describe_validation_error(exc)}") from None
+    try:
+        if host:
+            check_host(scenario)
+        check_spheres(scenario)
+    except FieldError as exc:
+        raise InputError(f"{origin}: {exc}") from None
+    return scenario
+
+
+def load_scenario(
+    path: str | Path, overrides: list[str] = (), host: bool = False
+) -> tuple[Scenario, str]:
+    """Read and check a scenario file (`scenario_from_text`); returns the scenario and its
+    text (kept in outputs)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
+        raise InputError(f"{path}: cannot read scenario file ({reason})") from None
+    return scenario_from_text(text, path.suffix.lower(), str(path), overrides, host), text

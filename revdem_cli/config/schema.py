@@ -1,0 +1,566 @@
+"""The scenario schema: pure pydantic models of a scenario file, each field with its unit.
+
+A model checks its own fields (and, through `checks`, how the fields of a whole scenario fit
+together), and nothing else: it generates no spheres and reads nothing of the machine, so
+that a scenario stored in a file is validated again in a moment. The spheres it describes
+are generated when first asked for (`Scenario.spheres`); `geometry` checks them and `host`
+checks what a run of it needs of this machine, both at the edge (`loader`).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import TYPE_CHECKING, Annotated, Literal
+
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    create_model,
+    model_validator,
+)
+
+from revdem_cli import laws
+
+if TYPE_CHECKING:
+    from revdem_cli.assembly.spheres import Spheres
+
+
+def _number(value):
+    """A number as the file wrote it: true/false and text are not numbers (pydantic would
+    read true as 1 and "0.005" as 0.005)."""
+    if isinstance(value, bool):
+        raise ValueError(f"Input should be a valid number, not {str(value).lower()}")
+    if isinstance(value, str):
+        raise ValueError(f"Input should be a valid number, not the text {value[:40]!r}")
+    return value
+
+
+Float = Annotated[float, BeforeValidator(_number)]
+FloatOrInf = Annotated[float, Field(allow_inf_nan=True), BeforeValidator(_number)]
+Int = Annotated[int, BeforeValidator(_number)]
+Vector3 = Annotated[tuple[Float, Float, Float], Field(description="three components (x, y, z)")]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(
+        extra="forbid", allow_inf_nan=False, frozen=True, ser_json_inf_nan="constants"
+    )
+
+
+class Material(_Model):
+    """An elastic material; Young's modulus follows as E = 2G(1 + nu)."""
+
+    density: Float = Field(gt=0, description="mass density, kg/m^3")
+    shear_modulus: Float = Field(gt=0, description="shear modulus G, Pa")
+    poisson_ratio: Float = Field(gt=-1, lt=0.5, description="Poisson's ratio nu, -")
+
+
+def _choice(family: str) -> object:
+    """The [contact] field that chooses the law of a family, from the laws found."""
+    info = laws.FAMILIES[family]
+    names = (["none"] if info.optional else []) + list(laws.LAWS[family])
+    described = "; ".join(f"'{name}', {law.SUMMARY}" for name, law in laws.LAWS[family].items()) + (
+        "; 'none'" if info.optional else ""
+    )
+    kind = Literal[tuple(names)]
+    if info.optional:
+        return (kind, Field(default="none", description=f"{family} law: {described}"))
+    return (kind, Field(description=f"{family} law: {described}"))
+
+
+class _Contact(_Model):
+    """The parts of a contact that belong to no one law: Coulomb friction, viscous damping
+    and how a wall's moduli combine."""
+
+    friction: FloatOrInf | None = Field(
+        default=None,
+        ge=0,
+        description="Coulomb friction coefficient mu, -; inf for no sliding",
+    )
+    normal_damping: Float = Field(
+        default=0.0, ge=0, description="viscous normal damping, fraction of critical, -"
+    )
+    tangential_damping: Float = Field(
+        default=0.0, ge=0, description="viscous tangential damping, fraction of critical, -"
+    )
+    wall_moduli: Literal["combined", "wall"] = Field(
+        default="combined",
+        description="E* and G* of a sphere on a wall: 'combined', from both materials (Hertz, "
+        "Mindlin); 'wall', from the wall's material alone, as if the sphere were of it too "
+        "(LAMMPS fix wall/gran, whose contact parameters belong to the wall)",
+    )
+
+    @model_validator(mode="after")
+    def _parameters_match_laws(self) -> _Contact:
+        for field in laws.fields():
+            owners = laws.owners(field)
+            chosen = [(f, n) for f, n in owners if getattr(self, laws.FAMILIES[f].selector) == n]
+            given = getattr(self, field) is not None
+            if given and not chosen:
+                laws_named = " or ".join(f"{laws.FAMILIES[f].selector} = '{n}'" for f, n in owners)
+                raise ValueError(f"{field} belongs to {laws_named}")
+            for family, name in chosen:
+                law = laws.LAWS[family][name]
+                if field in law.REQUIRED and not given:
+                    selector = laws.FAMILIES[family].selector
+                    description = law.FIELDS[field].description
+                    raise ValueError(f"{selector} = '{name}' needs {field}: {description}")
+        if self.tangential != "none" and self.friction is None:
+            raise ValueError("a tangential law needs friction (mu; inf for no sliding)")
+        if self.rolling != "none" and self.tangential == "none":
+            raise ValueError(
+                "rolling resistance needs a tangential law: the spheres turn only under "
+                "contact moments, which frictionless contacts do not make"
+            )
+        if self.friction is not None and math.isnan(self.friction):
+            raise ValueError("friction must be a number or inf")
+        return self
+
+
+Contact = create_model(
+    "Contact",
+    __base__=_Contact,
+    __doc__="Contact between spheres and between spheres and walls: a law of each family "
+    "(revdem_cli/laws), each with its coefficients (Hanley 2020 Eq 6-10).",
+    **{info.selector: _choice(family) for family, info in laws.FAMILIES.items()},
+    **{name: (Float | None, info) for name, info in laws.fields().items()},
+)
+
+
+class Damping(_Model):
+    """Damping of particle motion (Hanley 2020 §3.1, §5.2)."""
+
+    local: Float = Field(default=0.0, ge=0, lt=1, description="local damping gamma_l of Eq 21, -")
+    drag: Float = Field(
+        default=1.0,
+        gt=0,
+        le=1,
+        description="drag factor gamma_d of Eq 25 applied to the half-step velocity, -; 1: none",
+    )
+
+
+class Wall(_Model):
+    """An infinite plane, or the inside of an infinite cylinder, moving at a fixed velocity."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_-]+$", description="wall name, used for its force")
+    type: Literal["plane", "cylinder"] = Field(description="'plane' or 'cylinder' (inside)")
+    material: str = Field(description="name of a material in [materials]")
+    point: Vector3 = Field(description="a point on the plane, or on the cylinder axis, m")
+    normal: Vector3 = Field(
+        description="plane: normal pointing into the domain; cylinder: axis direction (-)"
+    )
+    radius: Float | None = Field(default=None, gt=0, description="cylinder radius, m")
+    velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="wall velocity, m/s")
+
+    @model_validator(mode="after")
+    def _shape(self) -> Wall:
+        if math.hypot(*self.normal) == 0:
+            raise ValueError("normal must not be zero")
+        squared = sum(c * c for c in self.normal)  # as the engine normalises it
+        if not sys.float_info.min <= squared < math.inf:
+            raise ValueError(
+                f"normal {list(self.normal)} is too {'short' if squared < 1 else 'long'} to "
+                "normalise in floating point; give a direction such as [0, 0, 1]"
+            )
+        if (self.type == "cylinder") != (self.radius is not None):
+            raise ValueError("a cylinder needs a radius, a plane has none")
+        return self
+
+
+class Particle(_Model):
+    """One sphere given explicitly."""
+
+    material: str = Field(description="name of a material in [materials]")
+    radius: Float = Field(gt=0, description="radius, m")
+    position: Vector3 = Field(description="centre position, m")
+    velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="velocity, m/s")
+    angular_velocity: Vector3 = Field(
+        default=(0.0, 0.0, 0.0), description="angular velocity, rad/s"
+    )
+
+
+class Region(_Model):
+    """Where generated spheres go: a vertical cylinder (axis along z) or a box."""
+
+    shape: Literal["cylinder", "box"] = Field(description="'cylinder' or 'box'")
+    origin: Vector3 = Field(description="cylinder: centre of its base; box: lower corner, m")
+    radius: Float | None = Field(default=None, gt=0, description="cylinder radius, m")
+    height: Float | None = Field(default=None, gt=0, description="cylinder height, m")
+    size: Vector3 | None = Field(default=None, description="box edge lengths, m")
+
+    @model_validator(mode="after")
+    def _dimensions(self) -> Region:
+        if self.shape == "cylinder" and (self.radius is None or self.height is None):
+            raise ValueError("a cylinder needs radius and height")
+        if self.shape == "box" and (self.size is None or min(self.size) <= 0):
+            raise ValueError("a box needs a size with three positive edge lengths")
+        return self
+
+    @property
+    def extent(self) -> tuple[float, float, float]:
+        """(radius, height, 0) of a cylinder, or the edge lengths of a box, m."""
+        return (self.radius, self.height, 0.0) if self.shape == "cylinder" else self.size
+
+
+MAX_GENERATED = 20_000_000
+"""Most spheres one [[packings]] or [[lattices]] entry generates."""
+
+
+class Packing(_Model):
+    """Spheres with radii drawn uniformly from [radius_min, radius_max], placed at random
+    without overlap inside a region (random sequential addition), from a seeded generator."""
+
+    count: Int = Field(gt=0, le=MAX_GENERATED, description="number of spheres")
+    material: str = Field(description="name of a material in [materials]")
+    radius_min: Float = Field(gt=0, description="smallest radius, m")
+    radius_max: Float = Field(gt=0, description="largest radius, m")
+    region: Region
+    seed: Int = Field(default=0, ge=0, description="seed of the random generator")
+    velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="initial velocity, m/s")
+
+    @model_validator(mode="after")
+    def _radii(self) -> Packing:
+        if self.radius_max < self.radius_min:
+            raise ValueError("radius_max must not be below radius_min")
+        return self
+
+
+class Lattice(_Model):
+    """Spheres of one radius on a face-centred cubic lattice: cells[0] x cells[1] x cells[2]
+    cubic unit cells of edge `spacing`, four spheres each (a corner and three face centres),
+    numbered cell by cell with z fastest."""
+
+    type: Literal["fcc"] = Field(default="fcc", description="'fcc', face-centred cubic")
+    material: str = Field(description="name of a material in [materials]")
+    radius: Float = Field(gt=0, description="radius, m")
+    cells: tuple[Int, Int, Int] = Field(description="unit cells along x, y and z")
+    spacing: Float | None = Field(
+        default=None,
+        gt=0,
+        description="edge of the cubic unit cell, m; default 2 sqrt(2) radius, neighbours touching",
+    )
+    origin: Vector3 = Field(default=(0.0, 0.0, 0.0), description="corner of the first cell, m")
+    velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="initial velocity, m/s")
+    random_velocity: Float = Field(
+        default=0.0,
+        ge=0,
+        description="each velocity component gets a uniform random addition in [-this, this], "
+        "m/s, from a generator seeded with `seed`",
+    )
+    seed: Int = Field(default=0, ge=0, description="seed of the random velocities")
+
+    @model_validator(mode="after")
+    def _size(self) -> Lattice:
+        if min(self.cells) < 1:
+            raise ValueError("cells: at least one unit cell along each axis")
+        if self.count > MAX_GENERATED:
+            raise ValueError(f"cells: {self.count} spheres, more than {MAX_GENERATED}")
+        return self
+
+    @property
+    def count(self) -> int:
+        return 4 * self.cells[0] * self.cells[1] * self.cells[2]
+
+    @property
+    def lattice_constant(self) -> float:
+        return self.spacing or 2.0 * math.sqrt(2.0) * self.radius
+
+
+class Integrator(_Model):
+    """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
+
+    dt: Float = Field(gt=0, description="time step, s")
+    arithmetic: Literal["float", "fixed"] = Field(
+        default="float",
+        description="number representation of the state: 'float' (float64), or 'fixed': "
+        "positions, velocities, angular velocities and servo-driven cell edges as 64-bit "
+        "integers on fixed grids, so that a conservative run reverses bit for bit",
+    )
+    overlap_limit: Float = Field(
+        default=0.5,
+        gt=0,
+        description="deepest overlap allowed, as a fraction of the smaller radius of a "
+        "contact; checked with non-finite values at every observables row, a deeper one "
+        "stops the run as blown up",
+    )
+
+
+class Neighbours(_Model):
+    """Verlet pair list built from cell lists."""
+
+    skin: Float | None = Field(
+        default=None,
+        gt=0,
+        description="extra search distance beyond contact, m; default: 10 % of the largest radius",
+    )
+
+
+class WallForce(_Model):
+    """A wall and a force magnitude."""
+
+    wall: str = Field(description="wall name")
+    force: Float = Field(gt=0, description="magnitude of the force on the wall, N")
+
+
+class WallTravel(_Model):
+    """A wall and a distance."""
+
+    wall: str = Field(description="wall name")
+    distance: Float = Field(gt=0, description="distance the wall has moved in this stage, m")
+
+
+class StopWhen(_Model):
+    """A condition that ends a stage at the first observables row (every `observables_every`
+    steps) where it holds, with a trajectory frame there; the stage's `steps` is then the
+    most it may run. Exactly one condition is given."""
+
+    kinetic_energy_below: Float | None = Field(
+        default=None, gt=0, description="total kinetic energy below this, J"
+    )
+    wall_force_above: WallForce | None = Field(
+        default=None, description="the force on a wall above a magnitude"
+    )
+    wall_travel_above: WallTravel | None = Field(
+        default=None, description="a wall has moved further than a distance since the stage began"
+    )
+    solid_fraction_above: Float | None = Field(
+        default=None, gt=0, lt=1, description="the solid fraction of [solid_fraction] above this"
+    )
+
+    @model_validator(mode="after")
+    def _one(self) -> StopWhen:
+        if sum(getattr(self, name) is not None for name in type(self).model_fields) != 1:
+            raise ValueError(f"give exactly one of {', '.join(type(self).model_fields)}")
+        return self
+
+    @property
+    def wall(self) -> str | None:
+        """The wall the condition watches, if any."""
+        watched = self.wall_force_above or self.wall_travel_above
+        return watched.wall if watched else None
+
+
+class SolidFraction(_Model):
+    """Solid fraction of a container closed by a cylinder and two planes across its axis:
+    the spheres' volume over pi R^2 times the distance between the planes (caps cut off by
+    the walls are not subtracted: they are below 1 % at the overlaps of a packing at rest)."""
+
+    cylinder: str = Field(description="name of the cylinder wall")
+    planes: tuple[str, str] = Field(description="names of the two plane walls closing it")
+
+
+class PeriodicCell(_Model):
+    """A periodic box [0, Lx) x [0, Ly) x [0, Lz), repeated in x, y and z: a sphere leaving
+    through a face comes back through the opposite one, and contacts reach across faces to
+    the nearest image. Stages may move its edges (`stages[].cell`), carrying the spheres
+    with them affinely."""
+
+    size: Vector3 = Field(description="edge lengths Lx, Ly, Lz of the box, m")
+    servo: Literal["inertial", "proportional"] = Field(
+        default="inertial",
+        description="how an edge holds a stress: 'inertial', the edge is a mass driven by "
+        "(stress - target) x face area, stepped with the spheres (exactly reversible); "
+        "'proportional', dL/dt = gain (stress - target) / target L (Hanley 2020 §3.2.3)",
+    )
+    servo_mass: Float | None = Field(
+        default=None, gt=0, description="inertial servo: mass of each moving edge, kg"
+    )
+    servo_gain: Float | None = Field(
+        default=None,
+        gt=0,
+        description="proportional servo: strain rate per relative stress error, 1/s",
+    )
+
+    @model_validator(mode="after")
+    def _positive(self) -> PeriodicCell:
+        if min(self.size) <= 0:
+            raise ValueError("size: the three edge lengths must be positive")
+        return self
+
+
+class AxisMotion(_Model):
+    """How one edge of the periodic cell moves during a stage: at a prescribed strain rate,
+    or holding a normal stress with the servo of [cell]. Exactly one is given."""
+
+    strain_rate: Float | None = Field(
+        default=None,
+        description="dL/dt divided by L at the start of the stage, 1/s (< 0 compresses)",
+    )
+    stress: Float | None = Field(
+        default=None, gt=0, description="normal stress to hold, Pa (compression positive)"
+    )
+
+    @model_validator(mode="after")
+    def _one(self) -> AxisMotion:
+        if (self.strain_rate is None) == (self.stress is None):
+            raise ValueError("give exactly one of strain_rate, stress")
+        return self
+
+
+class CellMotion(_Model):
+    """Motion of the periodic cell's edges during a stage; an edge not given stays fixed."""
+
+    x: AxisMotion | None = None
+    y: AxisMotion | None = None
+    z: AxisMotion | None = None
+
+    def axes(self) -> list[AxisMotion | None]:
+        return [self.x, self.y, self.z]
+
+    def moving(self) -> bool:
+        return any(
+            a is not None and (a.stress is not None or a.strain_rate != 0.0) for a in self.axes()
+        )
+
+
+class Stage(_Model):
+    """A named stretch of the run with its own step count and output intervals."""
+
+    name: str = Field(min_length=1, description="stage name, used in output and progress")
+    steps: Int = Field(gt=0, description="number of time steps")
+    output_every: Int = Field(
+        default=100, gt=0, description="write a trajectory frame every this many steps"
+    )
+    observables_every: Int | None = Field(
+        default=None,
+        gt=0,
+        description="record observables every this many steps; default: output_every",
+    )
+    reverse: bool = Field(
+        strict=True,
+        default=False,
+        description="save the end of this stage as the restart and run it backwards in time",
+    )
+    dt: Float | None = Field(
+        default=None, gt=0, description="time step of this stage, s; default: integrator.dt"
+    )
+    damping: Damping | None = Field(
+        default=None, description="damping during this stage; default: [damping]"
+    )
+    stop_when: StopWhen | None = Field(
+        default=None,
+        description="end the stage early, at the first observables row where this holds",
+    )
+    wall_velocities: dict[str, Vector3] = Field(
+        default_factory=dict,
+        description="velocity of named walls during this stage, m/s; the others move at the "
+        "velocity given in [[walls]]",
+    )
+    cell: CellMotion | None = Field(
+        default=None, description="motion of the periodic cell's edges; default: all fixed"
+    )
+
+    @property
+    def observable_interval(self) -> int:
+        return self.observables_every or self.output_every
+
+
+class Reversal(_Model):
+    """Tolerances that decide whether a reversed run reproduced the forward one."""
+
+    position_tolerance_rel: Float = Field(
+        default=1e-10, gt=0, description="largest position error divided by the smallest diameter"
+    )
+    velocity_tolerance: Float = Field(default=1e-9, gt=0, description="largest velocity error, m/s")
+    angular_velocity_tolerance: Float = Field(
+        default=1e-6, gt=0, description="largest angular velocity error, rad/s"
+    )
+
+
+class Output(_Model):
+    """What is written besides the trajectories."""
+
+    figures: list[Literal["speed", "forces", "velocity_z", "wall_forces", "stress_ratios"]] = Field(
+        default_factory=list,
+        description="figures written beside the trajectories, forward and reversed overlaid: "
+        "'speed' = |v| of each particle, 'forces' = largest normal and shear contact force, "
+        "'velocity_z' = vertical velocity of each particle, all against time; 'wall_forces' "
+        "= z force on each plane wall against the solid fraction (or against time); "
+        "'stress_ratios' = principal stress ratios and coordination number against the "
+        "compression of a periodic cell",
+    )
+    particle_stress: bool = Field(
+        strict=True,
+        default=False,
+        description="write each sphere's stress (Hanley 2020 Eq 22) at every frame, "
+        "particles/all/stress [F, N, 3, 3], Pa",
+    )
+    checkpoint_interval: Float = Field(
+        default=60.0,
+        ge=0,
+        description="wall-clock time between checkpoints, s, each taken at an output frame "
+        "(0: at every frame); `revdem run --resume` continues from the newest",
+    )
+
+
+class Scenario(_Model):
+    """A complete revdem experiment."""
+
+    _spheres: Spheres | None = PrivateAttr(default=None)
+
+    name: str = Field(
+        pattern=r"^[A-Za-z0-9_.-]+$", description="run name, used for output file names"
+    )
+    description: str = Field(default="", description="free text")
+    materials: dict[str, Material] = Field(min_length=1, description="materials by name")
+    contact: Contact = Field(description="contact law between particles")
+    particles: list[Particle] = Field(default_factory=list, description="spheres given one by one")
+    packings: list[Packing] = Field(
+        default_factory=list, description="spheres generated at random in regions"
+    )
+    lattices: list[Lattice] = Field(default_factory=list, description="spheres on lattices")
+    walls: list[Wall] = Field(default_factory=list, description="walls")
+    cell: PeriodicCell | None = Field(default=None, description="periodic boundaries in x, y and z")
+    gravity: Vector3 = Field(
+        default=(0.0, 0.0, 0.0), description="gravitational acceleration, m/s^2"
+    )
+    damping: Damping = Field(default_factory=Damping)
+    integrator: Integrator
+    neighbours: Neighbours = Field(default_factory=Neighbours)
+    stages: list[Stage] = Field(min_length=1, description="stages run in order")
+    solid_fraction: SolidFraction | None = Field(
+        default=None, description="record the solid fraction of a container as an observable"
+    )
+    reversal: Reversal = Field(default_factory=Reversal)
+    output: Output = Field(default_factory=Output)
+
+    def _sphere_sources(self) -> tuple[tuple[str, list], ...]:
+        """The tables that make spheres, with their field names."""
+        return (
+            ("particles", self.particles),
+            ("packings", self.packings),
+            ("lattices", self.lattices),
+        )
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Scenario:
+        from revdem_cli.config.checks import check_consistency
+
+        check_consistency(self)
+        return self
+
+    @property
+    def sphere_count(self) -> int:
+        """How many spheres the scenario makes, without making them."""
+        return sum(
+            len(items) if kind == "particles" else sum(item.count for item in items)
+            for kind, items in self._sphere_sources()
+        )
+
+    @property
+    def spheres(self) -> Spheres:
+        """Every sphere of the scenario as arrays: those given one by one, then the packings'
+        and the lattices', generated when first asked for (`geometry.generate`)."""
+        if self._spheres is None:
+            from revdem_cli.config.geometry import generate
+
+            self._spheres = generate(self)
+        return self._spheres
+
+    @property
+    def reversed_stage(self) -> Stage | None:
+        return next((stage for stage in self.stages if stage.reverse), None)
