@@ -124,17 +124,16 @@ def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict
 
 def loop_seconds(state, model, steps: int) -> float:
     """Seconds of `steps` steps of the compiled stage loop, observables only at the end."""
-    import numpy as np
 
     from revdem_cli.engine import stepping_bundles
     from revdem_cli.kernels.integrate import OK, advance
     from revdem_cli.state import empty_events
 
-    obs = np.zeros((2, model.observables_row))
-    run = np.array([1.0e-6, model.skin, 0, steps, steps, model.scenario.integrator.overlap_limit])
+    obs, obs_steps = model.buffers(2)
+    stepping = model.stepping(1.0e-6, 0, steps, steps)
     bundles = stepping_bundles(state, model, model.dynamics)
     started = time.perf_counter()
-    status, _, _ = advance(*bundles, empty_events(), run, 0, steps, obs, np.zeros(4))
+    status, _, _, _ = advance(*bundles, empty_events(), stepping, 0, steps, obs, obs_steps)
     seconds = time.perf_counter() - started
     if status != OK:
         raise RuntimeError(f"the stepping loop stopped with status {status}")

@@ -22,14 +22,14 @@ from revdem_cli.errors import InputError
 from revdem_cli.io import open_hdf5
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
-from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli
+from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli, Stepping
 from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
 from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, onto_grid
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import BLOWN_UP, CELL_TOO_SMALL, FIXED_OVERFLOW, OK, advance
-from revdem_cli.kernels.observables import SCALARS, observe
+from revdem_cli.kernels.observables import Layout, observe
 from revdem_cli.kernels.stress import particle_stress
 from revdem_cli.state import (
     BlownUp,
@@ -68,6 +68,12 @@ class Model:
             default_skin(scenario),
         )
 
+    def stepping(self, dt: float, first_step: int, last_step: int, every: int) -> Stepping:
+        """How the compiled loop steps a stage of time step dt from first_step to last_step,
+        observables every `every` steps."""
+        limit = self.scenario.integrator.overlap_limit
+        return Stepping(dt, self.skin, int(first_step), int(last_step), int(every), limit)
+
     def stage_dynamics(self, stage: Stage) -> Dynamics:
         """Gravity and the damping of a stage: its own, else the scenario's."""
         return self.dynamics if stage.damping is None else dynamics(self.scenario, stage.damping)
@@ -79,24 +85,12 @@ class Model:
             dtype=np.float64,
         ).reshape(-1, 3)
 
-    def observables(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Observable names and shapes, in the column order of
-        `kernels.observables.observe`, then the ones derived from those (`complete`)."""
-        walls = [wall.name for wall in self.scenario.walls]
-        periodic = self.scenario.cell is not None
-        return (
-            [(name, ()) for name in SCALARS]
-            + [(f"wall_force/{name}", (3,)) for name in walls]
-            + [(f"wall_position/{name}", (3,)) for name in walls]
-            + ([("stress", (3, 3)), ("cell_length", (3,))] if periodic else [])
-            + ([("solid_fraction", ())] if self.scenario.solid_fraction else [])
-            + ([("principal_stress", (3,))] if periodic else [])
-        )
-
-    @property
-    def observables_row(self) -> int:
-        """Length of an observables row: the step, then every observable's columns."""
-        return 1 + sum(_columns(shape) for _, shape in self.observables())
+    @cached_property
+    def layout(self) -> Layout:
+        """The columns of the scenario's observables rows."""
+        walls = tuple(wall.name for wall in self.scenario.walls)
+        scenario = self.scenario
+        return Layout(walls, scenario.cell is not None, scenario.solid_fraction is not None)
 
     @cached_property
     def solid_volume(self) -> float:
@@ -106,16 +100,9 @@ class Model:
     def wall_index(self, name: str) -> int:
         return [wall.name for wall in self.scenario.walls].index(name)
 
-    def column(self, name: str) -> int:
-        """Column of an observables row where observable `name` begins."""
-        shapes = self.observables()
-        k = [n for n, _ in shapes].index(name)
-        return 1 + sum(_columns(shape) for _, shape in shapes[:k])
-
     def observe(self, state: State, dyn: Dynamics) -> np.ndarray:
         """An observables row of the state as it is."""
-        row = np.zeros((1, self.observables_row))
-        row[0, 0] = state.step
+        row = np.zeros((1, self.layout.width))
         observe(
             state.particles,
             state.pairs,
@@ -128,16 +115,20 @@ class Model:
         )
         return self.complete(row)[0]
 
+    def buffers(self, rows: int) -> tuple[np.ndarray, np.ndarray]:
+        """Room for `rows` observables rows and their steps, for the compiled stage loop."""
+        return np.zeros((rows, self.layout.width)), np.zeros(rows, dtype=np.int64)
+
     def complete(self, rows: np.ndarray) -> np.ndarray:
         """Fill the derived columns of observables rows from the others: the principal
         stresses (eigenvalues of the stress's symmetric part, largest first), and the solid
         fraction, spheres' volume / (pi R^2 x distance between the planes along the
         cylinder axis)."""
         if self.scenario.cell is not None:
-            at = self.column("stress")
+            at = self.layout.column("stress")
             sigma = rows[:, at : at + 9].reshape(-1, 3, 3)
             principal = np.linalg.eigvalsh(0.5 * (sigma + sigma.transpose(0, 2, 1)))[:, ::-1]
-            at = self.column("principal_stress")
+            at = self.layout.column("principal_stress")
             rows[:, at : at + 3] = principal
         container = self.scenario.solid_fraction
         if container is None:
@@ -145,15 +136,11 @@ class Model:
         walls = {wall.name: wall for wall in self.scenario.walls}
         cylinder = walls[container.cylinder]
         axis = np.asarray(cylinder.normal) / np.linalg.norm(cylinder.normal)
-        a, b = (self.column(f"wall_position/{name}") for name in container.planes)
+        a, b = (self.layout.column(f"wall_position/{name}") for name in container.planes)
         height = np.abs((rows[:, a : a + 3] - rows[:, b : b + 3]) @ axis)
         area = np.pi * cylinder.radius**2
-        rows[:, self.column("solid_fraction")] = self.solid_volume / (area * height)
+        rows[:, self.layout.column("solid_fraction")] = self.solid_volume / (area * height)
         return rows
-
-
-def _columns(shape: tuple[int, ...]) -> int:
-    return int(np.prod(shape, dtype=np.int64))
 
 
 @dataclass(frozen=True)
@@ -223,10 +210,8 @@ def run_stage(
             *stepping_bundles(state, model, dyn), STATIC, clock.dt, 0.0, empty_events(), state.step
         )
     every = clock.stage.observable_interval
-    buffer = np.zeros((clock.stage.output_every // every + 2, model.observables_row))
-    limit = model.scenario.integrator.overlap_limit
-    run = np.array([clock.dt, model.skin, clock.first_step, clock.last_step, every, limit])
-    alarm = np.zeros(4)
+    buffer, buffer_steps = model.buffers(clock.stage.output_every // every + 2)
+    stepping = model.stepping(clock.dt, clock.first_step, clock.last_step, every)
     if events is None:
         events = empty_events()
         _record_now(state, model, dyn, clock, writer, events)
@@ -239,10 +224,11 @@ def run_stage(
     frame_steps = set(frames)
     for target in [s for s in pauses if (s - state.step) * direction > 0]:
         while state.step != target:
-            status, state.step, rows = advance(
-                *stepping_bundles(state, model, dyn), events, run, state.step, target, buffer, alarm
-            )
-            _write_observables(writer, model, clock, buffer[:rows])
+            status, state.step, rows, finding = advance(
+                *stepping_bundles(state, model, dyn), events, stepping, state.step, target,
+                buffer, buffer_steps,
+            )  # fmt: skip
+            _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows])
             if status == CELL_TOO_SMALL:
                 raise CellTooSmall(state.step, state.cell.length)
             if status == FIXED_OVERFLOW:
@@ -250,8 +236,8 @@ def run_stage(
             if status == BLOWN_UP:
                 raise BlownUp(
                     state.step,
-                    alarm,
-                    limit,
+                    finding,
+                    stepping.overlap_limit,
                     [wall.name for wall in model.scenario.walls],
                     _likely_cause(model.scenario, clock.dt),
                     f"{writer.path} holds the frames up to step {writer.last_step}",
@@ -295,12 +281,12 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
     row = model.observe(state, dyn)
 
     def vector(name: str) -> np.ndarray:
-        return row[model.column(name) : model.column(name) + 3]
+        return row[model.layout.column(name) : model.layout.column(name) + 3]
 
     if stop.kinetic_energy_below is not None:
-        return row[model.column("kinetic_energy")] < stop.kinetic_energy_below
+        return row[model.layout.column("kinetic_energy")] < stop.kinetic_energy_below
     if stop.solid_fraction_above is not None:
-        return row[model.column("solid_fraction")] > stop.solid_fraction_above
+        return row[model.layout.column("solid_fraction")] > stop.solid_fraction_above
     if stop.wall_force_above is not None:
         force = vector(f"wall_force/{stop.wall}")
         return float(np.linalg.norm(force)) > stop.wall_force_above.force
@@ -364,15 +350,16 @@ def _record_now(state, model, dyn, clock, writer, events) -> None:
     """Write the frame and observables of the state as it is (the start of a stage)."""
     _write_frame(writer, state, model, clock, events)
     if writer.last_observable_step() != state.step:
-        _write_observables(writer, model, clock, model.observe(state, dyn)[None, :])
+        _write_observables(
+            writer, model, clock, np.array([state.step]), model.observe(state, dyn)[None, :]
+        )
 
 
 def _write_observables(
-    writer: TrajectoryWriter, model: Model, clock: StageClock, rows: np.ndarray
+    writer: TrajectoryWriter, model: Model, clock: StageClock, steps: np.ndarray, rows: np.ndarray
 ) -> None:
     model.complete(rows)
-    steps = rows[:, 0].astype(np.int64)
-    writer.observables(steps, clock.time(steps), rows[:, 1:])
+    writer.observables(steps, clock.time(steps), rows)
 
 
 @dataclass
@@ -408,7 +395,7 @@ def _writer(
         scenario.cell is not None,
         scenario.output.particle_stress,
         scenario.integrator.arithmetic == "fixed",
-        model.observables(),
+        model.layout.series(),
         (len(KINDS), len(COLUMNS)),
         {
             "direction": direction,

@@ -304,10 +304,8 @@ class BlownUp(RunFailed):
     """The state stopped being physical (kernels/health.py): a non-finite value, or an
     overlap deeper than integrator.overlap_limit allows."""
 
-    def __init__(
-        self, step: int, alarm: np.ndarray, limit: float, walls: list[str], cause: str, kept: str
-    ):
-        what, particle, partner, value = int(alarm[0]), int(alarm[1]), int(alarm[2]), alarm[3]
+    def __init__(self, step: int, finding, limit: float, walls: list[str], cause: str, kept: str):
+        what, particle, partner, value = finding
         if what == health.NOT_FINITE:
             quantity = ("position", "velocity", "angular velocity")[int(value)]
             found = f"particle {particle} has a non-finite {quantity}"

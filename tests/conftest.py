@@ -97,7 +97,6 @@ def collision_run(tmp_path_factory):
 def stepped(scenario: Scenario, steps: int, every: int):
     """The state of a scenario's first stage after every `every` of `steps` steps, as the
     compiled stage loop leaves it (forward, the stage's dt and damping)."""
-    import numpy as np
 
     from revdem_cli.engine import Model, stage_dt, stepping_bundles
     from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, advance
@@ -107,14 +106,14 @@ def stepped(scenario: Scenario, steps: int, every: int):
     stage = scenario.stages[0]
     dyn = model.stage_dynamics(stage)
     state.walls.velocity[:] = model.stage_wall_velocities(stage)
-    limit = scenario.integrator.overlap_limit
-    run = np.array([stage_dt(scenario, stage), model.skin, 0, steps, steps, limit])
-    obs, alarm, events = np.zeros((2, model.observables_row)), np.zeros(4), empty_events()
+    stepping = model.stepping(stage_dt(scenario, stage), 0, steps, steps)
+    (obs, obs_steps), events = model.buffers(2), empty_events()
     while state.step < steps:
         target = min(state.step + every, steps)
-        status, state.step, _ = advance(
-            *stepping_bundles(state, model, dyn), events, run, state.step, target, obs, alarm
-        )
+        status, state.step, _, _ = advance(
+            *stepping_bundles(state, model, dyn), events, stepping, state.step, target, obs,
+            obs_steps,
+        )  # fmt: skip
         if status == PAIR_OVERFLOW:
             state.grow_pairs()
             continue

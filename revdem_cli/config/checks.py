@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 
-MAX_STEPS = 2**53
-"""Most steps of a run: the step counter is exact in float64 up to here."""
+MAX_STEPS = 2**62
+"""Most steps of a run: steps are 64-bit integers everywhere, and stay far from their end."""
 
 
 class FieldError(ValueError):
@@ -139,6 +139,6 @@ def check_step_total(scenario) -> None:
         if total > MAX_STEPS:
             raise FieldError(
                 f"stages[{i}].steps",
-                f"the stages add up to {total} steps, more than {MAX_STEPS} (2^53), the most "
-                "a step counter holds exactly",
+                f"the stages add up to {total} steps, more than {MAX_STEPS} (2^62), the most "
+                "a step counter holds",
             )

@@ -8,13 +8,10 @@ import os
 from pathlib import Path
 
 from revdem_cli.config.checks import FieldError
+from revdem_cli.kernels.observables import Layout
 
 BYTES_PER_FRAME = 128
 """Memory the engine takes to list the step of a frame (a Python int in a list and a set)."""
-
-OBSERVABLE_COLUMNS = 9
-"""Columns of an observables row besides its 6 per wall: the step, 7 scalars and the solid
-fraction (kernels.observables)."""
 
 BYTES_PER_SPHERE = 2048
 """Memory a sphere takes in a run, bytes, with room to spare: 0.94 kB measured at a million
@@ -82,7 +79,9 @@ def check_frames(scenario) -> None:
                 f"more than half of the {_size(memory_bytes())} here; write frames less often",
             )
         rows = stage.output_every // stage.observable_interval + 2
-        needed = rows * 8 * (OBSERVABLE_COLUMNS + 6 * len(scenario.walls))
+        walls = tuple(wall.name for wall in scenario.walls)
+        layout = Layout(walls, scenario.cell is not None, scenario.solid_fraction is not None)
+        needed = rows * 8 * (layout.width + 1)  # and its step
         if needed > memory_bytes() // 2:
             field = "observables_every" if stage.observables_every else "output_every"
             raise FieldError(

@@ -232,8 +232,8 @@ class TrajectoryWriter:
         if len(steps) == 0:
             return
         self.last_observable = int(steps[-1])
-        self.observable_clock[0].add(steps)
-        self.observable_clock[1].add(times)
+        self.observable_clock[0].add(np.array(steps, dtype=np.int64))  # a copy: callers reuse
+        self.observable_clock[1].add(np.array(times, dtype=np.float64))  # their buffers
         column = 0
         for appender, shape in self.observable_rows:
             columns = int(np.prod(shape, dtype=np.int64))

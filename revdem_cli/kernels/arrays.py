@@ -140,3 +140,16 @@ Dynamics = namedtuple(
         "drag",  # gamma_d of Hanley 2020 Eq 25 (1: none)
     ],
 )
+
+Stepping = namedtuple(
+    "Stepping",
+    [
+        "dt",  # time step, s
+        "skin",  # neighbour skin, m
+        "first_step",  # the stage's first step (int)
+        "last_step",  # the stage's last step (int)
+        "every",  # observables every this many steps from the first (int)
+        "overlap_limit",  # deepest overlap allowed / the smaller radius of a contact
+    ],
+)
+"""How the compiled stage loop steps a stage (`integrate.advance`); steps are integers."""

@@ -7,6 +7,7 @@ from a state past that point.
 """
 
 import math
+from collections import namedtuple
 
 import numba
 
@@ -16,10 +17,12 @@ from revdem_cli.kernels.pairs import pair_overlap, separation
 from revdem_cli.kernels.sums import blocks_of, by_blocks, span
 
 HEALTHY, NOT_FINITE, TOO_DEEP = range(3)
-"""What `examine` found, alarm[0]; alarm[1:4] then hold (particle, partner, value): for
-NOT_FINITE the particle, -1, and 0, 1 or 2 for its position, velocity or angular velocity;
-for TOO_DEEP the pair (a wall as partner -1 - wall index) with the deepest overlap and that
-overlap / the smaller radius."""
+"""What `examine` found."""
+
+Finding = namedtuple("Finding", ["what", "particle", "partner", "value"])
+"""What `examine` found and where: HEALTHY (-1, -1, 0); NOT_FINITE, the particle, -1, and
+0, 1 or 2 for its position, velocity or angular velocity; TOO_DEEP, the pair (a wall as
+partner -1 - wall index) with the deepest overlap, and that overlap / the smaller radius."""
 
 
 def _scan(x, v, w, radius, image, pi, pj, first, partials):
@@ -54,9 +57,9 @@ scan = by_blocks(_scan)
 
 
 @jit
-def examine(p, pairs, walls, cell, limit, alarm):
-    """Whether the state is HEALTHY, or what is wrong with it (see above), filling `alarm`.
-    `limit`: the deepest overlap allowed, as a fraction of the smaller radius of a contact."""
+def examine(p, pairs, walls, cell, limit):
+    """The `Finding` of whether the state is HEALTHY, or what is wrong with it. `limit`: the
+    deepest overlap allowed, as a fraction of the smaller radius of a contact."""
     n = p.x.shape[0]
     parts = pairs.partials
     args = (p.x, p.v, p.omega, p.radius, images(cell), pairs.i, pairs.j, pairs.first, parts)
@@ -65,8 +68,7 @@ def examine(p, pairs, walls, cell, limit, alarm):
         for b in range(blocks_of(n)):
             q = parts[b, quantity]
             if q >= 0:
-                alarm[0], alarm[1], alarm[2], alarm[3] = NOT_FINITE, q, -1, quantity
-                return NOT_FINITE
+                return Finding(NOT_FINITE, int(q), -1, float(quantity))
     deepest, who, partner = 0.0, -1, -1
     for b in range(blocks_of(n)):
         if parts[b, 3] > deepest:
@@ -77,6 +79,5 @@ def examine(p, pairs, walls, cell, limit, alarm):
             if depth > deepest:
                 deepest, who, partner = depth, q, -1 - b
     if deepest > limit:
-        alarm[0], alarm[1], alarm[2], alarm[3] = TOO_DEEP, who, partner, deepest
-        return TOO_DEEP
-    return HEALTHY
+        return Finding(TOO_DEEP, who, partner, deepest)
+    return Finding(HEALTHY, -1, -1, 0.0)

@@ -9,7 +9,7 @@ from revdem_cli.kernels.cell import kick_cell, move_cell
 from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE
 from revdem_cli.kernels.events import MOTION_LOST, note, note_damping, note_fixed_points
 from revdem_cli.kernels.forces import compute_forces
-from revdem_cli.kernels.health import HEALTHY, examine
+from revdem_cli.kernels.health import HEALTHY, Finding, examine
 from revdem_cli.kernels.neighbours import (
     build_pairs,
     carry_history,
@@ -253,31 +253,36 @@ def needs_rebuild(p, pairs, cell, dt, skin, direction):
 
 
 @jit
-def advance(p, pairs, walls, cell, fixed, law, moduli, dyn, events, run, step, stop, obs, alarm):
-    """Run whole steps from `step` to `stop` (forward if stop > step, else reversed).
+def advance(
+    p, pairs, walls, cell, fixed, law, moduli, dyn, events, stepping, step, stop, obs, obs_steps
+):
+    """Run whole steps from `step` to `stop` (forward if stop > step, else reversed), with the
+    settings `stepping` (arrays.Stepping).
 
-    run = (dt, skin, first step of the stage, last step, observables interval, deepest
-    overlap allowed / smaller radius). Observables are recorded into the rows of `obs` at
-    every step where (step - first) % interval == 0 and at the last step, each after the
-    state there passed `health.examine`, which is also asked at `stop` and before each
-    rebuild of the pair list. Returns (status, step reached, rows recorded); status
+    Observables are recorded into the rows of `obs` (their steps into `obs_steps`, int64)
+    at every step where (step - first step)
+    % every == 0 and at the stage's last step, each after the state there passed
+    `health.examine`, which is also asked at `stop` and before each rebuild of the pair
+    list. Returns (status, step reached, rows recorded, the last `health.Finding`); status
     PAIR_OVERFLOW means the pair list must grow before stepping on, CELL_TOO_SMALL that the
     cell has shrunk too far (the state is then at a whole step), FIXED_OVERFLOW that a
     value left its fixed-point grid in the step just taken (fixed.overflow says which),
-    BLOWN_UP that the state at the step reached is not physical (`alarm` says why; the
+    BLOWN_UP that the state at the step reached is not physical (the finding says why; the
     rows recorded are of the steps before).
     """
-    dt, skin, limit = run[0], run[1], run[5]
-    first, last, every = int(run[2]), int(run[3]), int(run[4])
+    dt, skin, limit = stepping.dt, stepping.skin, stepping.overlap_limit
+    first, last, every = stepping.first_step, stepping.last_step, stepping.every
     direction = 1 if stop > step else -1
     rows = 0
+    finding = Finding(HEALTHY, -1, -1, 0.0)
     while step != stop:
         if needs_rebuild(p, pairs, cell, dt, skin, direction):
-            if examine(p, pairs, walls, cell, limit, alarm) != HEALTHY:  # not worth a search
-                return BLOWN_UP, step, rows
+            finding = examine(p, pairs, walls, cell, limit)
+            if finding.what != HEALTHY:  # not worth a search
+                return BLOWN_UP, step, rows, finding
             status = rebuild_pairs(p, pairs, cell, skin)
             if status != OK:
-                return status, step, rows
+                return status, step, rows, finding
         elapsed = (step + direction - first) * dt
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
         if direction > 0:
@@ -286,13 +291,14 @@ def advance(p, pairs, walls, cell, fixed, law, moduli, dyn, events, run, step, s
             reverse_step(*system, dt, step, elapsed)
         step += direction
         if fixed.overflow[0] != 0:
-            return FIXED_OVERFLOW, step, rows
+            return FIXED_OVERFLOW, step, rows, finding
         recorded = (step - first) % every == 0 or step == last
         if recorded or step == stop:
-            if examine(p, pairs, walls, cell, limit, alarm) != HEALTHY:
-                return BLOWN_UP, step, rows
+            finding = examine(p, pairs, walls, cell, limit)
+            if finding.what != HEALTHY:
+                return BLOWN_UP, step, rows, finding
         if recorded:
-            obs[rows, 0] = step
+            obs_steps[rows] = step
             observe(p, pairs, walls, cell, law, moduli, dyn, obs[rows])
             rows += 1
-    return OK, step, rows
+    return OK, step, rows, finding

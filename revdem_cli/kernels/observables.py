@@ -5,6 +5,7 @@ stored contact forces, so the stepping loop stores no more per contact than it s
 """
 
 import math
+from dataclasses import dataclass
 
 import numba
 
@@ -26,13 +27,51 @@ SCALARS = (
     "max_shear_force",  # largest shear force magnitude over all contacts, N
     "coordination_number",  # 2 x particle-particle contacts / particles
 )
-"""Scalar columns of an observables row after its leading step column; then 3 columns per
-wall (the force on it, N), then 3 per wall (its reference point, m); then, in a periodic
-cell, the 9 of the average stress (Pa, row by row) and the 3 edge lengths (m)."""
+"""The first columns of an observables row (`Layout`)."""
 
-WALL_FORCES = 1 + len(SCALARS)
+WALL_FORCES = len(SCALARS)
 """Column of an observables row where the first wall's force begins; the wall positions
 follow the forces of all walls."""
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The columns of an observables row, the one layout `observe` writes, the engine
+    completes and stops on, the trajectory stores and the figures read: SCALARS, the force
+    on each wall (N, 3 columns) and its reference point (m, 3); in a periodic cell the
+    average stress (Pa, 9, row by row) and the edge lengths (m, 3); then the observables
+    derived from those by the engine: the solid fraction of a [solid_fraction] container,
+    and in a periodic cell the principal stresses (Pa, 3, largest first)."""
+
+    walls: tuple[str, ...]
+    periodic: bool
+    container: bool  # a [solid_fraction] container
+
+    def series(self) -> list[tuple[str, tuple[int, ...]]]:
+        """(name, shape) of every observable, in column order."""
+        return (
+            [(name, ()) for name in SCALARS]
+            + [(f"wall_force/{name}", (3,)) for name in self.walls]
+            + [(f"wall_position/{name}", (3,)) for name in self.walls]
+            + ([("stress", (3, 3)), ("cell_length", (3,))] if self.periodic else [])
+            + ([("solid_fraction", ())] if self.container else [])
+            + ([("principal_stress", (3,))] if self.periodic else [])
+        )
+
+    @property
+    def width(self) -> int:
+        """Columns of a row."""
+        return sum(_size(shape) for _, shape in self.series())
+
+    def column(self, name: str) -> int:
+        """Column where observable `name` begins."""
+        series = self.series()
+        k = [n for n, _ in series].index(name)
+        return sum(_size(shape) for _, shape in series[:k])
+
+
+def _size(shape: tuple[int, ...]) -> int:
+    return math.prod(shape)
 
 
 @jit
@@ -105,8 +144,8 @@ pair_energies = by_blocks(_pair_energies)
 
 @jit
 def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
-    """Fill row_out[1:] with SCALARS, each wall's force, each wall's position, and in a
-    periodic cell the stress and the edges (row_out[0] holds the step). Particles and pairs
+    """Fill the columns `Layout` gives `observe` of row_out: SCALARS, each wall's force, each
+    wall's position, and in a periodic cell the stress and the edges. Particles and pairs
     are summed in blocks (`kernels.sums`), then the wall contacts in order."""
     count = p.x.shape[0]
     parts = pairs.partials
@@ -153,13 +192,13 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
     for b in range(nwalls):
         for c in range(3):
             row_out[WALL_FORCES + 3 * (nwalls + b) + c] = walls.point[b, c]
-    row_out[1] = kinetic
-    row_out[2] = elastic
-    row_out[3] = potential
-    row_out[4] = kinetic + elastic + potential
-    row_out[5] = max_normal
-    row_out[6] = max_shear
-    row_out[7] = 2.0 * contacts / p.x.shape[0]
+    row_out[0] = kinetic
+    row_out[1] = elastic
+    row_out[2] = potential
+    row_out[3] = kinetic + elastic + potential
+    row_out[4] = max_normal
+    row_out[5] = max_shear
+    row_out[6] = 2.0 * contacts / p.x.shape[0]
     if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
         stress_of(p, pairs, cell)
         at = WALL_FORCES + 6 * nwalls

@@ -34,10 +34,15 @@ def _scenario(text: str) -> dict:
     return {
         "scenario": scenario.name,
         "stages": [
-            {"name": s.name, "steps": s.steps, "output_every": s.output_every, "reverse": s.reverse}
+            {
+                "name": s.name,
+                "steps": s.steps,
+                "dt": s.dt or scenario.integrator.dt,
+                "output_every": s.output_every,
+                "reverse": s.reverse,
+            }
             for s in scenario.stages
         ],
-        "dt": scenario.integrator.dt,
         "arithmetic": scenario.integrator.arithmetic,
         "cell": list(scenario.cell.size) if scenario.cell else None,
     }
@@ -55,7 +60,6 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
         "frames": int(len(steps)),
         "first_step": int(steps[0]) if len(steps) else None,
         "last_step": int(steps[-1]) if len(steps) else None,
-        "dt": float(attrs["dt"]),
     }
     comparison = path.with_name(f"{info['scenario']}.compare.json")
     if comparison.exists():
@@ -91,7 +95,7 @@ def _restart(path: Path, f: h5py.File) -> dict:
 def info_lines(info: dict) -> list[str]:
     """The summary as `label: value` lines."""
     stages = ", ".join(
-        f"{s['name']} ({s['steps']} steps{', reversed' if s['reverse'] else ''})"
+        f"{s['name']} ({s['steps']} steps of {s['dt']:.6g} s{', reversed' if s['reverse'] else ''})"
         for s in info["stages"]
     )
     lines = [
@@ -101,7 +105,6 @@ def info_lines(info: dict) -> list[str]:
         f"scenario:   {info['scenario']}",
         f"stages:     {stages}",
         f"particles:  {info['particles']}",
-        f"dt:         {info['dt']:.6g} s",
         f"arithmetic: {info['arithmetic']}"
         + (" (64-bit integers on fixed grids)" if info["arithmetic"] == "fixed" else ""),
     ]

@@ -128,11 +128,11 @@ def engine_is_stable(scenario, dt: float) -> bool:
     model = Model.of(scenario)
     state = initial_state(scenario)
     start = _kinetic_energy(state.particles)
-    obs = np.zeros((STEPS, model.observables_row))
-    run = np.array([dt, model.skin, 0, STEPS, 1, np.inf])  # judged by its energy alone
+    obs, steps = model.buffers(STEPS)
+    stepping = model.stepping(dt, 0, STEPS, 1)._replace(overlap_limit=np.inf)  # by energy alone
     bundles = stepping_bundles(state, model, model.dynamics)
-    status, _, rows = advance(*bundles, empty_events(), run, 0, STEPS, obs, np.zeros(4))
-    kinetic = obs[:rows, 1]  # kernels.observables.SCALARS[0]
+    status, _, rows, _ = advance(*bundles, empty_events(), stepping, 0, STEPS, obs, steps)
+    kinetic = obs[:rows, model.layout.column("kinetic_energy")]
     return status == OK and bool(np.all(kinetic <= GROWTH * start))
 
 

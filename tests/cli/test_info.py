@@ -29,9 +29,9 @@ def test_json_summary_of_a_reversed_trajectory(smoke_run):
     summary = json.loads(result.output)
     assert summary["kind"] == "trajectory" and summary["direction"] == "reverse"
     assert (summary["first_step"], summary["last_step"], summary["frames"]) == (1000, 0, 21)
-    assert summary["particles"] == 2 and summary["dt"] == 1e-7
+    assert summary["particles"] == 2
     assert summary["stages"] == [
-        {"name": "collide", "steps": 1000, "output_every": 50, "reverse": True}
+        {"name": "collide", "steps": 1000, "dt": 1e-7, "output_every": 50, "reverse": True}
     ]
     assert summary["comparison"]["reversible"] is True
 
@@ -65,3 +65,18 @@ def test_other_files_exit_2_with_one_line(smoke_run, tmp_path):
         assert result.exit_code == 2, result.output
         lines = result.output.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith(f"error: {path}: {message}"), lines
+
+
+def test_each_stage_shows_its_own_time_step():
+    """The oedometer's first three stages run at 1e-5 s, the last at integrator.dt, 1e-6 s."""
+    from revdem_cli.config import load_scenario
+    from revdem_cli.report.info import _scenario, info_lines
+
+    scenario, _ = load_scenario("configs/smoke/oedometer.toml")
+    summary = _scenario(scenario.model_dump_json())
+    assert [stage["dt"] for stage in summary["stages"]] == [1e-5, 1e-5, 1e-5, 1e-6]
+    lines = info_lines(
+        summary | {"file": "x.h5", "kind": "restart", "particles": 300, "step": 1, "stage": "pour",
+                   "trajectory": "x.forward.h5", "direction": "forward"}
+    )  # fmt: skip
+    assert "pour (200000 steps of 1e-05 s)" in "\n".join(lines)

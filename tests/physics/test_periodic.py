@@ -34,8 +34,8 @@ def stress_row(scenario):
     model = Model.of(scenario)
     state = initial_state(scenario)
     row = model.observe(state, model.dynamics)
-    at = model.column("stress")
-    return row[at : at + 9].reshape(3, 3), row[model.column("coordination_number")], state
+    at = model.layout.column("stress")
+    return row[at : at + 9].reshape(3, 3), row[model.layout.column("coordination_number")], state
 
 
 def test_a_compressed_simple_cubic_lattice_carries_kn_overlap_over_its_face():
@@ -145,12 +145,13 @@ def test_a_deforming_cell_carries_its_lattice_and_the_stress_follows_the_contact
 
 
 def test_spheres_must_start_inside_the_cell_and_the_cell_must_be_wide_enough():
-    from pydantic import ValidationError
+    from revdem_cli.config.checks import FieldError
+    from revdem_cli.config.geometry import check_spheres
 
-    with pytest.raises(ValidationError, match="outside the cell"):
-        lattice_scenario([(1.5, 0.5, 0.5)], 0.1, [1.0, 1.0, 1.0])
-    with pytest.raises(ValidationError, match="twice the contact reach"):
-        lattice_scenario([(0.5, 0.5, 0.5)], 0.3, [1.0, 1.0, 1.0])
+    with pytest.raises(FieldError, match="outside the cell"):
+        check_spheres(lattice_scenario([(1.5, 0.5, 0.5)], 0.1, [1.0, 1.0, 1.0]))
+    with pytest.raises(FieldError, match="twice the contact reach"):
+        check_spheres(lattice_scenario([(0.5, 0.5, 0.5)], 0.3, [1.0, 1.0, 1.0]))
 
 
 def test_the_trajectory_keeps_each_spheres_stress_and_their_mean_is_the_cells(tmp_path):

@@ -537,8 +537,8 @@ def test_huge_counts_are_refused_before_anything_is_generated(tried, data):
         limit = schema.MAX_GENERATED
         expected.append(f"less than or equal to {limit}" if count > limit else "memory")
     elif what == "steps":
-        scenario["stages"][0]["steps"] = data.draw(st.integers(2**53 + 1, 2**63 - 1))
-        expected = ["stages[0].steps: ", "2^53"]
+        scenario["stages"][0]["steps"] = data.draw(st.integers(2**62 + 1, 2**63 - 1))
+        expected = ["stages[0].steps: ", "2^62"]
     elif what == "frames":
         stage = scenario["stages"][0]
         stage.update(steps=data.draw(st.integers(10**9, 2**53)), output_every=1)

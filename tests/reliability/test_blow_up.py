@@ -65,9 +65,10 @@ def test_a_time_step_above_the_critical_one_is_named_as_the_likely_cause(tmp_pat
 def _examined(scenario: Scenario, change, limit: float = 0.5) -> tuple[int, np.ndarray]:
     state = initial_state(scenario)
     change(state)
-    alarm = np.zeros(4)
+
     p, pairs, walls, cell = state.particles, state.pairs, state.walls, state.cell
-    return examine(p, pairs, walls, cell, limit, alarm), alarm
+    finding = examine(p, pairs, walls, cell, limit)
+    return finding.what, list(finding)
 
 
 def test_examine_names_the_first_non_finite_value():
@@ -81,7 +82,7 @@ def test_examine_names_the_first_non_finite_value():
 
             what, alarm = _examined(scenario, spoil)
             assert what == NOT_FINITE
-            assert alarm.tolist() == [NOT_FINITE, 1, -1, quantity]
+            assert alarm == [NOT_FINITE, 1, -1, quantity]
 
 
 def test_examine_names_the_deepest_overlap_with_a_sphere_or_a_wall():
@@ -92,7 +93,7 @@ def test_examine_names_the_deepest_overlap_with_a_sphere_or_a_wall():
 
     assert _examined(scenario, press, limit=0.03)[0] == HEALTHY
     what, alarm = _examined(scenario, press, limit=0.01)
-    assert what == TOO_DEEP and alarm[:3].tolist() == [TOO_DEEP, 0, 1]
+    assert what == TOO_DEEP and alarm[:3] == [TOO_DEEP, 0, 1]
     assert np.isclose(alarm[3], 0.02)
 
     on_floor = two_spheres(
@@ -106,6 +107,6 @@ def test_examine_names_the_deepest_overlap_with_a_sphere_or_a_wall():
         state.walls.overlap[1, 0] = 0.003  # 0.6 of the radius, as the wall loop measured it
 
     what, alarm = _examined(on_floor, sink)
-    assert what == TOO_DEEP and alarm[:3].tolist() == [TOO_DEEP, 1, -1]
+    assert what == TOO_DEEP and alarm[:3] == [TOO_DEEP, 1, -1]
     assert np.isclose(alarm[3], 0.6)
     assert on_floor.integrator.overlap_limit == 0.5  # the default

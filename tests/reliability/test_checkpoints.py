@@ -147,7 +147,7 @@ def test_a_flush_cut_short_at_any_dataset_leaves_a_trajectory_that_opens(tmp_pat
     rows either all of the last flush or none of them."""
     scenario = two_spheres()
     model, state = Model.of(scenario), initial_state(scenario)
-    width = model.observables_row - 1
+    width = model.layout.width
     real = h5md._append
     datasets = None
     cut = 0

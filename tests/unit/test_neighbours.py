@@ -120,13 +120,15 @@ def test_the_list_holds_every_contact_while_spheres_fly_through_many_rebuilds():
     state = initial_state(scenario)
     box = state.cell.length.copy()
     x = state.particles.x
-    obs, alarm = np.zeros((2, model.observables_row)), np.zeros(4)
+    obs, obs_steps = model.buffers(2)
+    stepping = model.stepping(dt, 0, 10**6, 10**6)
     step, rebuilds, contacts = 0, 0, 0
     built = state.pairs.x_built.copy()
     while step < 1500:
-        run = np.array([dt, skin, 0, 10**6, 10**6, 0.5])
         bundles = stepping_bundles(state, model, model.dynamics)
-        status, step, _ = advance(*bundles, empty_events(), run, step, step + 5, obs, alarm)
+        status, step, _, _ = advance(
+            *bundles, empty_events(), stepping, step, step + 5, obs, obs_steps
+        )
         if status == PAIR_OVERFLOW:
             state.grow_pairs()
             continue

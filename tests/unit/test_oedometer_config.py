@@ -32,8 +32,8 @@ def test_solid_fraction_is_the_spheres_volume_over_the_volume_between_the_planes
     row = model.observe(state, model.dynamics)
     volume = float((4 / 3 * np.pi * scenario.spheres.radius**3).sum())
     expected = volume / (np.pi * 0.055**2 * 0.065)
-    assert row[model.column("solid_fraction")] == pytest.approx(expected, rel=1e-12)
-    top = model.column("wall_position/top")
+    assert row[model.layout.column("solid_fraction")] == pytest.approx(expected, rel=1e-12)
+    top = model.layout.column("wall_position/top")
     assert tuple(row[top : top + 3]) == (0.0, 0.0, 0.065)
 
 

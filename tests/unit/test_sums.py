@@ -48,15 +48,15 @@ def test_blocked_observables_count_every_particle_and_contact_once():
     p, pairs = state.particles, state.pairs
     count = int(pairs.count[0])
     kinetic = 0.5 * (p.mass * (p.v**2).sum(1) + p.inertia * (p.omega**2).sum(1)).sum()
-    assert row[model.column("kinetic_energy")] == pytest.approx(kinetic, rel=1e-12)
-    assert row[model.column("coordination_number")] == 12.0  # 2 x 6 N contacts / N
+    assert row[model.layout.column("kinetic_energy")] == pytest.approx(kinetic, rel=1e-12)
+    assert row[model.layout.column("coordination_number")] == 12.0  # 2 x 6 N contacts / N
     normal = np.linalg.norm(pairs.force[:count], axis=1)  # no shear force yet
-    assert row[model.column("max_normal_force")] == pytest.approx(normal.max(), rel=1e-12)
+    assert row[model.layout.column("max_normal_force")] == pytest.approx(normal.max(), rel=1e-12)
     length = state.cell.length
     d = p.x[pairs.j[:count]] - p.x[pairs.i[:count]]
     d -= length * np.floor(d / length + 0.5)
     stress = -np.einsum("ka,kb->ab", d, pairs.force[:count]) / length.prod()
-    column = model.column("stress")
+    column = model.layout.column("stress")
     assert row[column : column + 9].reshape(3, 3) == pytest.approx(stress, rel=1e-12)
     assert np.trace(stress) > 0  # compressed: something was summed
 
@@ -66,19 +66,20 @@ def test_examine_finds_a_fault_in_any_block(block):
     scenario = shaken_lattice()
     state = initial_state(scenario)
     p, pairs, walls, cell = state.particles, state.pairs, state.walls, state.cell
-    alarm = np.zeros(4)
-    assert examine(p, pairs, walls, cell, 0.5, alarm) == HEALTHY
+    assert examine(p, pairs, walls, cell, 0.5).what == HEALTHY
     q = block * SPAN + 7
     k = int(pairs.first[q])  # the first pair listed under q
     j = int(pairs.j[k])
     saved = p.x[j].copy()
     p.x[j] = p.x[q] + 0.2 * (p.x[j] - p.x[q])  # 80 % of the way into q
-    assert examine(p, pairs, walls, cell, 0.5, alarm) == TOO_DEEP
-    assert (alarm[1], alarm[2]) == (q, j)
+    finding = examine(p, pairs, walls, cell, 0.5)
+    assert finding.what == TOO_DEEP
+    assert (finding.particle, finding.partner) == (q, j)
     p.x[j] = saved
     p.omega[q + 1, 2] = np.nan
-    assert examine(p, pairs, walls, cell, 0.5, alarm) == NOT_FINITE
-    assert (alarm[1], alarm[3]) == (q + 1, 2)
+    finding = examine(p, pairs, walls, cell, 0.5)
+    assert finding.what == NOT_FINITE
+    assert (finding.particle, finding.value) == (q + 1, 2)
 
 
 def test_observables_are_bitwise_the_same_with_one_and_two_threads():
