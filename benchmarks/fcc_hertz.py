@@ -86,7 +86,7 @@ def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict
     import numpy as np
 
     from revdem_cli.config import Scenario
-    from revdem_cli.engine import Model
+    from revdem_cli.stage import Model
     from revdem_cli.state import initial_state
 
     warm = Scenario.model_validate(scenario_data(2, variant, 1, arithmetic))  # compile or load
@@ -125,8 +125,8 @@ def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict
 def loop_seconds(state, model, steps: int) -> float:
     """Seconds of `steps` steps of the compiled stage loop, observables only at the end."""
 
-    from revdem_cli.engine import stepping_bundles
     from revdem_cli.kernels.integrate import OK, advance
+    from revdem_cli.stage import stepping_bundles
     from revdem_cli.state import empty_events
 
     obs, obs_steps = model.buffers(2)

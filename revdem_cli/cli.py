@@ -137,10 +137,10 @@ def run(
         return
 
     from revdem_cli.config import load_scenario
-    from revdem_cli.engine import _paths, run_scenario
+    from revdem_cli.engine import output_paths, run_scenario
 
     spec, text = load_scenario(scenario, overrides or [], host=True)
-    paths = _paths(out, spec.name)
+    paths = output_paths(out, spec.name)
     written = [paths["forward"], paths["restart"]]
     if not no_reverse and spec.reversed_stage is not None:
         written += [paths["reverse"], paths["compare"]]
@@ -208,14 +208,14 @@ def reverse(
 
     Example: revdem reverse out/collision.restart.h5
     """
-    from revdem_cli.engine import _paths, reverse_run
+    from revdem_cli.engine import output_paths, reverse_run
     from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.io.restart import restart_scenario
     from revdem_cli.report.summary import print_summary
 
     spec, forward = restart_scenario(restart)
     folder = out if out is not None else restart.parent
-    paths = _paths(folder, spec.name)
+    paths = output_paths(folder, spec.name)
     written = [paths["reverse"]]
     if forward.is_file():  # compared with, and drawn beside, the reversed run
         open_trajectory(forward).close()  # checked before the reversal, not after it

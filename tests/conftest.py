@@ -98,8 +98,8 @@ def stepped(scenario: Scenario, steps: int, every: int):
     """The state of a scenario's first stage after every `every` of `steps` steps, as the
     compiled stage loop leaves it (forward, the stage's dt and damping)."""
 
-    from revdem_cli.engine import Model, stage_dt, stepping_bundles
     from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, advance
+    from revdem_cli.stage import Model, stage_dt, stepping_bundles
     from revdem_cli.state import empty_events, initial_state
 
     model, state = Model.of(scenario), initial_state(scenario)

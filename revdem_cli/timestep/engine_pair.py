@@ -121,8 +121,8 @@ def _kinetic_energy(particles) -> float:
 
 def engine_is_stable(scenario, dt: float) -> bool:
     """Whether the engine keeps the kinetic energy of `scenario` within GROWTH of its start."""
-    from revdem_cli.engine import Model, stepping_bundles
     from revdem_cli.kernels.integrate import OK, advance
+    from revdem_cli.stage import Model, stepping_bundles
     from revdem_cli.state import empty_events, initial_state
 
     model = Model.of(scenario)

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from revdem_cli.config import Scenario
-from revdem_cli.engine import Model, run_scenario
+from revdem_cli.engine import run_scenario
 from revdem_cli.kernels.stress import particle_stress
+from revdem_cli.stage import Model
 from revdem_cli.state import initial_state
 
 KN = 1.0e5  # N/m

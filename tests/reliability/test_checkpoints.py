@@ -18,10 +18,11 @@ import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
-from revdem_cli.engine import Model, _writer
+from revdem_cli.engine import _writer
 from revdem_cli.io import h5md
 from revdem_cli.io.h5md import open_trajectory
 from revdem_cli.io.restart import read_restart
+from revdem_cli.stage import Model
 from revdem_cli.state import empty_events, initial_state
 from tests.conftest import CONFIGS, assert_one_line_error, two_spheres
 

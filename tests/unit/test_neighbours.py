@@ -101,8 +101,8 @@ def test_the_list_holds_every_contact_while_spheres_fly_through_many_rebuilds():
     """A periodic gas of 500 spheres at up to 2 m/s, a skin of 0.3 mm: after every few
     steps, each pair of spheres that touch (found by brute force) is in the list."""
     from revdem_cli.config import Scenario
-    from revdem_cli.engine import Model, stepping_bundles
     from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, advance
+    from revdem_cli.stage import Model, stepping_bundles
     from revdem_cli.state import empty_events, initial_state
     from tests.conftest import periodic_fcc
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from revdem_cli.config import load_scenario, scenario_from_text
-from revdem_cli.engine import Model
 from revdem_cli.errors import InputError
+from revdem_cli.stage import Model
 from revdem_cli.state import initial_state
 from tests.conftest import CONFIGS
 

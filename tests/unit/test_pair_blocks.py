@@ -7,12 +7,12 @@ import pytest
 
 from benchmarks.fcc_hertz import scenario_data
 from revdem_cli.config import Scenario
-from revdem_cli.engine import Model, stepping_bundles
 from revdem_cli.kernels.cell import images
 from revdem_cli.kernels.contact import FORWARD, SMALL_ANGLE, contact_force
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.pairs import pair_overlap, pair_velocity, separation
 from revdem_cli.kernels.vectors import ZERO, put, row, scaled
+from revdem_cli.stage import Model, stepping_bundles
 from revdem_cli.state import empty_events, initial_state
 
 DT = scenario_data(1, "history", 1)["integrator"]["dt"]  # s, the benchmark's

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from revdem_cli.config import Scenario
-from revdem_cli.engine import Model
 from revdem_cli.kernels.health import HEALTHY, NOT_FINITE, TOO_DEEP, examine
 from revdem_cli.kernels.sums import SPAN
+from revdem_cli.stage import Model
 from revdem_cli.state import initial_state
 from tests.conftest import periodic_fcc
 

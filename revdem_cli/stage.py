@@ -1,0 +1,351 @@
+"""One stage of a run, forward or reversed: the constant parts of a run (`Model`), a
+stage's clock, and `run_stage`, which drives the compiled stage loop
+(`kernels.integrate.advance`) from frame to frame, touching Python once per output frame,
+and writes the frames, at the same step numbers in both directions."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from revdem_cli.config import Scenario, Stage
+from revdem_cli.io.h5md import TrajectoryWriter
+from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli, Stepping
+from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
+from revdem_cli.kernels.contact import STATIC
+from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, onto_grid
+from revdem_cli.kernels.forces import compute_forces
+from revdem_cli.kernels.integrate import BLOWN_UP, CELL_TOO_SMALL, FIXED_OVERFLOW, OK, advance
+from revdem_cli.kernels.observables import Layout, observe
+from revdem_cli.kernels.stress import particle_stress
+from revdem_cli.state import (
+    BlownUp,
+    CellTooSmall,
+    OffGrid,
+    State,
+    contact_law,
+    default_skin,
+    dynamics,
+    empty_events,
+    moduli,
+)
+
+Progress = Callable[[str, int, int, int], None]
+"""Called as progress(label, steps done, steps in total, particles) once per output frame."""
+
+
+@dataclass(frozen=True)
+class Model:
+    """The constant parts of a run, derived once from the scenario."""
+
+    scenario: Scenario
+    law: ContactLaw
+    moduli: Moduli
+    dynamics: Dynamics
+    skin: float
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> Model:
+        return cls(
+            scenario,
+            contact_law(scenario),
+            moduli(scenario),
+            dynamics(scenario),
+            default_skin(scenario),
+        )
+
+    def stepping(self, dt: float, first_step: int, last_step: int, every: int) -> Stepping:
+        """How the compiled loop steps a stage of time step dt from first_step to last_step,
+        observables every `every` steps."""
+        limit = self.scenario.integrator.overlap_limit
+        return Stepping(dt, self.skin, int(first_step), int(last_step), int(every), limit)
+
+    def stage_dynamics(self, stage: Stage) -> Dynamics:
+        """Gravity and the damping of a stage: its own, else the scenario's."""
+        return self.dynamics if stage.damping is None else dynamics(self.scenario, stage.damping)
+
+    def stage_wall_velocities(self, stage: Stage) -> np.ndarray:
+        """Velocity of each wall during a stage, m/s, (W, 3)."""
+        return np.array(
+            [stage.wall_velocities.get(w.name, w.velocity) for w in self.scenario.walls],
+            dtype=np.float64,
+        ).reshape(-1, 3)
+
+    @cached_property
+    def layout(self) -> Layout:
+        """The columns of the scenario's observables rows."""
+        walls = tuple(wall.name for wall in self.scenario.walls)
+        scenario = self.scenario
+        return Layout(walls, scenario.cell is not None, scenario.solid_fraction is not None)
+
+    @cached_property
+    def solid_volume(self) -> float:
+        """Volume of all the spheres, m^3."""
+        return float((4.0 / 3.0 * np.pi * self.scenario.spheres.radius**3).sum())
+
+    def wall_index(self, name: str) -> int:
+        return [wall.name for wall in self.scenario.walls].index(name)
+
+    def observe(self, state: State, dyn: Dynamics) -> np.ndarray:
+        """An observables row of the state as it is."""
+        row = np.zeros((1, self.layout.width))
+        observe(
+            state.particles,
+            state.pairs,
+            state.walls,
+            state.cell,
+            self.law,
+            self.moduli,
+            dyn,
+            row[0],
+        )
+        return self.complete(row)[0]
+
+    def buffers(self, rows: int) -> tuple[np.ndarray, np.ndarray]:
+        """Room for `rows` observables rows and their steps, for the compiled stage loop."""
+        return np.zeros((rows, self.layout.width)), np.zeros(rows, dtype=np.int64)
+
+    def complete(self, rows: np.ndarray) -> np.ndarray:
+        """Fill the derived columns of observables rows from the others: the principal
+        stresses (eigenvalues of the stress's symmetric part, largest first), and the solid
+        fraction, spheres' volume / (pi R^2 x distance between the planes along the
+        cylinder axis)."""
+        if self.scenario.cell is not None:
+            at = self.layout.column("stress")
+            sigma = rows[:, at : at + 9].reshape(-1, 3, 3)
+            principal = np.linalg.eigvalsh(0.5 * (sigma + sigma.transpose(0, 2, 1)))[:, ::-1]
+            at = self.layout.column("principal_stress")
+            rows[:, at : at + 3] = principal
+        container = self.scenario.solid_fraction
+        if container is None:
+            return rows
+        walls = {wall.name: wall for wall in self.scenario.walls}
+        cylinder = walls[container.cylinder]
+        axis = np.asarray(cylinder.normal) / np.linalg.norm(cylinder.normal)
+        a, b = (self.layout.column(f"wall_position/{name}") for name in container.planes)
+        height = np.abs((rows[:, a : a + 3] - rows[:, b : b + 3]) @ axis)
+        area = np.pi * cylinder.radius**2
+        rows[:, self.layout.column("solid_fraction")] = self.solid_volume / (area * height)
+        return rows
+
+
+@dataclass(frozen=True)
+class StageClock:
+    """Step and time bounds of a stage; time = first_time + (step - first_step) dt."""
+
+    stage: Stage
+    first_step: int
+    first_time: float
+    dt: float
+    end_step: int | None = None  # where the stage ended, if a stop condition ended it early
+
+    @property
+    def last_step(self) -> int:
+        return self.end_step if self.end_step is not None else self.first_step + self.stage.steps
+
+    def time(self, step) -> np.ndarray | float:
+        return self.first_time + (np.asarray(step) - self.first_step) * self.dt
+
+    def frame_steps(self) -> list[int]:
+        """Steps with a trajectory frame: every output_every from the start, and the end."""
+        steps = list(range(self.first_step, self.last_step, self.stage.output_every))
+        return steps + [self.last_step]
+
+
+def stage_dt(scenario: Scenario, stage: Stage) -> float:
+    return stage.dt or scenario.integrator.dt
+
+
+Checkpoint = Callable[[State, StageClock, np.ndarray], None]
+"""Called as checkpoint(state, clock, events) after every frame but a stage's last."""
+
+
+def run_stage(
+    state: State,
+    model: Model,
+    clock: StageClock,
+    direction: int,
+    writer: TrajectoryWriter,
+    progress: Progress | None = None,
+    stop_step: int | None = None,
+    checkpoint: Checkpoint | None = None,
+    events: np.ndarray | None = None,
+) -> None:
+    """Advance `state` through one stage (direction +1) or back through it (direction -1).
+
+    With `events`, the stage's log so far, the state is part-way through the stage at a
+    frame of a checkpoint, and the stage carries on from there."""
+    frames = clock.frame_steps()
+    if direction < 0:
+        frames = frames[::-1]
+    if stop_step is not None:
+        frames = [s for s in frames if (s - stop_step) * direction <= 0]
+        if frames[-1] != stop_step:
+            frames.append(stop_step)
+    resuming = events is not None
+    if frames[0] != state.step and not resuming:
+        raise ValueError(
+            f"stage {clock.stage.name} starts at step {frames[0]}, state is at {state.step}"
+        )
+    state.walls.velocity[:] = model.stage_wall_velocities(clock.stage)
+    dyn = model.stage_dynamics(clock.stage)
+    set_cell_motion(state.cell, state.fixed, clock.stage, forward=direction > 0 and not resuming)
+    if direction > 0 and not resuming:
+        state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
+        compute_forces(  # under the stage's settings
+            *stepping_bundles(state, model, dyn), STATIC, clock.dt, 0.0, empty_events(), state.step
+        )
+    every = clock.stage.observable_interval
+    buffer, buffer_steps = model.buffers(clock.stage.output_every // every + 2)
+    stepping = model.stepping(clock.dt, clock.first_step, clock.last_step, every)
+    if events is None:
+        events = empty_events()
+        _record_now(state, model, dyn, clock, writer, events)
+    label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
+    total = abs(frames[-1] - frames[0])
+    stop = clock.stage.stop_when if direction > 0 else None
+    pauses = frames  # a stop condition is checked at every observables row, and ends the
+    if stop is not None:  # stage there with a frame
+        pauses = sorted(set(frames) | set(range(frames[0], frames[-1], every)))
+    frame_steps = set(frames)
+    for target in [s for s in pauses if (s - state.step) * direction > 0]:
+        while state.step != target:
+            status, state.step, rows, finding = advance(
+                *stepping_bundles(state, model, dyn), events, stepping, state.step, target,
+                buffer, buffer_steps,
+            )  # fmt: skip
+            _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows])
+            if status == CELL_TOO_SMALL:
+                raise CellTooSmall(state.step, state.cell.length)
+            if status == FIXED_OVERFLOW:
+                raise OffGrid(state.step, state.fixed)
+            if status == BLOWN_UP:
+                raise BlownUp(
+                    state.step,
+                    finding,
+                    stepping.overlap_limit,
+                    [wall.name for wall in model.scenario.walls],
+                    _likely_cause(model.scenario, clock.dt),
+                    f"{writer.path} holds the frames up to step {writer.last_step}",
+                )
+            if status != OK:
+                state.grow_pairs()
+        stopped = _stop_reached(state, model, dyn, stop)
+        if target in frame_steps or stopped:
+            _write_frame(writer, state, model, clock, events)
+            if progress is not None:
+                progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
+        if stopped:
+            return
+        if checkpoint is not None and target in frame_steps and target != frames[-1]:
+            checkpoint(state, clock, events)
+
+
+def _likely_cause(scenario: Scenario, dt: float) -> str:
+    """What the time step says about a blow-up: above the critical estimate, the likely
+    cause; well below it, unlikely to be."""
+    from revdem_cli.timestep.guard import critical_time_step
+
+    limit, reason = critical_time_step(scenario)
+    ratio = dt / limit
+    if ratio > 1.0:
+        return (
+            f"likely cause: dt = {dt:.3g} s is {ratio:.3g} times the critical time step "
+            f"{limit:.3g} s ({reason})"
+        )
+    return (
+        f"dt = {dt:.3g} s is {ratio:.2g} of the critical time step {limit:.3g} s ({reason}), "
+        "so the time step is an unlikely cause: look at what drives the spheres together "
+        "(walls, the cell, overlaps at the start, velocities)"
+    )
+
+
+def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
+    """Whether a stage's stop condition holds in the state as it is."""
+    if stop is None:
+        return False
+    row = model.observe(state, dyn)
+
+    def vector(name: str) -> np.ndarray:
+        return row[model.layout.column(name) : model.layout.column(name) + 3]
+
+    if stop.kinetic_energy_below is not None:
+        return row[model.layout.column("kinetic_energy")] < stop.kinetic_energy_below
+    if stop.solid_fraction_above is not None:
+        return row[model.layout.column("solid_fraction")] > stop.solid_fraction_above
+    if stop.wall_force_above is not None:
+        force = vector(f"wall_force/{stop.wall}")
+        return float(np.linalg.norm(force)) > stop.wall_force_above.force
+    travel = vector(f"wall_position/{stop.wall}") - state.walls.origin[model.wall_index(stop.wall)]
+    return float(np.linalg.norm(travel)) > stop.wall_travel_above.distance
+
+
+def stepping_bundles(state: State, model: Model, dyn: Dynamics) -> tuple:
+    """The bundles the kernels step: particles, pairs, walls, cell, the fixed-point state,
+    contact law, moduli, dynamics."""
+    return (
+        state.particles,
+        state.pairs,
+        state.walls,
+        state.cell,
+        state.fixed,
+        model.law,
+        model.moduli,
+        dyn,
+    )
+
+
+def set_cell_motion(cell: Cell, fixed: Fixed, stage: Stage, forward: bool) -> None:
+    """How the cell's edges move during a stage. Going forward, each edge starts from where
+    the stage finds it: a strain-rate edge at rate x its length, a servo edge with the rate
+    it has, a fixed edge at rest (in fixed-point arithmetic all on their grids). Reversed,
+    lengths and rates come from the restart."""
+    motions = stage.cell.axes() if stage.cell else [None, None, None]
+    for a, motion in enumerate(motions):
+        if motion is None:
+            cell.control[a], cell.target[a] = FIXED, 0.0
+        elif motion.stress is not None:
+            cell.control[a], cell.target[a] = STRESS, motion.stress
+        else:
+            cell.control[a], cell.target[a] = STRAIN_RATE, 0.0
+        if forward:
+            cell.start[a] = cell.length[a]
+            if motion is None:
+                cell.rate[a] = 0.0
+            elif motion.strain_rate is not None:
+                cell.rate[a] = motion.strain_rate * cell.length[a]
+    if forward and fixed.v.shape[0] > 0:
+        fixed.length[:] = onto_grid(cell.length, fixed.grid[EDGE])
+        fixed.rate[:] = onto_grid(cell.rate, fixed.grid[EDGE_RATE])
+        cell.start[:] = cell.length
+
+
+def _write_frame(writer, state: State, model: Model, clock: StageClock, events) -> None:
+    """A trajectory frame of the state as it is: the periodic cell's edges as its box, and
+    each sphere's stress when the scenario asks for it."""
+    stress = None
+    if model.scenario.output.particle_stress:
+        stress = np.zeros((len(state.particles.x), 3, 3))
+        particle_stress(state.particles, state.pairs, state.walls, state.cell, stress)
+    box = state.cell.length.copy() if state.cell.periodic.any() else None
+    time = float(clock.time(state.step))
+    writer.frame(state.step, time, state.particles, events, box, stress, state.fixed)
+
+
+def _record_now(state, model, dyn, clock, writer, events) -> None:
+    """Write the frame and observables of the state as it is (the start of a stage)."""
+    _write_frame(writer, state, model, clock, events)
+    if writer.last_observable_step() != state.step:
+        _write_observables(
+            writer, model, clock, np.array([state.step]), model.observe(state, dyn)[None, :]
+        )
+
+
+def _write_observables(
+    writer: TrajectoryWriter, model: Model, clock: StageClock, steps: np.ndarray, rows: np.ndarray
+) -> None:
+    model.complete(rows)
+    writer.observables(steps, clock.time(steps), rows)
