@@ -8,10 +8,10 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from revdem_cli import laws
+from revdem_cli import laws, wall_shapes
 from revdem_cli.config import Damping, Material, Scenario
 from revdem_cli.errors import RunFailed
-from revdem_cli.kernels import cell, contact, fixed, health, walls
+from revdem_cli.kernels import cell, contact, fixed, health
 from revdem_cli.kernels.arrays import (
     Cell,
     ContactLaw,
@@ -140,9 +140,7 @@ def wall_arrays(scenario: Scenario, n_particles: int, reversing: bool = False) -
     unwinding = reversing and scenario.contact.tangential != "none"
     rolling = count_if(rolls(scenario), n_particles)
     return Walls(
-        kind=np.array(
-            [walls.CYLINDER if w.type == "cylinder" else walls.PLANE for w in ws], dtype=np.int64
-        ),
+        kind=np.array([wall_shapes.number(w.type) for w in ws], dtype=np.int64),
         point=point,
         origin=point.copy(),
         axis=axis,

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from revdem_cli import wall_shapes
 from revdem_cli.assembly.spheres import Spheres
 from revdem_cli.config.checks import FieldError
 
@@ -19,10 +20,9 @@ def check_spheres(scenario) -> None:
 
 
 def generate(scenario) -> Spheres:
-    import numpy as np
-
+    """The spheres of a scenario's tables: those given one by one, then the packings' and the
+    lattices'; FieldError where a packing's region cannot take its spheres."""
     from revdem_cli.assembly.packing import PackingError
-    from revdem_cli.assembly.spheres import Spheres
 
     materials = tuple(scenario.materials)
     given = Spheres(
@@ -76,8 +76,6 @@ def lattice_spheres(lattice, materials: tuple[str, ...]) -> Spheres:
 def check_inside_cell(scenario) -> None:
     """Every sphere starts inside the periodic box, which is more than twice as wide as
     the contact reach (2 r_max + skin), so that two spheres touch through one image."""
-    import numpy as np
-
     if scenario.cell is None:
         return
     x = scenario.spheres.position
@@ -100,7 +98,6 @@ def check_inside_cell(scenario) -> None:
 def check_overlaps(scenario) -> None:
     """Spheres may touch, or overlap by up to 1 % of the smaller radius (a contact already
     loaded), no more; in a periodic cell, through the nearest image."""
-    import numpy as np
     from scipy.spatial import cKDTree
 
     x, r = scenario.spheres.position, scenario.spheres.radius
@@ -124,36 +121,24 @@ def check_overlaps(scenario) -> None:
 
 
 def check_walls(scenario) -> None:
-    """Every sphere starts inside the walls: its centre on the inner side of every plane
-    and inside every cylinder, reaching past a wall by at most 1 % of its radius."""
-    import numpy as np
-
+    """Every sphere starts inside the walls (`wall_shapes`: on the inner side of every plane,
+    inside every cylinder), reaching past a wall by at most 1 % of its radius."""
     if not scenario.walls:
         return
     x, r = scenario.spheres.position, scenario.spheres.radius
     for wall in scenario.walls:
-        normal = np.array(wall.normal) / max(abs(c) for c in wall.normal)
-        axis = normal / np.linalg.norm(normal)
+        shape = wall_shapes.SHAPES[wall.type]
         with np.errstate(all="ignore"):
-            along = (x - np.array(wall.point)) @ axis
-            if wall.type == "plane":
-                past = r - along
-            else:
-                rho = np.linalg.norm(x - np.array(wall.point) - along[:, None] * axis, axis=1)
-                past = r - (wall.radius - rho)
+            past = shape.reach_past(wall, x, r)
             outside = np.nonzero(~(past <= 1e-2 * r))[0]
         if len(outside):
             j = int(outside[0])
             where, sphere = located(scenario, j)
-            side = (
-                "on the inner side of every plane (where its normal points)"
-                if wall.type == "plane"
-                else "inside every cylinder"
-            )
             raise FieldError(
                 where,
                 f"{sphere} (radius {r[j]:.3g} m) reaches {past[j]:.3g} m past the {wall.type} "
-                f"wall '{wall.name}', more than 1 % of its radius: spheres must start {side}",
+                f"wall '{wall.name}', more than 1 % of its radius: spheres must start "
+                f"{shape.SIDE}",
             )
 
 

@@ -23,7 +23,7 @@ from pydantic import (
     model_validator,
 )
 
-from revdem_cli import laws
+from revdem_cli import laws, wall_shapes
 
 if TYPE_CHECKING:
     from revdem_cli.assembly.spheres import Spheres
@@ -143,21 +143,19 @@ class Damping(_Model):
     )
 
 
-class Wall(_Model):
-    """An infinite plane, or the inside of an infinite cylinder, moving at a fixed velocity."""
+class _Wall(_Model):
+    """A wall of one of the shapes of `revdem_cli.wall_shapes`, moving at a fixed velocity."""
 
     name: str = Field(pattern=r"^[A-Za-z0-9_-]+$", description="wall name, used for its force")
-    type: Literal["plane", "cylinder"] = Field(description="'plane' or 'cylinder' (inside)")
     material: str = Field(description="name of a material in [materials]")
     point: Vector3 = Field(description="a point on the plane, or on the cylinder axis, m")
     normal: Vector3 = Field(
         description="plane: normal pointing into the domain; cylinder: axis direction (-)"
     )
-    radius: Float | None = Field(default=None, gt=0, description="cylinder radius, m")
     velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="wall velocity, m/s")
 
     @model_validator(mode="after")
-    def _shape(self) -> Wall:
+    def _shape(self) -> _Wall:
         if math.hypot(*self.normal) == 0:
             raise ValueError("normal must not be zero")
         squared = sum(c * c for c in self.normal)  # as the engine normalises it
@@ -166,9 +164,30 @@ class Wall(_Model):
                 f"normal {list(self.normal)} is too {'short' if squared < 1 else 'long'} to "
                 "normalise in floating point; give a direction such as [0, 0, 1]"
             )
-        if (self.type == "cylinder") != (self.radius is not None):
-            raise ValueError("a cylinder needs a radius, a plane has none")
+        shape = wall_shapes.SHAPES[self.type]
+        for field in wall_shapes.fields():
+            given = getattr(self, field) is not None
+            if field in shape.REQUIRED and not given:
+                raise ValueError(f"a {self.type} needs {field}: {shape.FIELDS[field].description}")
+            if given and field not in shape.FIELDS:
+                raise ValueError(f"a {self.type} has no {field}")
         return self
+
+
+Wall = create_model(
+    "Wall",
+    __base__=_Wall,
+    __doc__=_Wall.__doc__,
+    type=(
+        Literal[tuple(wall_shapes.SHAPES)],
+        Field(
+            description="; ".join(
+                f"'{name}', {shape.SUMMARY}" for name, shape in wall_shapes.SHAPES.items()
+            )
+        ),
+    ),
+    **{name: (Float | None, info) for name, info in wall_shapes.fields().items()},
+)
 
 
 class Particle(_Model):

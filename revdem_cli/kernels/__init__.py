@@ -5,11 +5,13 @@ and would break the reversibility that is the point of revdem.
 
 Compiled code is cached on disk. numba invalidates a cached function only when its own file
 changes, yet a caller's cache holds the compiled code of the functions it calls from other
-files; so the cache directory is keyed by a hash of every kernel source file and every
-contact law (revdem_cli/laws), and any change to any of them starts a fresh cache.
+files; so the cache directory is keyed by a hash of every kernel source file, every contact
+law (revdem_cli/laws) and every wall shape (revdem_cli/wall_shapes), and any change to any
+of them starts a fresh cache.
 """
 
 import hashlib
+import math
 import os
 import types
 from functools import partial
@@ -23,7 +25,9 @@ from numba.extending import intrinsic
 
 def _cache_dir() -> str:
     package = Path(__file__).parent
-    sources = sorted(package.glob("*.py")) + sorted(package.parent.joinpath("laws").glob("*.py"))
+    sources = sorted(package.glob("*.py"))
+    for registry in ("laws", "wall_shapes"):  # compiled helpers found by name
+        sources += sorted(package.parent.joinpath(registry).glob("*.py"))
     digest = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()[:16]
     base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "revdem", "numba"
@@ -83,6 +87,40 @@ def by_size(loop, threshold=PARALLEL_FROM):
     serial = jit(renamed(loop, name + "_serial"))
     parallel = pjit(renamed(loop, name + "_parallel"))
     return jit(renamed(_by_size, name, SERIAL=serial, PARALLEL=parallel, FROM=threshold))
+
+
+NUMBER = CHOSEN = OTHERS = None  # the globals each link of a `choice` sees as constants
+
+
+def _pick(which, *args):
+    if which == NUMBER:
+        return CHOSEN(*args)
+    return OTHERS(which, *args)
+
+
+def _last(which, *args):
+    return CHOSEN(*args)
+
+
+def _nothing(which, *args):
+    return math.nan
+
+
+def choice(functions, name):
+    """One compiled function that calls functions[number - 1], f(number, *args): a chain of
+    comparisons, each link `renamed` (`name` and its place) and inlined into its caller, so
+    that a registry of laws or shapes needs no hand-written dispatch. The last function takes
+    every number the chain did not (the registries' validation admits no other); with no
+    functions it returns NaN."""
+    chain = None
+    for k in range(len(functions), 0, -1):
+        link = f"{name}_from_{k}"
+        if chain is None:
+            chain = inline(renamed(_last, link, CHOSEN=functions[k - 1]))
+        else:
+            constants = dict(NUMBER=k, CHOSEN=functions[k - 1], OTHERS=chain)
+            chain = inline(renamed(_pick, link, **constants))
+    return chain or inline(renamed(_nothing, f"{name}_of_nothing"))
 
 
 def _pointer(context, builder, array_type, array, indices):

@@ -59,7 +59,7 @@ reversed run with a tangential law, else 0."""
 Walls = namedtuple(
     "Walls",
     [
-        "kind",  # walls.PLANE or walls.CYLINDER, (W,)
+        "kind",  # the number of its shape (revdem_cli.wall_shapes), (W,)
         "point",  # a point on the plane or the cylinder axis now, m, (W, 3)
         "origin",  # `point` at the start of the stage, m, (W, 3)
         "axis",  # plane: unit normal into the domain; cylinder: unit axis, (W, 3)

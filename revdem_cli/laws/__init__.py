@@ -17,10 +17,9 @@ of that family. Numbers never leave a process (files store the names).
 
 from __future__ import annotations
 
-import importlib
-import math
-import pkgutil
 from dataclasses import dataclass
+
+from revdem_cli import registry
 
 NONE = 0
 """The number of 'no law' in a family that may be left out."""
@@ -53,20 +52,12 @@ FAMILIES = {
 def _discover() -> dict[str, dict[str, object]]:
     """Every law module of this package, by family and name."""
     found: dict[str, dict[str, object]] = {family: {} for family in FAMILIES}
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda info: info.name):
-        module = importlib.import_module(f"{__name__}.{info.name}")
+    for module in registry.modules(__name__, __path__):
         family = FAMILIES.get(getattr(module, "FAMILY", None))
         if family is None:
             raise ImportError(f"{module.__name__}: FAMILY must be one of {', '.join(FAMILIES)}")
-        missing = [
-            name
-            for name in ("NAME", "EQUATION", "SUMMARY", "FIELDS", "REQUIRED")
-            + family.functions
-            + family.python
-            if not hasattr(module, name)
-        ]
-        if missing:
-            raise ImportError(f"{module.__name__}: a {module.FAMILY} law defines {missing}")
+        names = ("NAME", "EQUATION", "SUMMARY", "FIELDS", "REQUIRED")
+        registry.check(module, f"a {module.FAMILY} law", names + family.functions + family.python)
         found[module.FAMILY][module.NAME] = module
     return found
 
@@ -125,40 +116,11 @@ def evaluate(contact, family: str, function: str, *args):
     return getattr(law, "py_func", law)(contact, *args)  # it reads its own fields only
 
 
-def _pick(which, *args):  # a link of `dispatch`'s chain; its globals are set per copy
-    if which == NUMBER:
-        return CHOSEN(*args)
-    return OTHERS(which, *args)
-
-
-def _last(which, *args):
-    return CHOSEN(*args)
-
-
-def _no_law(which, *args):  # a family without laws: validation admits only 'none'
-    return math.nan
-
-
-NUMBER = CHOSEN = OTHERS = None  # the globals each copy of `_pick` sees as constants
-
-
 def dispatch(family: str, function: str):
     """One compiled function that calls `function` of the law of `family` it is given by
-    number, f(number, *args): a chain of comparisons that inlines into its caller, built from
-    the laws found, so that a new law needs no line here. The last law takes every number
-    the chain did not (validation admits no other); a family without laws gets NaN."""
-    from revdem_cli.kernels import inline, renamed
+    number, f(number, *args), built from the laws found (`kernels.choice`), so that a new law
+    needs no line here."""
+    from revdem_cli.kernels import choice
 
-    laws = list(LAWS[family].values())
-    chain = None
-    for k in range(len(laws), 0, -1):
-        law = laws[k - 1]
-        name = f"{family}_{function}_from_{k}"
-        chosen = getattr(law, function)
-        if chain is None:
-            chain = inline(renamed(_last, name, CHOSEN=chosen))
-        else:
-            chain = inline(renamed(_pick, name, NUMBER=k, CHOSEN=chosen, OTHERS=chain))
-    if chain is None:
-        chain = inline(renamed(_no_law, f"{family}_{function}_of_no_law"))
-    return chain
+    laws = LAWS[family].values()
+    return choice([getattr(law, function) for law in laws], f"{family}_{function}")
