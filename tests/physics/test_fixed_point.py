@@ -129,3 +129,22 @@ def test_fixed_point_is_recorded_with_its_grid(tmp_path):
         x = f["particles/all/position/value"][-1]
     assert (np.log2(grid) == np.round(np.log2(grid))).all()  # powers of two
     np.testing.assert_array_equal(x, n * grid[0])
+
+
+def test_an_overflow_names_the_quantity_that_left_its_grid():
+    """The gather's kick of a velocity at the end of its grid is reported as the velocity
+    (of that particle), not as a force."""
+    from revdem_cli.kernels import fixed
+    from revdem_cli.kernels.contact import FORWARD
+    from revdem_cli.kernels.forces import compute_forces
+    from revdem_cli.stage import Model, stepping_bundles
+    from revdem_cli.state import OffGrid, empty_events, initial_state
+    from tests.conftest import two_spheres
+
+    scenario = two_spheres(gravity=(9.81, 0.0, 0.0), integrator={"dt": 1e-7, "arithmetic": "fixed"})
+    model, state = Model.of(scenario), initial_state(scenario)
+    state.fixed.v[1, 0] = fixed.RANGE  # the weight's kick takes it past the end
+    bundles = stepping_bundles(state, model, model.dynamics)
+    compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1)
+    assert list(state.fixed.overflow) == [1 + fixed.OF_VELOCITY, 1]
+    assert "the velocity of particle 1 left the range" in str(OffGrid(1, state.fixed))
