@@ -174,35 +174,35 @@ def contact_force(
     (Eq 10), cap at mu |f_n|. REVERSE: `history` is the shear force with Eq 10 and 9 undone
     across the contact normal `n_new` of the later positions (`unwind_shear`); mapping it
     onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
-    the history as is. Returns (force on i, history, amount the Coulomb cap removed).
-    `small`: |spin dt| < SMALL_ANGLE (see `cos_sin`).
+    the history as is. Returns (force on i, history, amount the Coulomb cap removed, normal
+    force magnitude, which `rolling_moment` limits by). `small`: |spin dt| < SMALL_ANGLE
+    (see `cos_sin`).
     """
     normal, _ = normal_force(law, overlap, rstar, mstar, estar, vrel, n)
     force = scaled(-normal, n)
     if law.tangential == NO_SHEAR:
-        return force, history, 0.0
+        return force, history, 0.0, normal
     vt = tangential(vrel, n)
     ks = shear_stiffness(law, overlap, rstar, gstar)
     shear = spring(mode, history, n, n_new, spin, dt, ks, vt, small)
     shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
     if law.beta_t > 0.0:
         shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), vt, shear)  # viscous
-        return axpy(1.0, shear_total, force), shear, slip
-    return axpy(1.0, shear, force), shear, slip
+        return axpy(1.0, shear_total, force), shear, slip, normal
+    return axpy(1.0, shear, force), shear, slip, normal
 
 
 @inline
 def rolling_moment(
-    law, mode, dt, overlap, n, rstar, mstar, estar, vrel, w_i, w_j, spin, history, n_new,
-    small=False,
-):  # fmt: skip
-    """Rolling resistance moment on i at one contact in overlap > 0, and its new history:
+    law, mode, dt, overlap, n, rstar, normal, w_i, w_j, spin, history, n_new, small=False
+):
+    """Rolling resistance moment on i at one contact in overlap > 0 whose normal force is
+    `normal` (`contact_force`'s), and its new history:
     the rolling spring of the contact's rolling law, wound by the rotation of j relative to
     i in the contact plane, (w_j - w_i)_t dt, and carried across steps as the shear history
     is (`spring`), then capped at the law's limit (Hanley 2020 §5.3: a limit destroys
     information as the Coulomb cap does). Returns (the moment on i, which is the new
     history, and the amount the cap removed); j takes the opposite moment."""
-    normal, _ = normal_force(law, overlap, rstar, mstar, estar, vrel, n)
     kr = _rolling_stiffness(law.rolling, law, overlap, rstar)
     rate = tangential(axpy(-1.0, w_i, w_j), n)
     moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)

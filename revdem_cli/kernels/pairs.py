@@ -198,7 +198,7 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
             v_ij = entries(block, VELOCITY, k)
             vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
             large += abs(spin * dt) >= SMALL_ANGLE  # the angle of contact_force's Eq 9
-        f, shear, slipped = contact_force(
+        f, shear, slipped, normal = contact_force(
             law,
             mode,
             dt,
@@ -222,22 +222,11 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
             enter(block, OVERLAP, k, overlap)
             enter(block, SLIPPED, k, slipped if touching else 0.0)
         if law.rolling != NO_ROLLING:
+            rstar = r_i * r_j / reach
+            old = entries(block, ROLLING, k)
+            n_new = entries(block, NORMAL_NEW, k) if unwound else ZERO
             rolling, capped = rolling_moment(
-                law,
-                mode,
-                dt,
-                overlap,
-                n,
-                r_i * r_j / reach,
-                entry(block, M_STAR, k) if damped else 0.0,
-                entry(block, E_STAR, k),
-                vrel,
-                w_i,
-                w_j,
-                spin,
-                entries(block, ROLLING, k),
-                entries(block, NORMAL_NEW, k) if unwound else ZERO,
-                small,
+                law, mode, dt, overlap, n, rstar, normal, w_i, w_j, spin, old, n_new, small
             )
             enter3(block, NEW_ROLLING, k, rolling if touching else ZERO)
             enter(block, ROLLED, k, capped if touching else 0.0)

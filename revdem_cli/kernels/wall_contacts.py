@@ -80,7 +80,7 @@ def _wall_loop(
             if overlap > 0.0:
                 m = wall_material[b]
                 n_new = cell_of(normal_new, q, b) if normal_new.shape[0] > 0 else ZERO
-                f, shear, slipped = contact_force(
+                f, shear, slipped, normal = contact_force(
                     law,
                     mode,
                     dt,
@@ -98,22 +98,11 @@ def _wall_loop(
                 t = cross(scaled(arm, n), f) if shear_law else ZERO
                 dropped = 0.0
                 if rolling_law:
+                    old = cell_of(rolling, q, b)
                     turned, capped = rolling_moment(
-                        law,
-                        mode,
-                        dt,
-                        overlap,
-                        n,
-                        radius[q],
-                        mass[q],
-                        estar[material[q], m],
-                        vrel,
-                        row(w, q),
-                        ZERO,
-                        spin,
-                        cell_of(rolling, q, b),
+                        law, mode, dt, overlap, n, radius[q], normal, row(w, q), ZERO, spin, old,
                         n_new,
-                    )
+                    )  # fmt: skip
                     t = axpy(1.0, turned, t)
                     place(rolling, q, b, turned)
                     rolled[q, b] = capped
