@@ -7,7 +7,7 @@ which files, with which checkpoints and resumption; a stage itself runs in `stag
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from revdem_cli.checkpoint import Checkpoints, checkpoint_path, find_checkpoint
@@ -18,7 +18,7 @@ from revdem_cli.io import open_hdf5
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
 from revdem_cli.kernels.events import COLUMNS, KINDS
-from revdem_cli.stage import Model, Progress, StageClock, run_stage, stage_dt
+from revdem_cli.stage import Model, Progress, StageClock, run_stage, stage_dt, stage_time_step
 from revdem_cli.state import State, initial_state
 
 
@@ -30,6 +30,7 @@ class Outputs:
     comparison: Path | None = None
     figures: tuple[Path, ...] = ()
     verdict: dict | None = None
+    chosen_dt: dict[str, float] = field(default_factory=dict)  # stages of dt = 'auto', s
 
 
 def output_paths(out_dir: Path, name: str) -> dict[str, Path]:
@@ -140,6 +141,7 @@ class Run:
             str(Path(trajectory).resolve()),
             clock.first_step,
             clock.first_time,
+            clock.dt,
             resumption,
         )
 
@@ -180,15 +182,21 @@ def _forward(
     scenario, paths = run.scenario, run.paths
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
+    chosen = {}
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
             stage = scenario.stages[index]
-            clock = StageClock(stage, state.step, time, stage_dt(scenario, stage))
             events = None
             if resume is not None and index == first:  # carry on part-way through it
-                start = resume.stage_first_step, resume.stage_first_time
-                clock = StageClock(stage, *start, clock.dt)
+                start = resume.stage_first_step, resume.stage_first_time, resume.stage_dt
+                clock = StageClock(stage, *start)
                 events = resume.resumption.events
+            else:
+                clock = StageClock(
+                    stage, state.step, time, stage_time_step(run.model, stage, state)
+                )
+            if stage_dt(scenario, stage) == "auto":
+                chosen[stage.name] = clock.dt
             place = dict(
                 phase="forward", stage_index=index, reverse=reverse, source_restart="",
                 stop_step=-1, end_step=-1,
@@ -206,7 +214,9 @@ def _forward(
         source = str(paths["restart"].resolve())
         reversed_outputs = _reverse(run, restart, source, None, progress)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
+        reversed_outputs.chosen_dt = chosen
         return reversed_outputs
+    outputs.chosen_dt = chosen
     run.checkpoints.discard()
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
     return outputs
@@ -220,6 +230,9 @@ def check_time_step(scenario: Scenario) -> None:
     steps = [("integrator.dt", scenario.integrator.dt)] + [
         (f"stages[{i}].dt", stage.dt) for i, stage in enumerate(scenario.stages) if stage.dt
     ]
+    steps = [(field, dt) for field, dt in steps if dt != "auto"]  # 'auto' is below it
+    if not steps:
+        return
     field, dt = max(steps, key=lambda item: item[1])
     if dt > limit:
         raise InputError(
@@ -247,11 +260,7 @@ def _reverse_clock(scenario: Scenario, restart: Restart, end_step: int) -> Stage
     """The clock of the stage a restart ended, which ended at `end_step`."""
     stage = next(s for s in scenario.stages if s.name == restart.stage)
     return StageClock(
-        stage,
-        restart.stage_first_step,
-        restart.stage_first_time,
-        stage_dt(scenario, stage),
-        end_step=end_step,
+        stage, restart.stage_first_step, restart.stage_first_time, restart.stage_dt, end_step
     )
 
 

@@ -155,8 +155,20 @@ class StageClock:
         return steps + [self.last_step]
 
 
-def stage_dt(scenario: Scenario, stage: Stage) -> float:
+def stage_dt(scenario: Scenario, stage: Stage) -> float | str:
+    """The time step a stage is given, s, or 'auto'."""
     return stage.dt or scenario.integrator.dt
+
+
+def stage_time_step(model: Model, stage: Stage, state: State) -> float:
+    """The time step of a stage starting from `state`: as given, or for 'auto' chosen from
+    the state (`timestep.packing.automatic_dt`)."""
+    dt = stage_dt(model.scenario, stage)
+    if dt != "auto":
+        return dt
+    from revdem_cli.timestep.packing import automatic_dt
+
+    return automatic_dt(state, model)
 
 
 Checkpoint = Callable[[State, StageClock, np.ndarray], None]

@@ -440,7 +440,7 @@ def initial_state(scenario: Scenario) -> State:
         moduli(scenario),
         dynamics(scenario),
         contact.STATIC,
-        scenario.integrator.dt,
+        0.0,  # a static evaluation takes no step
         0.0,
         empty_events(),
         0,

@@ -64,6 +64,22 @@ def check_consistency(scenario) -> None:
         )
     check_cell(scenario)
     check_step_total(scenario)
+    check_automatic_dt(scenario)
+
+
+def check_automatic_dt(scenario) -> None:
+    """dt = 'auto' only in floating-point arithmetic, whose state does not depend on dt."""
+    if scenario.integrator.arithmetic != "fixed":
+        return
+    given = [("integrator.dt", scenario.integrator.dt)]
+    given += [(f"stages[{i}].dt", stage.dt) for i, stage in enumerate(scenario.stages)]
+    for path, dt in given:
+        if dt == "auto":
+            raise FieldError(
+                path,
+                "'auto' needs integrator.arithmetic = 'float': fixed-point grids are made from "
+                "the run's duration before it starts",
+            )
 
 
 def check_wall_materials(scenario) -> None:

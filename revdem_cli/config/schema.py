@@ -39,7 +39,19 @@ def _number(value):
     return value
 
 
+def _time_step(value):
+    """A time step as the file wrote it: a number of seconds, or the text 'auto'."""
+    if isinstance(value, str) and value != "auto":
+        raise ValueError(
+            f"Input should be a number of seconds or 'auto', not the text {value[:40]!r}"
+        )
+    return value if value == "auto" else _number(value)
+
+
 Float = Annotated[float, BeforeValidator(_number)]
+PositiveFloat = Annotated[float, Field(gt=0)]
+TimeStep = Annotated[PositiveFloat | Literal["auto"], BeforeValidator(_time_step)]
+"""A time step, s, or 'auto': chosen at the start of each stage (`packing.automatic_dt`)."""
 FloatOrInf = Annotated[float, Field(allow_inf_nan=True), BeforeValidator(_number)]
 Int = Annotated[int, BeforeValidator(_number)]
 Vector3 = Annotated[tuple[Float, Float, Float], Field(description="three components (x, y, z)")]
@@ -292,7 +304,18 @@ class Lattice(_Model):
 class Integrator(_Model):
     """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
 
-    dt: Float = Field(gt=0, description="time step, s")
+    dt: TimeStep = Field(
+        description="time step, s; or 'auto': at the start of each stage, dt_safety times the "
+        "smaller of the critical time step of the packing then (the largest eigenvalue of its "
+        "mass and stiffness, as `revdem dt --restart`) and the start-up estimate of contacts "
+        "still to form (head-on impacts, Rayleigh)"
+    )
+    dt_safety: Float = Field(
+        default=0.2,
+        gt=0,
+        le=1,
+        description="with dt = 'auto', the fraction of the critical time step taken, -",
+    )
     arithmetic: Literal["float", "fixed"] = Field(
         default="float",
         description="number representation of the state: 'float' (float64), or 'fixed': "
@@ -454,8 +477,8 @@ class Stage(_Model):
         default=False,
         description="save the end of this stage as the restart and run it backwards in time",
     )
-    dt: Float | None = Field(
-        default=None, gt=0, description="time step of this stage, s; default: integrator.dt"
+    dt: TimeStep | None = Field(
+        default=None, description="time step of this stage, s, or 'auto'; default: integrator.dt"
     )
     damping: Damping | None = Field(
         default=None, description="damping during this stage; default: [damping]"

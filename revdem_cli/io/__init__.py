@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 """Version of revdem's layout inside H5MD trajectories and restart files."""
 
 FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")

@@ -70,6 +70,7 @@ class Restart:
     trajectory: str  # the forward trajectory this restart ends
     stage_first_step: int  # where that stage began
     stage_first_time: float  # s
+    stage_dt: float  # the time step that stage ran at, s
     resumption: Resumption | None = None  # a checkpoint's place in its run
 
 
@@ -89,6 +90,7 @@ def write_restart(path: Path, restart: Restart) -> None:
         meta.attrs["trajectory"] = restart.trajectory
         meta.attrs["stage_first_step"] = restart.stage_first_step
         meta.attrs["stage_first_time"] = restart.stage_first_time
+        meta.attrs["stage_dt"] = restart.stage_dt
         for name in Particles._fields:
             f.create_dataset(f"particles/{name}", data=getattr(s.particles, name))
         for name in WALL_FIELDS:
@@ -130,9 +132,10 @@ def _read_resumption(group: h5py.Group) -> Resumption:
     )
 
 
-def read_restart(path: str | Path, checkpoint: bool = False) -> Restart:
-    """A restart file (or with `checkpoint`, a checkpoint), checked by `open_hdf5` (schema
-    version, layout, stored scenario); InputError naming the file for anything else."""
+def read_restart(path: str | Path, checkpoint: bool | None = False) -> Restart:
+    """A restart file (or with `checkpoint`, a checkpoint; with None, either), checked by
+    `open_hdf5` (schema version, layout, stored scenario); InputError naming the file for
+    anything else."""
     path = Path(path)
     f = open_hdf5(path)
     with f:
@@ -143,13 +146,15 @@ def read_restart(path: str | Path, checkpoint: bool = False) -> Restart:
             raise InputError(f"{path}: damaged revdem restart file ({one_line(exc)})") from None
 
 
-def _meta(f: h5py.File, path: Path, checkpoint: bool) -> h5py.Group:
-    """The /revdem group of a restart file, or with `checkpoint`, of a checkpoint;
-    InputError if the file is something else."""
+def _meta(f: h5py.File, path: Path, checkpoint: bool | None) -> h5py.Group:
+    """The /revdem group of a restart file, or with `checkpoint`, of a checkpoint (None:
+    of either); InputError if the file is something else."""
     meta = f.get("revdem")
     if meta is None or meta.attrs.get("kind") != "restart":
         what = "a revdem trajectory" if "parameters/revdem" in f else "no /revdem group"
         raise InputError(f"{path}: not a revdem restart file ({what})")
+    if checkpoint is None:
+        return meta
     if checkpoint and "checkpoint" not in meta:
         raise InputError(f"{path}: a restart file, not a checkpoint")
     if not checkpoint and "checkpoint" in meta:
@@ -197,6 +202,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         trajectory=str(meta.attrs["trajectory"]),
         stage_first_step=int(meta.attrs["stage_first_step"]),
         stage_first_time=float(meta.attrs["stage_first_time"]),
+        stage_dt=float(meta.attrs["stage_dt"]),
         resumption=resumption,
     )
 

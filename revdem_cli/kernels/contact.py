@@ -42,6 +42,12 @@ def shear_stiffness(law, overlap, rstar, gstar):
     return _shear_stiffness(law.tangential, law, overlap, rstar, gstar)
 
 
+@inline
+def rolling_stiffness(law, overlap, rstar):
+    """k_r of one contact in overlap, from its rolling law."""
+    return _rolling_stiffness(law.rolling, law, overlap, rstar)
+
+
 SMALL_ANGLE = 1e-3
 """Below this (rad) cos and sin are their Taylor series to the 6th order, exact to well under
 an ulp (the first term left out, a^6/720 or a^7/5040, is below 2e-21), and cheaper."""
@@ -203,7 +209,7 @@ def rolling_moment(
     is (`spring`), then capped at the law's limit (Hanley 2020 §5.3: a limit destroys
     information as the Coulomb cap does). Returns (the moment on i, which is the new
     history, and the amount the cap removed); j takes the opposite moment."""
-    kr = _rolling_stiffness(law.rolling, law, overlap, rstar)
+    kr = rolling_stiffness(law, overlap, rstar)
     rate = tangential(axpy(-1.0, w_i, w_j), n)
     moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)
     return coulomb_cap(moment, _rolling_limit(law.rolling, law, normal, rstar))
@@ -219,9 +225,7 @@ def contact_energy(law, overlap, rstar, estar, gstar, shear, rolling):
     energy += 0.5 * dot(shear, shear) / shear_stiffness(law, overlap, rstar, gstar)
     if law.rolling == NO_ROLLING:
         return energy
-    return energy + 0.5 * dot(rolling, rolling) / _rolling_stiffness(
-        law.rolling, law, overlap, rstar
-    )
+    return energy + 0.5 * dot(rolling, rolling) / rolling_stiffness(law, overlap, rstar)
 
 
 @inline
@@ -238,5 +242,5 @@ def unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, history):
     """Reversed step, at the later positions: undo the rolling spring's increment and turn."""
     if overlap <= 0.0:
         return (0.0, 0.0, 0.0)
-    kr = _rolling_stiffness(law.rolling, law, overlap, rstar)
+    kr = rolling_stiffness(law, overlap, rstar)
     return spring_unwound(history, n, spin, dt, kr, tangential(axpy(-1.0, w_i, w_j), n))

@@ -88,14 +88,20 @@ def _restart(path: Path, f: h5py.File) -> dict:
         "particles": int(f["particles/x"].shape[0]),
         "step": int(attrs["step"]),
         "stage": str(attrs["stage"]),
+        "stage_dt": float(attrs["stage_dt"]),
         "trajectory": str(attrs["trajectory"]),
     }
+
+
+def _time_step(dt: float | str) -> str:
+    return "dt chosen at its start" if dt == "auto" else f"{dt:.6g} s"
 
 
 def info_lines(info: dict) -> list[str]:
     """The summary as `label: value` lines."""
     stages = ", ".join(
-        f"{s['name']} ({s['steps']} steps of {s['dt']:.6g} s{', reversed' if s['reverse'] else ''})"
+        f"{s['name']} ({s['steps']} steps of {_time_step(s['dt'])}"
+        f"{', reversed' if s['reverse'] else ''})"
         for s in info["stages"]
     )
     lines = [
@@ -115,10 +121,15 @@ def info_lines(info: dict) -> list[str]:
             f"frames:     {info['frames']}, steps {info['first_step']} to {info['last_step']}"
         )
     elif info["kind"] == "checkpoint":
-        lines.append(f"step:       {info['step']} (in stage {info['stage']})")
+        lines.append(
+            f"step:       {info['step']} (in stage {info['stage']}, dt {info['stage_dt']:.6g} s)"
+        )
         lines.append(f"resume:     revdem run --resume {Path(info['file']).parent}")
     else:
-        lines.append(f"step:       {info['step']} (end of stage {info['stage']})")
+        lines.append(
+            f"step:       {info['step']} "
+            f"(end of stage {info['stage']}, dt {info['stage_dt']:.6g} s)"
+        )
         lines.append(f"trajectory: {info['trajectory']}")
     verdict = info.get("comparison")
     if verdict is not None:

@@ -68,6 +68,8 @@ def print_summary(outputs) -> None:
     for label, path in written:
         if path is not None:
             console.print(f"  {label:<20} {path}")
+    for stage, dt in outputs.chosen_dt.items():
+        console.print(f"  {'time step':<20} {dt:.6g} s in stage {stage} (dt = 'auto')")
     if outputs.verdict is not None:
         console.print(verdict_line(outputs.verdict))
     elif outputs.reverse is not None:

@@ -146,6 +146,24 @@ def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
         typer.echo(f"wrote {len(rows)} rows to {out}")
 
 
+def _particle_options(given: dict) -> dict:
+    """The options of `dt` that describe particles or a contact, as given."""
+    names = (
+        "shape",
+        "radius",
+        "semi_axes",
+        "exponents",
+        "vertices",
+        "density",
+        "kn",
+        "ks",
+        "sweep",
+    )
+    return {name: given[name] for name in names} | {
+        k: v for k, v in given.items() if k.startswith("other_")
+    }
+
+
 def _seconds(dt: float | None) -> str:
     if dt is None:
         return "n/a (overdamped)"
@@ -202,6 +220,62 @@ def _print_table(assessment) -> None:
     console.print(steps)
     for finding in assessment.findings:
         console.print(f"• {finding}", highlight=False)
+
+
+def _print_packing(report: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    assembly, mode = report["assembly"], report["assembly"]["mode"]
+    console = Console()
+    console.print(
+        f"{report['restart']}: scenario {report['scenario']}, stage {report['stage']}, "
+        f"step {report['step']}, {report['spheres']} spheres, {assembly['contacts']} contacts "
+        f"({assembly['wall_contacts']} on walls)",
+        highlight=False,
+    )
+    steps = Table(
+        title="Critical time step of this packing", caption="ratio: Δt ÷ the assembly's limit"
+    )
+    for heading in ("estimate", "source", "Δt (s)", "ratio"):
+        steps.add_column(heading, no_wrap=heading != "source")
+    steps.add_row(
+        "[bold]assembly[/bold]",
+        f"2/ω_max, ω_max² the largest eigenvalue of M⁻¹K ({assembly['seconds']:.2f} s)",
+        f"[bold]{_seconds(assembly['dt'])}[/bold]",
+        f"{assembly['dt'] / assembly['damped_dt']:.4g}",
+    )
+    if assembly["mode_damping"] > 0.0:
+        steps.add_row(
+            "assembly, damped",
+            "the top mode with its viscous damping φᵀCφ",
+            _seconds(assembly["damped_dt"]),
+            "1",
+        )
+    engine = report.get("engine_integrated")
+    if engine is not None:
+        steps.add_row(
+            "engine_integrated",
+            f"bisection on the stepping loop: stable {engine['stable']:.6e}, "
+            f"unstable {engine['unstable']:.6e} ({engine['steps']} steps a trial)",
+            _seconds(engine["dt"]),
+            f"{engine['ratio']:.4g}",
+        )
+    steps.add_section()
+    for key, estimate in report["estimates"].items():
+        dt, ratio = estimate["dt"], estimate["ratio"]
+        shown = "" if ratio is None else f"{ratio:.4g}"
+        steps.add_row(key, estimate["label"], _seconds(math.inf if dt is None else dt), shown)
+    console.print(steps)
+    top = ", ".join(
+        f"{s['index']} ({s['share']:.2%}, {s['contacts']} contacts)" for s in mode["spheres"]
+    )
+    console.print(
+        f"• fastest mode: ω_max = {assembly['omega_max']:.6g} rad/s, carried by about "
+        f"{mode['participation']:.4g} spheres, {mode['rotation_share']:.1%} of it rotation; "
+        f"largest shares: {top}",
+        highlight=False,
+    )
 
 
 def dt(
@@ -261,6 +335,13 @@ def dt(
     figures: Annotated[
         Path | None, typer.Option(help="Write Peng 2020 Figures 3-6 (PNG and CSV) to this folder.")
     ] = None,
+    restart: Annotated[
+        Path | None,
+        typer.Option(
+            help="A restart or checkpoint of a sphere scenario: the critical time step of its "
+            "packing (eigenvalues of M⁻¹K); --verify bisects the stepping loop's own limit."
+        ),
+    ] = None,
 ) -> None:
     """Critical time step of two convex, centrally symmetric particles in contact.
 
@@ -276,6 +357,26 @@ def dt(
 
         for path in write_figures(figures, PAPER, PAPER_STEMS):
             typer.echo(f"wrote {path}")
+        return
+    if restart is not None:
+        given = [
+            f"--{k.replace('_', '-')}"
+            for k, v in _particle_options(locals()).items()
+            if v is not None
+        ]
+        if given:
+            raise InputError(
+                f"--restart takes the particles from the file; leave out {', '.join(given)}"
+            )
+        from revdem_cli.timestep.packing import assess_restart
+
+        report = assess_restart(restart, verify)
+        if as_json:
+            import json
+
+            typer.echo(json.dumps(report, indent=2))
+        else:
+            _print_packing(report)
         return
     case = _Case(
         first=_Particle(shape, radius, semi_axes, exponents, vertices, density),

@@ -60,6 +60,22 @@ def rayleigh_dt(radius: float, material: Material) -> float:
     )
 
 
+def rayleigh_limit(scenario: Scenario) -> float:
+    """The smallest Rayleigh time step of the scenario's spheres, each material's smallest."""
+    spheres = scenario.spheres
+    return min(
+        rayleigh_dt(float(spheres.radius[spheres.material == k].min()), material)
+        for k, material in enumerate(scenario.materials.values())
+        if (spheres.material == k).any()
+    )
+
+
+def head_on_limit(scenario: Scenario) -> float:
+    """The smallest two-body limit of the scenario's kinds of contact at their head-on impact
+    stiffness (`contact_dt`); ∞ without contacts."""
+    return min((contact_dt(scenario, kind) for kind in contact_kinds(scenario)), default=math.inf)
+
+
 def particle_speeds(scenario: Scenario) -> np.ndarray:
     """Largest speed of each particle on reaching a plane wall: starting speed plus free fall
     along the wall's normal from the starting gap, v² = |v₀|² + 2 g_n gap."""
@@ -167,12 +183,7 @@ def critical_time_step(scenario: Scenario) -> tuple[float, str]:
             f"{normal.NAME} contact: {contact:.3g} s, the velocity-Verlet limit of a {name}{shear} "
             f"(Peng 2020 Eq 47-49) with the smallest particle mass"
         )
-    spheres = scenario.spheres
-    rayleigh = min(
-        rayleigh_dt(float(spheres.radius[spheres.material == k].min()), material)
-        for k, material in enumerate(scenario.materials.values())
-        if (spheres.material == k).any()
-    )
+    rayleigh = rayleigh_limit(scenario)
     return min(rayleigh, contact), (
         f"{normal.NAME.capitalize()} contact: the smaller of the Rayleigh time step "
         f"{rayleigh:.3g} s and {contact:.3g} s, the velocity-Verlet limit of a {name}{shear} at "

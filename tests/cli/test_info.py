@@ -76,7 +76,21 @@ def test_each_stage_shows_its_own_time_step():
     summary = _scenario(scenario.model_dump_json())
     assert [stage["dt"] for stage in summary["stages"]] == [1e-5, 1e-5, 1e-5, 1e-6]
     lines = info_lines(
-        summary | {"file": "x.h5", "kind": "restart", "particles": 300, "step": 1, "stage": "pour",
+        summary | {"file": "x.h5", "kind": "restart", "particles": 300, "step": 1, "stage": "pour", "stage_dt": 1e-5,
                    "trajectory": "x.forward.h5", "direction": "forward"}
     )  # fmt: skip
     assert "pour (200000 steps of 1e-05 s)" in "\n".join(lines)
+    assert "step:       1 (end of stage pour, dt 1e-05 s)" in lines
+
+
+def test_a_stage_of_automatic_time_step_says_so():
+    from revdem_cli.config import load_scenario
+    from revdem_cli.report.info import _scenario, info_lines
+
+    scenario, _ = load_scenario("configs/smoke/oedometer.toml", ["stages.3.dt=auto"])
+    summary = _scenario(scenario.model_dump_json())
+    lines = info_lines(
+        summary | {"file": "x.h5", "kind": "trajectory", "direction": "forward", "particles": 300,
+                   "frames": 2, "first_step": 0, "last_step": 1}
+    )  # fmt: skip
+    assert "compress (" in lines[3] and "steps of dt chosen at its start, reversed)" in lines[3]

@@ -1,0 +1,504 @@
+"""Critical time step of a packing as it is: the largest eigenvalue of M⁻¹K, with K the
+linearised stiffness of every contact of one state and M its masses and moments of inertia
+(Otsubo, O'Sullivan & Shire 2017, the analysis Peng 2020 §3 points to where a particle has
+several contacts), checked on the engine's own stepping loop.
+
+Each sphere has 6 degrees of freedom, q = (u, θ): a small displacement and a small rotation.
+A contact of spheres a and b with normal n from a to b, lever arms l_a and l_b (r - δ/2, as
+the engine's) and stiffnesses k_n = dF/dδ (Hanley 2020 Eq 6), k_s (Eq 10) and k_r (a rolling
+law) stores
+
+    U = ½ Δᵀ [k_n nnᵀ + k_s (I - nnᵀ)] Δ + ½ k_r |P_t (θ_b - θ_a)|²,
+    Δ = u_b - u_a - (l_a θ_a + l_b θ_b) × n,   P_t = I - nnᵀ,
+
+Δ the displacement of b's contact point relative to a's (`kernels.contact.relative_velocity`
+integrated over a small motion); a wall is a body that does not move (u_b = θ_b = 0, l_b =
+0), and a pair across a periodic boundary takes its nearest image. K = ∂²U/∂q² summed over
+contacts is applied matrix-free (`StiffnessOperator`); the largest eigenvalue λ of the
+mass-normalised M^-½ K M^-½ is ω_max², and velocity Verlet is stable below Δt = 2/ω_max
+(Peng 2020 Eq 47). With viscous contact damping (c = 2β √(m* k), as the engine applies it)
+the damped limit is that of the top mode with its own damping coefficient φᵀCφ (Eq 30
+integrated by velocity Verlet, `criteria.dt_velocity_verlet`).
+
+Left out, and why the limit stays an upper bound on ω_max only to their order: the
+geometric stiffness of the contact forces as the normals turn (f_n/d beside k_n, of order
+δ/r), sliding contacts (taken as sticking, stiffer than they are), local damping and drag
+(not linear in the velocity), the servo of a periodic cell (its edges held).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from revdem_cli import laws
+from revdem_cli.errors import InputError
+from revdem_cli.kernels.arrays import Dynamics
+from revdem_cli.kernels.cell import FIXED
+from revdem_cli.kernels.contact import STATIC
+from revdem_cli.kernels.forces import compute_forces
+from revdem_cli.kernels.integrate import BLOWN_UP, OK, advance
+from revdem_cli.kernels.stiffness import apply_stiffness, contact_stiffnesses
+from revdem_cli.kernels.wall_contacts import wall_normal
+from revdem_cli.stage import Model, stepping_bundles
+from revdem_cli.state import State, empty_events, fixed_arrays
+from revdem_cli.timestep.criteria import dt_velocity_verlet
+
+
+@dataclass(frozen=True)
+class Contacts:
+    """Every contact of a state in overlap, sphere pairs then sphere-wall contacts."""
+
+    a: np.ndarray  # the particle, (K,)
+    b: np.ndarray  # its partner; N (one past the last particle) for a wall, (K,)
+    n: np.ndarray  # unit normal from a to b, (K, 3)
+    arm_a: np.ndarray  # lever arm of a, r - δ/2, m, (K,)
+    arm_b: np.ndarray  # lever arm of b, 0 on a wall, m, (K,)
+    overlap: np.ndarray  # m, (K,)
+    kn: np.ndarray  # normal tangent stiffness dF/dδ, N/m, (K,)
+    ks: np.ndarray  # shear stiffness, N/m, (K,)
+    kr: np.ndarray  # rolling stiffness, N m/rad, (K,)
+    cn: np.ndarray  # normal viscous coefficient 2 β_n √(m* k_n), N s/m, (K,)
+    cs: np.ndarray  # shear viscous coefficient 2 β_t √(m* k_s), N s/m, (K,)
+    walls: int  # how many of them (the last) are on walls
+
+    def __len__(self) -> int:
+        return len(self.a)
+
+
+def contacts_of(state: State, model: Model) -> Contacts:
+    """The contacts of `state` in overlap, with their stiffnesses from the scenario's laws."""
+    p, pairs, cell = state.particles, state.pairs, state.cell
+    count = int(pairs.count[0])
+    i, j = pairs.i[:count].astype(np.int64), pairs.j[:count].astype(np.int64)
+    d = p.x[j] - p.x[i]
+    for axis in np.flatnonzero(cell.periodic):  # nearest image, as `cell.nearest_image`
+        length = cell.length[axis]
+        d[:, axis] -= length * np.floor(d[:, axis] / length + 0.5)
+    distance = np.sqrt((d * d).sum(axis=1))
+    overlap = p.radius[i] + p.radius[j] - distance
+    touching = overlap > 0.0
+    i, j, d, distance, overlap = (
+        i[touching],
+        j[touching],
+        d[touching],
+        distance[touching],
+        overlap[touching],
+    )
+    q, w = np.nonzero(state.walls.overlap > 0.0)
+    n_walls = np.array([wall_normal(p, state.walls, a, b) for a, b in zip(q, w, strict=True)])
+    a = np.concatenate([i, q])
+    b = np.concatenate([j, np.full(len(q), len(p.x))])
+    n = np.concatenate([d / distance[:, None], n_walls.reshape(-1, 3)])
+    overlap = np.concatenate([overlap, state.walls.overlap[q, w]])
+    r_a = p.radius[a]
+    r_b = np.concatenate([p.radius[j], np.full(len(q), np.inf)])  # a wall: R* = r
+    rstar = np.concatenate(
+        [r_a[: len(i)] * p.radius[j] / (r_a[: len(i)] + p.radius[j]), p.radius[q]]
+    )
+    mat_a = p.material[a]
+    mat_b = np.concatenate([p.material[j], state.walls.material[w]])
+    estar = np.ascontiguousarray(model.moduli.estar[mat_a, mat_b])
+    gstar = np.ascontiguousarray(model.moduli.gstar[mat_a, mat_b])
+    kn, ks, kr = (np.zeros(len(a)) for _ in range(3))
+    contact_stiffnesses(model.law, overlap, rstar, estar, gstar, kn, ks, kr)
+    m_i, m_j = p.mass[i], p.mass[j]
+    mstar = np.concatenate([m_i * m_j / (m_i + m_j), p.mass[q]])  # on a wall, its own mass
+    arm_b = np.where(np.isfinite(r_b), r_b - 0.5 * overlap, 0.0)
+    return Contacts(
+        a=a,
+        b=b,
+        n=n,
+        arm_a=r_a - 0.5 * overlap,
+        arm_b=arm_b,
+        overlap=overlap,
+        kn=kn,
+        ks=ks,
+        kr=kr,
+        cn=2.0 * model.law.beta_n * np.sqrt(mstar * kn),
+        cs=2.0 * model.law.beta_t * np.sqrt(mstar * ks),
+        walls=len(q),
+    )
+
+
+class StiffnessOperator:
+    """q ↦ K q (or the damping matrix C q) of a set of contacts, for q of shape (N, 6)
+    (`kernels.stiffness.apply_stiffness`), with the given normal, shear and rolling
+    coefficients of each contact."""
+
+    def __init__(self, contacts: Contacts, particles: int, normal, shear, rolling):
+        self.c, self.particles = contacts, particles
+        self.normal, self.shear, self.rolling = normal, shear, rolling  # (K,) each
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        c, rows = self.c, self.particles + 1  # the last row: the walls, which do not move
+        u, theta = np.zeros((rows, 3)), np.zeros((rows, 3))
+        u[:-1], theta[:-1] = q[:, :3], q[:, 3:]
+        out_u, out_theta = np.empty((rows, 3)), np.empty((rows, 3))
+        apply_stiffness(
+            c.a, c.b, c.n, c.arm_a, c.arm_b, self.normal, self.shear, self.rolling, u, theta,
+            out_u, out_theta,
+        )  # fmt: skip
+        return np.hstack([out_u[:-1], out_theta[:-1]])
+
+
+@dataclass(frozen=True)
+class Mode:
+    """Where the fastest mode lives."""
+
+    participation: float  # 1 / Σ p_i² of the spheres' shares p_i: how many spheres carry it
+    rotation: float  # share of its kinetic energy in rotation
+    spheres: list[
+        tuple[int, float, int]
+    ]  # the spheres of the largest shares: (index, share, contacts)
+    centre: tuple[float, float, float]  # share-weighted centre of those spheres, m
+
+
+@dataclass(frozen=True)
+class PackingLimit:
+    """The assembly's critical time step and where it comes from."""
+
+    contacts: int
+    wall_contacts: int
+    omega_max: float  # rad/s, √λ_max of M⁻¹K
+    dt: float  # 2 / omega_max, s (Peng 2020 Eq 47)
+    damped_dt: float  # with the top mode's own viscous damping, s
+    mode_damping: float  # φᵀCφ of the mass-normalised top mode, 1/s
+    mode: Mode
+    vector: np.ndarray  # the top mode in mass-normalised coordinates, (N, 6), unit norm
+    seconds: float  # time the eigenvalue took
+
+    def to_dict(self) -> dict:
+        return {
+            "contacts": self.contacts,
+            "wall_contacts": self.wall_contacts,
+            "omega_max": self.omega_max,
+            "dt": self.dt,
+            "damped_dt": self.damped_dt,
+            "mode_damping": self.mode_damping,
+            "mode": {
+                "participation": self.mode.participation,
+                "rotation_share": self.mode.rotation,
+                "spheres": [
+                    {"index": i, "share": s, "contacts": k} for i, s, k in self.mode.spheres
+                ],
+                "centre": list(self.mode.centre),
+            },
+            "seconds": self.seconds,
+        }
+
+
+def _mass_scale(state: State) -> np.ndarray:
+    """M^-½ of each degree of freedom, (N, 6)."""
+    p = state.particles
+    return (
+        np.column_stack(
+            [np.repeat(p.inv_mass[:, None], 3, 1), np.repeat(p.inv_inertia[:, None], 3, 1)]
+        )
+        ** 0.5
+    )
+
+
+def packing_limit(state: State, model: Model, tolerance: float = 1e-9) -> PackingLimit:
+    """The critical time step of `state` from the largest eigenvalue of M⁻¹K (scipy's
+    Lanczos, `eigsh`, on the symmetric M^-½ K M^-½, matrix-free)."""
+    import time
+
+    from scipy.sparse.linalg import LinearOperator, eigsh
+
+    started = time.perf_counter()
+    contacts = contacts_of(state, model)
+    n = len(state.particles.x)
+    scale = _mass_scale(state)
+    if len(contacts) == 0 or not contacts.kn.any():
+        mode = Mode(0.0, 0.0, [], (math.nan,) * 3)
+        return PackingLimit(0, 0, 0.0, math.inf, math.inf, 0.0, mode, np.zeros((n, 6)), 0.0)
+    stiffness = StiffnessOperator(contacts, n, contacts.kn, contacts.ks, contacts.kr)
+
+    def matvec(y):
+        return (scale * stiffness(scale * y.reshape(n, 6))).ravel()
+
+    operator = LinearOperator((6 * n, 6 * n), matvec=matvec, dtype=np.float64)
+    start = np.random.default_rng(0).standard_normal(6 * n)  # the same answer every time
+    values, vectors = eigsh(operator, k=1, which="LA", tol=tolerance, v0=start)
+    lam, y = float(values[0]), vectors[:, 0].reshape(n, 6)
+    damping = StiffnessOperator(contacts, n, contacts.cn, contacts.cs, np.zeros(len(contacts)))
+    c_mode = (
+        float((y * scale * damping(scale * y)).sum())
+        if contacts.cn.any() or contacts.cs.any()
+        else 0.0
+    )
+    omega = math.sqrt(lam)
+    return PackingLimit(
+        contacts=len(contacts),
+        wall_contacts=contacts.walls,
+        omega_max=omega,
+        dt=2.0 / omega,
+        damped_dt=dt_velocity_verlet(lam, c_mode, 1.0),
+        mode_damping=c_mode,
+        mode=_mode_of(y, contacts, state),
+        vector=y,
+        seconds=time.perf_counter() - started,
+    )
+
+
+def _mode_of(y: np.ndarray, contacts: Contacts, state: State, shown: int = 5) -> Mode:
+    share = (y * y).sum(axis=1)
+    share /= share.sum()
+    order = np.argsort(share, kind="stable")[::-1][:shown]
+    count = np.bincount(np.concatenate([contacts.a, contacts.b]), minlength=len(share) + 1)
+    weights = share[order] / share[order].sum()
+    centre = tuple(float(c) for c in weights @ state.particles.x[order])
+    return Mode(
+        participation=float(1.0 / (share * share).sum()),
+        rotation=float((y[:, 3:] ** 2).sum() / (y * y).sum()),
+        spheres=[(int(k), float(share[k]), int(count[k])) for k in order],
+        centre=centre,
+    )
+
+
+def single_contact_limits(contacts: Contacts, state: State) -> dict[str, float]:
+    """The two-body limit 2/√(k A) (Peng 2020 Eq 47) of every contact of the state on its
+    own, smallest over contacts, per direction: normal A = 1/m_a + 1/m_b, shear A = Σ 1/m +
+    l²/I (Eq 26), rolling A = Σ 1/I (a wall: its terms 0)."""
+    p = state.particles
+    inv_m = np.append(p.inv_mass, 0.0)
+    inv_i = np.append(p.inv_inertia, 0.0)
+    a, b = contacts.a, contacts.b
+    normal = inv_m[a] + inv_m[b]
+    shear = normal + contacts.arm_a**2 * inv_i[a] + contacts.arm_b**2 * inv_i[b]
+    rolling = inv_i[a] + inv_i[b]
+
+    def smallest(k, inverse_mass):
+        product = k * inverse_mass
+        return float(2.0 / np.sqrt(product.max())) if product.any() else math.inf
+
+    return {
+        "normal": smallest(contacts.kn, normal),
+        "shear": smallest(contacts.ks, shear),
+        "rolling": smallest(contacts.kr, rolling),
+    }
+
+
+def automatic_dt(state: State, model: Model) -> float:
+    """dt = 'auto': integrator.dt_safety times the smaller of the packing's limit in `state`
+    (with its viscous damping) and the start-up estimate `guard.critical_time_step`, which
+    bounds the contacts still to form (a pour starts with none)."""
+    from revdem_cli.timestep.guard import critical_time_step
+
+    scenario = model.scenario
+    limit = min(packing_limit(state, model).damped_dt, critical_time_step(scenario)[0])
+    if not math.isfinite(limit):
+        raise InputError(
+            "integrator.dt = 'auto': this scenario has no contact and none can form, so no "
+            "critical time step bounds it; give dt in seconds"
+        )
+    return scenario.integrator.dt_safety * limit
+
+
+# ---------------------------------------------------------------- checked by the engine
+
+
+def float_model(model: Model) -> Model:
+    """`model` in floating-point arithmetic, whatever the scenario's (its time step may then
+    change: fixed-point grids are made for one)."""
+    scenario = model.scenario
+    integrator = scenario.integrator.model_copy(update={"arithmetic": "float"})
+    return Model.of(scenario.model_copy(update={"integrator": integrator}))
+
+
+def _at_rest_copy(state: State, model: Model) -> State:
+    """A copy of `state` that steps forward in floating point, at rest, walls and the cell's
+    edges held where they are."""
+
+    def copied(bundle):
+        return bundle._make(np.copy(v) if isinstance(v, np.ndarray) else v for v in bundle)
+
+    p, pairs, walls, cell = (
+        copied(b) for b in (state.particles, state.pairs, state.walls, state.cell)
+    )
+    pairs = pairs._replace(normal_new=np.zeros((0, 3)))  # a forward step needs no unwinding
+    walls = walls._replace(normal_new=np.zeros((0,) + walls.normal_new.shape[1:]))
+    p.v[:] = 0.0
+    p.omega[:] = 0.0
+    walls.velocity[:] = 0.0
+    walls.origin[:] = walls.point
+    cell.control[:] = FIXED
+    cell.rate[:] = 0.0
+    fixed = fixed_arrays(model.scenario, p, cell)
+    return State(p, pairs, walls, cell, fixed, state.step)
+
+
+GROWTH = 1e3
+"""A perturbation grown this many times is unstable: below the limit a mode's velocity
+amplitude grows at most 1/√(1 - (ωΔt/2)²) times (10 at 0.5 % below), above it by
+(1 + √(8ε))^steps at (1 + ε) times the limit."""
+
+
+def _advance(state: State, model: Model, dyn: Dynamics, dt: float, steps: int) -> bool:
+    """Step `state` `steps` steps at dt; False if it blew up."""
+    compute_forces(
+        *stepping_bundles(state, model, dyn), STATIC, dt, 0.0, empty_events(), state.step
+    )
+    stepping = model.stepping(dt, state.step, state.step + steps, steps)
+    buffer, buffer_steps = model.buffers(2)
+    events, stop = empty_events(), state.step + steps
+    while state.step != stop:
+        status, state.step, _, _ = advance(
+            *stepping_bundles(state, model, dyn), events, stepping, state.step, stop, buffer,
+            buffer_steps,
+        )  # fmt: skip
+        if status == BLOWN_UP:
+            return False
+        if status != OK:
+            state.grow_pairs()
+    return True
+
+
+@dataclass(frozen=True)
+class EngineCheck:
+    """The bracket [stable, unstable] of the stepping loop's own limit."""
+
+    stable: float
+    unstable: float
+    steps: int
+    trials: int
+
+    @property
+    def dt(self) -> float:
+        return 0.5 * (self.stable + self.unstable)
+
+
+def engine_bracket(
+    state: State,
+    model: Model,
+    limit: PackingLimit,
+    steps: int = 400,
+    width: float = 1e-4,
+) -> EngineCheck:
+    """Bisect the engine's stability limit from `state`: a copy at rest and one kicked along
+    the top mode, each stepped `steps` steps at a trial Δt by the real stepping loop (viscous
+    contact damping as the scenario's; local damping and drag off, walls and cell held);
+    Δt is unstable where their difference grows GROWTH times. The bracket starts at 3 % either
+    side of the damped assembly limit and narrows to a relative `width`."""
+    model = float_model(model)
+    dyn = Dynamics(np.array(model.scenario.gravity, dtype=float), 0.0, 1.0)
+    scale = _mass_scale(state)
+    shape = scale * limit.vector  # velocities along the mode
+    contacts = contacts_of(state, model)
+    size = 1e-6 * float(np.median(contacts.overlap)) * limit.omega_max / np.abs(shape).max()
+    kick = size * shape
+    weight = 1.0 / scale**2  # M, so that the difference is measured in kinetic energy's norm
+
+    def grows(dt: float) -> bool:
+        base, kicked = _at_rest_copy(state, model), _at_rest_copy(state, model)
+        kicked.particles.v[:] += kick[:, :3]
+        kicked.particles.omega[:] += kick[:, 3:]
+        if not (_advance(base, model, dyn, dt, steps) and _advance(kicked, model, dyn, dt, steps)):
+            return True
+        dv = np.hstack(
+            [kicked.particles.v - base.particles.v, kicked.particles.omega - base.particles.omega]
+        )
+        grown = math.sqrt((weight * dv * dv).sum() / (weight * kick * kick).sum())
+        return not math.isfinite(grown) or grown > GROWTH
+
+    trials = 0
+    stable, unstable = 0.97 * limit.damped_dt, 1.03 * limit.damped_dt
+    while True:
+        trials += 2
+        low, high = grows(stable), grows(unstable)
+        if high and not low:
+            break
+        if low:
+            stable, unstable = 0.9 * stable, stable
+        else:
+            stable, unstable = unstable, 1.1 * unstable
+        if trials > 40:
+            raise RuntimeError(
+                "no stability limit of the engine within 0.3 to 3 times the estimate"
+            )
+    while unstable - stable > width * stable:
+        middle = 0.5 * (stable + unstable)
+        trials += 1
+        if grows(middle):
+            unstable = middle
+        else:
+            stable = middle
+    return EngineCheck(stable, unstable, steps, trials)
+
+
+# ---------------------------------------------------------------- `revdem dt --restart`
+
+
+def assess_restart(path, verify: bool) -> dict:
+    """The critical time step of the state a restart or checkpoint holds: the assembly's
+    limit, every single-contact estimate revdem has beside it with its ratio to it, the time
+    step the stage ran at, and with `verify` the engine's own bracket."""
+    from pathlib import Path
+
+    from revdem_cli.config import Scenario
+    from revdem_cli.io.restart import read_restart
+    from revdem_cli.timestep.guard import critical_time_step, head_on_limit, rayleigh_limit
+
+    restart = read_restart(path, checkpoint=None)
+    scenario = Scenario.model_validate_json(restart.scenario_json)
+    model, state = Model.of(scenario), restart.state
+    limit = packing_limit(state, model)
+    single = single_contact_limits(contacts_of(state, model), state)
+    stage = next(s for s in scenario.stages if s.name == restart.stage)
+    estimates = {
+        "single_contact_normal": (
+            "stiffest normal contact of this state, alone (Peng 2020 Eq 47)",
+            single["normal"],
+        ),
+        "single_contact_shear": (
+            "stiffest shear contact of this state, alone (Peng 2020 Eq 26, 47)",
+            single["shear"],
+        ),
+        "single_contact_rolling": (
+            "stiffest rolling spring of this state, alone",
+            single["rolling"],
+        ),
+        "head_on": (
+            "head-on impact at the scenario's largest approach speed (guard)",
+            head_on_limit(scenario),
+        ),
+        "rayleigh": ("Rayleigh time step of the smallest sphere (guard)", rayleigh_limit(scenario)),
+        "guard": (
+            "the run's start-up check: " + critical_time_step(scenario)[1],
+            critical_time_step(scenario)[0],
+        ),
+        "in_use": (f"the time step of stage {stage.name!r}", restart.stage_dt),
+    }
+    if not laws.chosen(scenario.contact, "normal").FROM_MATERIALS:
+        del estimates["rayleigh"]  # a given stiffness: no wave speed bounds it
+    reference = limit.damped_dt
+    report = {
+        "restart": str(Path(path)),
+        "scenario": scenario.name,
+        "stage": restart.stage,
+        "step": state.step,
+        "spheres": len(state.particles.x),
+        "assembly": limit.to_dict(),
+        "estimates": {
+            key: {"label": label, "dt": _finite(dt), "ratio": _finite(dt / reference)}
+            for key, (label, dt) in estimates.items()
+        },
+    }
+    if verify and math.isfinite(reference):
+        check = engine_bracket(state, model, limit)
+        report["engine_integrated"] = {
+            "stable": check.stable,
+            "unstable": check.unstable,
+            "dt": check.dt,
+            "ratio": check.dt / reference,
+            "steps": check.steps,
+            "trials": check.trials,
+        }
+    return report
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None

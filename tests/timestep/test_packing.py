@@ -1,0 +1,237 @@
+"""The critical time step of a packing (`timestep.packing`): the largest eigenvalue of M⁻¹K
+against lattice dynamics and two-body limits, checked on the stepping loop, and
+`revdem dt --restart`, `integrator.dt = "auto"`."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+from revdem_cli.config import Scenario
+from revdem_cli.engine import run_scenario
+from revdem_cli.io.restart import read_restart
+from revdem_cli.stage import Model
+from revdem_cli.state import effective_modulus, effective_shear_modulus, initial_state
+from revdem_cli.timestep import packing
+from revdem_cli.timestep.guard import critical_time_step
+
+DIAMETER = 0.01
+SPACING = 0.999 * DIAMETER * 2**0.5  # the fcc benchmark's: an overlap of 10 µm at each contact
+MATERIAL = {"density": 1000.0, "shear_modulus": 2.0e6, "poisson_ratio": 0.2}
+
+
+def lattice(cells: int, contact: dict, steps: int = 10, **extra) -> dict:
+    """The fcc Hertz benchmark's lattice (benchmarks/fcc_hertz.py), at rest."""
+    return {
+        "name": "fcc",
+        "materials": {"m": MATERIAL},
+        "contact": contact,
+        "lattices": [
+            {"material": "m", "radius": DIAMETER / 2, "cells": [cells] * 3, "spacing": SPACING}
+        ],
+        "cell": {"size": [cells * SPACING] * 3},
+        "integrator": {"dt": 1.0e-5},
+        "stages": [{"name": "run", "steps": steps, "output_every": steps}],
+    } | extra
+
+
+def limit_of(data: dict):
+    scenario = Scenario.model_validate(data)
+    state, model = initial_state(scenario), Model.of(scenario)
+    return packing.packing_limit(state, model), state, model
+
+
+def hertz_stiffnesses() -> tuple[float, float, float]:
+    """(k_n = dF/dδ = 2 E* √(R* δ) (Hanley 2020 Eq 6), k_s = 8 G* √(R* δ) (Eq 10), the lever
+    arm r - δ/2) at the benchmark's overlap."""
+    from revdem_cli.config import Material
+
+    m = Material(**MATERIAL)
+    overlap = DIAMETER - SPACING / 2**0.5
+    root = math.sqrt(DIAMETER / 4 * overlap)
+    return (
+        2.0 * effective_modulus(m, m) * root,
+        8.0 * effective_shear_modulus(m, m) * root,
+        DIAMETER / 2 - overlap / 2,
+    )
+
+
+def test_fcc_with_central_springs_has_the_analytic_top_frequency():
+    """fcc, nearest-neighbour central springs k, mass m: the dynamical matrix is
+    D(q) = k/m Σ_δ (1 - cos q·δ) n̂n̂ᵀ over the 12 neighbours δ = a/2 (±1, ±1, 0) and
+    permutations. At the zone-boundary point X, q = 2π/a (1, 0, 0), the 8 neighbours with
+    δ_x ≠ 0 have cos q·δ = -1 and Σ n̂n̂ᵀ over them = diag(4, 2, 2), so D = k/m diag(8, 4, 4);
+    at L, q = π/a (1, 1, 1), D = 2k/m [[2,1,1],[1,2,1],[1,1,2]], also 8k/m at most: ω_max²
+    = 8 k/m, Δt_crit = 2/ω_max = √(m/(2k)). A periodic lattice of any number of cells
+    holds the X point."""
+    limit, state, _ = limit_of(lattice(3, {"model": "hertz"}))
+    kn, _, _ = hertz_stiffnesses()
+    mass = state.particles.mass[0]
+    assert limit.contacts == 12 * 108 // 2
+    assert limit.omega_max**2 == pytest.approx(8.0 * kn / mass, rel=1e-9)
+    assert limit.dt == pytest.approx(math.sqrt(mass / (2.0 * kn)), rel=1e-9)
+    assert limit.mode.rotation < 1e-12  # central springs do not turn the spheres
+    assert limit.mode.participation == pytest.approx(108, rel=1e-6)  # a lattice wave
+
+
+def test_fcc_with_shear_springs_spins_fastest_all_one_way():
+    """With shear springs the fastest mode is every sphere spinning the same way (q = 0):
+    then Δ = -2l θ × n at every contact, and with Σ (1 - (θ̂·n̂)²) = 12 - 4 = 8 over a
+    sphere's 12 neighbours (Σ n̂n̂ᵀ = 4 I) the energy per sphere is 8 k_s l² θ² against a
+    kinetic ½ I θ̇²: ω² = 16 k_s l² / I, 4.4 times the central 8 k_n/m here."""
+    limit, state, _ = limit_of(
+        lattice(3, {"model": "hertz", "tangential": "mindlin", "friction": 0.5})
+    )
+    kn, ks, arm = hertz_stiffnesses()
+    inertia, mass = state.particles.inertia[0], state.particles.mass[0]
+    assert 16.0 * ks * arm**2 / inertia > 8.0 * kn / mass
+    assert limit.omega_max**2 == pytest.approx(16.0 * ks * arm**2 / inertia, rel=1e-9)
+    assert limit.mode.rotation == pytest.approx(1.0, abs=1e-9)
+
+
+def two_spheres(radii: tuple[float, float], overlap: float, contact: dict) -> dict:
+    reach = radii[0] + radii[1] - overlap
+    return {
+        "name": "pair",
+        "materials": {"m": MATERIAL},
+        "contact": contact,
+        "particles": [
+            {"position": [0.0, 0.0, 0.0], "radius": radii[0], "material": "m"},
+            {"position": [reach, 0.0, 0.0], "radius": radii[1], "material": "m"},
+        ],
+        "integrator": {"dt": 1.0e-6},
+        "stages": [{"name": "run", "steps": 10}],
+    }
+
+
+def test_one_contact_is_its_two_body_limit():
+    """One contact alone: normal ω² = k_n (1/m₁ + 1/m₂) (Peng 2020 Eq 49) and shear ω² =
+    k_s (1/m₁ + l₁²/I₁ + 1/m₂ + l₂²/I₂) (Eq 26); the assembly's limit is the smaller
+    direction's, and equals `single_contact_limits`."""
+    contact = {"model": "linear", "kn": 1.0e5, "tangential": "linear", "ks": 4.0e4, "friction": 0.5}
+    limit, state, model = limit_of(two_spheres((0.005, 0.003), 1e-5, contact))
+    p = state.particles
+    arms = np.array([0.005, 0.003]) - 0.5e-5
+    normal = 1.0e5 * p.inv_mass.sum()
+    shear = 4.0e4 * (p.inv_mass + arms**2 * p.inv_inertia).sum()
+    assert limit.omega_max**2 == pytest.approx(max(normal, shear), rel=1e-9)
+    single = packing.single_contact_limits(packing.contacts_of(state, model), state)
+    assert single["normal"] == pytest.approx(2.0 / math.sqrt(normal), rel=1e-12)
+    assert single["shear"] == pytest.approx(2.0 / math.sqrt(shear), rel=1e-12)
+    assert limit.dt == pytest.approx(min(single.values()), rel=1e-9)
+
+
+def test_a_sphere_on_a_wall_is_a_spring_on_a_fixed_body():
+    """A wall does not move: a sphere pressed on a plane has ω² = k_n / m."""
+    data = two_spheres((0.005, 0.005), 0.0, {"model": "linear", "kn": 1.0e5})
+    data["particles"] = data["particles"][:1]
+    data["particles"][0]["position"] = [0.0, 0.0, 0.005 - 2e-5]
+    data["walls"] = [
+        {"name": "floor", "type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 0, 1]}
+    ]
+    limit, state, _ = limit_of(data)
+    assert (limit.contacts, limit.wall_contacts) == (1, 1)
+    assert limit.omega_max**2 == pytest.approx(1.0e5 / state.particles.mass[0], rel=1e-12)
+
+
+def test_the_stiffness_is_symmetric_and_free_under_rigid_translation():
+    """K is a Hessian, so symmetric; a periodic packing moved as a whole stores nothing
+    (each contact's two ends pull equally and oppositely: momentum is conserved)."""
+    contact = {"model": "hertz", "tangential": "mindlin", "friction": 0.5}
+    data = lattice(3, contact)
+    data["lattices"][0] |= {"random_velocity": 0.0}
+    scenario = Scenario.model_validate(data)
+    state, model = initial_state(scenario), Model.of(scenario)
+    state.particles.x[:] += np.random.default_rng(1).uniform(-2e-6, 2e-6, state.particles.x.shape)
+    contacts = packing.contacts_of(state, model)
+    k = packing.StiffnessOperator(contacts, 108, contacts.kn, contacts.ks, contacts.kr)
+    x, y = np.random.default_rng(2).standard_normal((2, 108, 6))
+    assert (x * k(y)).sum() == pytest.approx((y * k(x)).sum(), rel=1e-12)
+    assert (x * k(x)).sum() > 0.0
+    translation = np.zeros((108, 6))
+    translation[:, :3] = [1.0, -2.0, 0.5]
+    scale = np.abs(k(x)).max()
+    assert np.abs(k(translation)).max() < 1e-12 * scale
+
+
+@pytest.mark.parametrize(
+    "contact", [{"model": "hertz"}, {"model": "hertz", "tangential": "mindlin", "friction": 0.5}]
+)
+def test_the_stepping_loop_goes_unstable_at_the_eigenvalue_limit(contact):
+    """The engine's bracket (a mode perturbation grown 1000 times in 400 steps, or not)
+    holds the assembly's limit to 0.1 % (the compressive prestress, left out of K, softens
+    the lattice by f_n/(k_n d) ≈ 7e-4)."""
+    limit, state, model = limit_of(lattice(3, contact))
+    check = packing.engine_bracket(state, model, limit)
+    assert check.stable < check.unstable < check.stable * (1.0 + 2e-4)
+    assert check.dt / limit.dt == pytest.approx(1.0, abs=1e-3)
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def fcc_restart(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fcc")
+    scenario = Scenario.model_validate(lattice(3, {"model": "hertz"}))
+    run_scenario(scenario, "", ".toml", out, reverse=False)
+    return out / "fcc.restart.h5"
+
+
+def test_dt_restart_reports_the_assembly_beside_the_single_contact_estimates(fcc_restart):
+    result = invoke("dt", "--restart", fcc_restart, "--verify", "--json")
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.output)
+    dt = report["assembly"]["dt"]
+    estimates = report["estimates"]
+    # a sphere of the lattice has 12 contacts: one alone has ω² = 2k/m, the lattice 8k/m
+    assert estimates["single_contact_normal"]["ratio"] == pytest.approx(2.0, rel=1e-9)
+    assert estimates["in_use"]["dt"] == 1.0e-5
+    assert estimates["head_on"]["dt"] is None  # at rest: no impact, no Hertz stiffness
+    assert estimates["guard"]["dt"] == estimates["rayleigh"]["dt"]
+    engine = report["engine_integrated"]
+    assert engine["stable"] < dt * 1.001 < engine["unstable"] * 1.001
+    assert engine["ratio"] == pytest.approx(1.0, abs=1e-2)
+
+
+def test_dt_restart_prints_a_table(fcc_restart):
+    result = invoke("dt", "--restart", fcc_restart)
+    assert result.exit_code == 0, result.output
+    assert "assembly" in result.output and "fastest mode" in result.output
+
+
+def test_dt_restart_takes_no_particle_options(fcc_restart):
+    result = invoke("dt", "--restart", fcc_restart, "--shape", "sphere")
+    assert result.exit_code == 2
+    assert "--restart takes the particles from the file; leave out --shape" in result.output
+
+
+def test_auto_dt_is_the_safety_fraction_of_the_packing_limit(tmp_path):
+    """A linear lattice: the start-up estimate (one contact, √(2m/k)) is twice the
+    lattice's √(m/(2k)), so 'auto' takes dt_safety of the lattice's."""
+    kn = 1.0e4
+    contact = {"model": "linear", "kn": kn}
+    data = lattice(3, contact, integrator={"dt": "auto", "dt_safety": 0.3})
+    scenario = Scenario.model_validate(data)
+    run_scenario(scenario, "", ".toml", tmp_path, reverse=False)
+    restart = read_restart(tmp_path / "fcc.restart.h5")
+    mass = restart.state.particles.mass[0]
+    assert critical_time_step(scenario)[0] == pytest.approx(math.sqrt(2.0 * mass / kn))
+    assert restart.stage_dt == pytest.approx(0.3 * math.sqrt(mass / (2.0 * kn)), rel=1e-9)
+
+
+def test_auto_dt_in_fixed_point_is_refused():
+    data = lattice(3, {"model": "hertz"}, integrator={"dt": "auto", "arithmetic": "fixed"})
+    with pytest.raises(ValueError, match=r"integrator.dt: 'auto' needs integrator.arithmetic"):
+        Scenario.model_validate(data)
+
+
+def test_a_time_step_that_is_neither_a_number_nor_auto_is_refused():
+    with pytest.raises(ValueError, match="a number of seconds or 'auto', not the text 'fast'"):
+        Scenario.model_validate(lattice(3, {"model": "hertz"}, integrator={"dt": "fast"}))
