@@ -18,7 +18,9 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    PlainValidator,
     PrivateAttr,
+    WithJsonSchema,
     create_model,
     model_validator,
 )
@@ -40,17 +42,28 @@ def _number(value):
 
 
 def _time_step(value):
-    """A time step as the file wrote it: a number of seconds, or the text 'auto'."""
-    if isinstance(value, str) and value != "auto":
+    """A time step as the file wrote it: a positive, finite number of seconds, or 'auto'."""
+    if value == "auto":
+        return value
+    if isinstance(value, str):
         raise ValueError(
-            f"Input should be a number of seconds or 'auto', not the text {value[:40]!r}"
+            f"Input should be a valid number of seconds or 'auto', not the text {value[:40]!r}"
         )
-    return value if value == "auto" else _number(value)
+    if not isinstance(_number(value), int | float):
+        raise ValueError("Input should be a valid number of seconds or 'auto'")
+    if not math.isfinite(value):
+        raise ValueError("Input should be a finite number")
+    if value <= 0:
+        raise ValueError("Input should be greater than 0")
+    return float(value)
 
 
 Float = Annotated[float, BeforeValidator(_number)]
-PositiveFloat = Annotated[float, Field(gt=0)]
-TimeStep = Annotated[PositiveFloat | Literal["auto"], BeforeValidator(_time_step)]
+TimeStep = Annotated[
+    float | Literal["auto"],
+    PlainValidator(_time_step),
+    WithJsonSchema({"anyOf": [{"type": "number", "exclusiveMinimum": 0}, {"const": "auto"}]}),
+]
 """A time step, s, or 'auto': chosen at the start of each stage (`packing.automatic_dt`)."""
 FloatOrInf = Annotated[float, Field(allow_inf_nan=True), BeforeValidator(_number)]
 Int = Annotated[int, BeforeValidator(_number)]
@@ -304,17 +317,15 @@ class Lattice(_Model):
 class Integrator(_Model):
     """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
 
-    dt: TimeStep = Field(
-        description="time step, s; or 'auto': at the start of each stage, dt_safety times the "
-        "smaller of the critical time step of the packing then (the largest eigenvalue of its "
-        "mass and stiffness, as `revdem dt --restart`) and the start-up estimate of contacts "
-        "still to form (head-on impacts, Rayleigh)"
-    )
+    dt: TimeStep = Field(description="time step, s, or 'auto' (see dt_safety)")
     dt_safety: Float = Field(
         default=0.2,
         gt=0,
         le=1,
-        description="with dt = 'auto', the fraction of the critical time step taken, -",
+        description="with dt = 'auto', the fraction taken, at the start of each stage, of the "
+        "smaller of the critical time step of the packing then (the largest eigenvalue of its "
+        "mass and stiffness, as `revdem dt --restart`) and the start-up estimate of contacts "
+        "still to form (head-on impacts, Rayleigh), -",
     )
     arithmetic: Literal["float", "fixed"] = Field(
         default="float",

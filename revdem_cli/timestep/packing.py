@@ -87,31 +87,28 @@ def contacts_of(state: State, model: Model) -> Contacts:
         distance[touching],
         overlap[touching],
     )
-    q, w = np.nonzero(state.walls.overlap > 0.0)
+    q, w = np.nonzero(state.walls.overlap > 0.0)  # sphere q on wall w
     n_walls = np.array([wall_normal(p, state.walls, a, b) for a, b in zip(q, w, strict=True)])
+    r_i, r_j, m_i, m_j = p.radius[i], p.radius[j], p.mass[i], p.mass[j]
     a = np.concatenate([i, q])
     b = np.concatenate([j, np.full(len(q), len(p.x))])
     n = np.concatenate([d / distance[:, None], n_walls.reshape(-1, 3)])
-    overlap = np.concatenate([overlap, state.walls.overlap[q, w]])
-    r_a = p.radius[a]
-    r_b = np.concatenate([p.radius[j], np.full(len(q), np.inf)])  # a wall: R* = r
-    rstar = np.concatenate(
-        [r_a[: len(i)] * p.radius[j] / (r_a[: len(i)] + p.radius[j]), p.radius[q]]
-    )
+    wall_overlap = state.walls.overlap[q, w]
+    rstar = np.concatenate([r_i * r_j / (r_i + r_j), p.radius[q]])  # on a wall R* = r
+    mstar = np.concatenate([m_i * m_j / (m_i + m_j), p.mass[q]])  # and m* = m
+    arm_b = np.concatenate([r_j - 0.5 * overlap, np.zeros(len(q))])
+    overlap = np.concatenate([overlap, wall_overlap])
     mat_a = p.material[a]
     mat_b = np.concatenate([p.material[j], state.walls.material[w]])
     estar = np.ascontiguousarray(model.moduli.estar[mat_a, mat_b])
     gstar = np.ascontiguousarray(model.moduli.gstar[mat_a, mat_b])
     kn, ks, kr = (np.zeros(len(a)) for _ in range(3))
     contact_stiffnesses(model.law, overlap, rstar, estar, gstar, kn, ks, kr)
-    m_i, m_j = p.mass[i], p.mass[j]
-    mstar = np.concatenate([m_i * m_j / (m_i + m_j), p.mass[q]])  # on a wall, its own mass
-    arm_b = np.where(np.isfinite(r_b), r_b - 0.5 * overlap, 0.0)
     return Contacts(
         a=a,
         b=b,
         n=n,
-        arm_a=r_a - 0.5 * overlap,
+        arm_a=p.radius[a] - 0.5 * overlap,
         arm_b=arm_b,
         overlap=overlap,
         kn=kn,
@@ -150,9 +147,7 @@ class Mode:
 
     participation: float  # 1 / Σ p_i² of the spheres' shares p_i: how many spheres carry it
     rotation: float  # share of its kinetic energy in rotation
-    spheres: list[
-        tuple[int, float, int]
-    ]  # the spheres of the largest shares: (index, share, contacts)
+    spheres: list[tuple[int, float, int]]  # the largest shares: (sphere, share, its contacts)
     centre: tuple[float, float, float]  # share-weighted centre of those spheres, m
 
 
@@ -193,12 +188,8 @@ class PackingLimit:
 def _mass_scale(state: State) -> np.ndarray:
     """M^-½ of each degree of freedom, (N, 6)."""
     p = state.particles
-    return (
-        np.column_stack(
-            [np.repeat(p.inv_mass[:, None], 3, 1), np.repeat(p.inv_inertia[:, None], 3, 1)]
-        )
-        ** 0.5
-    )
+    inverse = np.repeat(np.column_stack([p.inv_mass, p.inv_inertia]), 3, axis=1)
+    return np.sqrt(inverse)
 
 
 def packing_limit(state: State, model: Model, tolerance: float = 1e-9) -> PackingLimit:

@@ -76,8 +76,8 @@ def test_each_stage_shows_its_own_time_step():
     summary = _scenario(scenario.model_dump_json())
     assert [stage["dt"] for stage in summary["stages"]] == [1e-5, 1e-5, 1e-5, 1e-6]
     lines = info_lines(
-        summary | {"file": "x.h5", "kind": "restart", "particles": 300, "step": 1, "stage": "pour", "stage_dt": 1e-5,
-                   "trajectory": "x.forward.h5", "direction": "forward"}
+        summary | {"file": "x.h5", "kind": "restart", "particles": 300, "step": 1, "stage": "pour",
+                   "stage_dt": 1e-5, "trajectory": "x.forward.h5", "direction": "forward"}
     )  # fmt: skip
     assert "pour (200000 steps of 1e-05 s)" in "\n".join(lines)
     assert "step:       1 (end of stage pour, dt 1e-05 s)" in lines
