@@ -223,22 +223,28 @@ def _forward(
 
 
 def check_time_step(scenario: Scenario) -> None:
-    """Refuse a time step above the critical estimate of `timestep.guard`, saying by how much."""
-    from revdem_cli.timestep.guard import critical_time_step
+    """Refuse a time step above the critical estimate of `timestep.guard`, or above its
+    kinematic limit, saying by how much."""
+    from revdem_cli.timestep.guard import critical_time_step, kinematic_dt
 
-    limit, reason = critical_time_step(scenario)
     steps = [("integrator.dt", scenario.integrator.dt)] + [
         (f"stages[{i}].dt", stage.dt) for i, stage in enumerate(scenario.stages) if stage.dt
     ]
-    steps = [(field, dt) for field, dt in steps if dt != "auto"]  # 'auto' is below it
+    steps = [(field, dt) for field, dt in steps if dt != "auto"]  # 'auto' is below both
     if not steps:
         return
     field, dt = max(steps, key=lambda item: item[1])
-    if dt > limit:
-        raise InputError(
-            f"{field} = {dt:.3g} s is {dt / limit:.3g} times the critical time step "
-            f"{limit:.3g} s ({reason}); use a smaller dt, or --allow-unstable-dt to run anyway"
-        )
+    for name, limit_of in (
+        ("kinematic limit", kinematic_dt),
+        ("critical time step", critical_time_step),
+    ):
+        limit, reason = limit_of(scenario)
+        if dt > limit:
+            times = f"{dt / limit:.3g} times" if limit > 0.0 else "above"
+            raise InputError(
+                f"{field} = {dt:.3g} s is {times} the {name} {limit:.3g} s "
+                f"({reason}); use a smaller dt, or --allow-unstable-dt to run anyway"
+            )
 
 
 def reverse_run(

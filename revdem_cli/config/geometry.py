@@ -14,6 +14,7 @@ from revdem_cli.config.checks import FieldError
 def check_spheres(scenario) -> None:
     """Generate the scenario's spheres and check where they start; FieldError naming the
     first sphere that cannot start there."""
+    check_resolved(scenario)
     check_inside_cell(scenario)
     check_overlaps(scenario)
     check_walls(scenario)
@@ -71,6 +72,30 @@ def lattice_spheres(lattice, materials: tuple[str, ...]) -> Spheres:
         -lattice.random_velocity, lattice.random_velocity, x.shape
     )
     return uniform(len(x), lattice.radius, materials.index(lattice.material), materials, x, v)
+
+
+RESOLUTION = 1e-6
+"""A position must be resolved by float64 to this fraction of its sphere's radius (the
+spacing of float64 at |x| is |x| 2^-52): at most about 4.5e9 radii from the origin."""
+
+
+def check_resolved(scenario) -> None:
+    """Every sphere starts where float64 resolves its position to RESOLUTION of its radius:
+    farther out, a step's motion is lost to round-off (at 1e17 m a position moves in steps
+    of 16 m)."""
+    spheres = scenario.spheres
+    spacing = np.spacing(np.abs(spheres.position)).max(axis=1)
+    far = np.nonzero(~(spacing <= RESOLUTION * spheres.radius))[0]
+    if len(far):
+        k = int(far[0])
+        where, sphere = located(scenario, k)
+        raise FieldError(
+            where,
+            f"{sphere} starts {float(np.abs(spheres.position[k]).max()):.3g} m from the "
+            f"origin, where float64 resolves a position only to {float(spacing[k]):.3g} m, "
+            f"more than {RESOLUTION:g} of its radius {float(spheres.radius[k]):.3g} m: move "
+            "the scenario's origin closer",
+        )
 
 
 def check_inside_cell(scenario) -> None:

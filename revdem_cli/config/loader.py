@@ -47,14 +47,43 @@ reads them as text."""
 
 
 def _yaml_loader():
-    """PyYAML's safe loader, reading 1e-7 as the number YAML 1.2 says it is."""
+    """PyYAML's safe loader, reading 1e-7 as the number YAML 1.2 says it is, and refusing a
+    key given twice in one mapping (YAML 1.2 says keys are unique; PyYAML keeps the last)."""
     import yaml
 
     class Loader(yaml.SafeLoader):
-        pass
+        def construct_mapping(self, node, deep=False):
+            seen = set()
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=deep)
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"the key {key!r} is given twice", key_node.start_mark
+                    )
+                seen.add(key)
+            return super().construct_mapping(node, deep=deep)
 
     Loader.add_implicit_resolver("tag:yaml.org,2002:float", _YAML_FLOAT, list("-+0123456789iI"))
     return Loader
+
+
+MAX_DEPTH = 64
+"""Deepest nesting of tables and lists a scenario file may have (a scenario needs 4)."""
+
+
+def _depth(value, limit: int = MAX_DEPTH) -> int:
+    """How deeply tables and lists nest in `value`, counted up to `limit + 1`."""
+    stack, deepest = [(value, 0)], 0
+    while stack:
+        node, depth = stack.pop()
+        deepest = max(deepest, depth)
+        if deepest > limit:
+            break
+        children = (
+            node.values() if isinstance(node, dict) else node if isinstance(node, list) else ()
+        )
+        stack.extend((child, depth + 1) for child in children)
+    return deepest
 
 
 def parse_text(text: str, suffix: str, origin: str) -> dict:
@@ -67,16 +96,23 @@ def parse_text(text: str, suffix: str, origin: str) -> dict:
         except yaml.YAMLError as exc:
             mark = getattr(exc, "problem_mark", None)
             where = f" at line {mark.line + 1}" if mark else ""
-            raise InputError(f"{origin}: not valid YAML{where}") from None
+            problem = f": {exc.problem}" if getattr(exc, "problem", None) else ""
+            raise InputError(f"{origin}: not valid YAML{where}{problem}") from None
+        except RecursionError:
+            raise InputError(f"{origin}: nested more than {MAX_DEPTH} levels deep") from None
     elif suffix == ".toml":
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise InputError(f"{origin}: not valid TOML: {exc}") from None
+        except RecursionError:
+            raise InputError(f"{origin}: nested more than {MAX_DEPTH} levels deep") from None
     else:
         raise InputError(f"{origin}: unknown scenario format '{suffix}' (use .toml, .yaml or .yml)")
     if not isinstance(data, dict):
         raise InputError(f"{origin}: a scenario must be a table of fields")
+    if _depth(data) > MAX_DEPTH:
+        raise InputError(f"{origin}: nested more than {MAX_DEPTH} levels deep")
     return data
 
 
@@ -103,11 +139,11 @@ def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
 
 
 def _child(node, part: str, key: str):
-    if isinstance(node, list):
-        return node[_index(node, part, key)]
-    if not isinstance(node, dict):
-        raise InputError(f"--set {key}: '{part}' is not inside a table")
-    return node.setdefault(part, {})
+    """The table or list `part` of `node` (a new table if it has none)."""
+    child = node[_index(node, part, key)] if isinstance(node, list) else node.setdefault(part, {})
+    if not isinstance(child, dict | list):
+        raise InputError(f"--set {key}: '{part}' holds a value, not a table or a list")
+    return child
 
 
 def _index(node: list, part: str, key: str) -> int:

@@ -40,12 +40,24 @@ def cell_grid(x, periodic, length, cutoff, max_cells):
 
 
 @jit
+def within(u, dims):
+    """int(u) kept inside [0, dims - 1], taken before the conversion (a float beyond the
+    int64 range converts to an arbitrary integer) and NaN to 0: never an index outside the
+    grid, however far or wrong the position."""
+    if u >= dims - 1:
+        return dims - 1
+    if u > 0.0:
+        return int(u)
+    return 0
+
+
+@jit
 def axis_cell(xd, lo, edge, dims, periodic, length):
     """Cell coordinate along one axis of a position component."""
     if periodic:
         u = xd / length
-        return min(dims - 1, int((u - math.floor(u)) * dims))
-    return min(dims - 1, int((xd - lo) / edge))
+        return within((u - math.floor(u)) * dims, dims)
+    return within((xd - lo) / edge, dims)
 
 
 @jit

@@ -78,16 +78,39 @@ def head_on_limit(scenario: Scenario) -> float:
 
 def particle_speeds(scenario: Scenario) -> np.ndarray:
     """Largest speed of each particle on reaching a plane wall: starting speed plus free fall
-    along the wall's normal from the starting gap, v² = |v₀|² + 2 g_n gap."""
+    along the wall's normal from the starting gap, v² = |v₀|² + 2 g_n gap (as hypotenuses,
+    which do not overflow)."""
     spheres = scenario.spheres
-    squared = (spheres.velocity**2).sum(axis=1)
+    v = spheres.velocity
+    speed = np.hypot(np.hypot(v[:, 0], v[:, 1]), v[:, 2])
     gravity = np.array(scenario.gravity, dtype=float)
+    fall = np.zeros(len(speed))  # the largest 2 g_n gap
     for wall in (w for w in scenario.walls if w.type == "plane"):
         normal = np.array(wall.normal, dtype=float) / math.hypot(*wall.normal)
         toward = max(0.0, -float(gravity @ normal))  # gravity's component towards the plane
         gap = (spheres.position - np.array(wall.point)) @ normal - spheres.radius
-        squared = np.maximum(squared, (spheres.velocity**2).sum(axis=1) + 2.0 * toward * gap)
-    return np.sqrt(squared)
+        fall = np.maximum(fall, 2.0 * toward * gap)
+    return np.hypot(speed, np.sqrt(fall))
+
+
+def kinematic_dt(scenario: Scenario) -> tuple[float, str]:
+    """The largest Δt at which no sphere moves more than half the neighbour skin in a step,
+    and one line on it: PFC's kinematic constraint (Peng 2020 §1). The pair list is rebuilt
+    once spheres may have closed half the skin; a sphere faster than this could pass a
+    contact, or another sphere, between two checks. Speeds as `particle_speeds`, and the
+    walls' own in every stage."""
+    from revdem_cli.state import default_skin
+
+    walls = [w.velocity for w in scenario.walls]
+    walls += [v for stage in scenario.stages for v in stage.wall_velocities.values()]
+    fastest = max([float(particle_speeds(scenario).max())] + [math.hypot(*v) for v in walls])
+    if fastest == 0.0:
+        return math.inf, "nothing moves at the start"
+    half_skin = 0.5 * default_skin(scenario)
+    return half_skin / fastest, (
+        f"the fastest sphere or wall, at {fastest:.3g} m/s, would move more than half the "
+        f"neighbour skin ({half_skin:.3g} m) in a step, and contacts could be missed"
+    )
 
 
 def _largest_moduli(scenario: Scenario, pairs) -> tuple[float, float]:
@@ -139,7 +162,7 @@ def impact_stiffness(scenario: Scenario, kind: Kind) -> tuple[float, float]:
     scenario's laws (for Hertz, Hanley 2020 Eq 6 and 10); k_s = 0 without shear springs. The
     overlap stores the impact's kinetic energy, ½ m* v²."""
     contact = scenario.contact
-    energy = 0.5 * kind.speed**2 / kind.inverse_mass
+    energy = 0.5 * kind.speed * kind.speed / kind.inverse_mass  # inf, not OverflowError
     overlap = laws.evaluate(contact, "normal", "impact_overlap", energy, kind.rstar, kind.estar)
     kn = laws.evaluate(contact, "normal", "force", overlap, kind.rstar, kind.estar)[1]
     if laws.chosen(contact, "tangential") is None:

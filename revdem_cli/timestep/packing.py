@@ -274,13 +274,18 @@ def single_contact_limits(contacts: Contacts, state: State) -> dict[str, float]:
 
 
 def automatic_dt(state: State, model: Model) -> float:
-    """dt = 'auto': integrator.dt_safety times the smaller of the packing's limit in `state`
-    (with its viscous damping) and the start-up estimate `guard.critical_time_step`, which
-    bounds the contacts still to form (a pour starts with none)."""
-    from revdem_cli.timestep.guard import critical_time_step
+    """dt = 'auto': integrator.dt_safety times the smallest of the packing's limit in `state`
+    (with its viscous damping), the start-up estimate `guard.critical_time_step`, which
+    bounds the contacts still to form (a pour starts with none), and the kinematic limit
+    `guard.kinematic_dt`."""
+    from revdem_cli.timestep.guard import critical_time_step, kinematic_dt
 
     scenario = model.scenario
-    limit = min(packing_limit(state, model).damped_dt, critical_time_step(scenario)[0])
+    limit = min(
+        packing_limit(state, model).damped_dt,
+        critical_time_step(scenario)[0],
+        kinematic_dt(scenario)[0],
+    )
     if not math.isfinite(limit):
         raise InputError(
             "integrator.dt = 'auto': this scenario has no contact and none can form, so no "
