@@ -234,11 +234,13 @@ def check_time_step(scenario: Scenario) -> None:
     if not steps:
         return
     field, dt = max(steps, key=lambda item: item[1])
-    for name, limit_of in (
-        ("kinematic limit", kinematic_dt),
-        ("critical time step", critical_time_step),
-    ):
-        limit, reason = limit_of(scenario)
+    limits = [
+        ("critical time step", *critical_time_step(scenario)),
+        ("kinematic limit", *kinematic_dt(scenario)),
+    ]
+    if limits[0][1] == 0.0:  # speeds so high that no contact law bounds them: say so
+        limits.reverse()
+    for name, limit, reason in limits:
         if dt > limit:
             times = f"{dt / limit:.3g} times" if limit > 0.0 else "above"
             raise InputError(

@@ -7,6 +7,8 @@ to a temporary name and renamed, so either is complete or absent.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,37 +94,78 @@ def write_restart(path: Path, restart: Restart) -> None:
         meta.attrs["stage_first_time"] = restart.stage_first_time
         meta.attrs["stage_dt"] = restart.stage_dt
         for name in Particles._fields:
-            f.create_dataset(f"particles/{name}", data=getattr(s.particles, name))
+            _put(f, f"particles/{name}", getattr(s.particles, name))
         for name in WALL_FIELDS:
-            f.create_dataset(f"walls/{name}", data=getattr(s.walls, name))
+            _put(f, f"walls/{name}", getattr(s.walls, name))
         for name in CELL_ARRAYS:
-            f.create_dataset(f"cell/{name}", data=getattr(s.cell, name))
+            _put(f, f"cell/{name}", getattr(s.cell, name))
         for name in Fixed._fields:
-            f.create_dataset(f"fixed/{name}", data=getattr(s.fixed, name))
+            _put(f, f"fixed/{name}", getattr(s.fixed, name))
         n = int(s.pairs.count[0])
         for name in PAIR_FIELDS:
             if getattr(s.pairs, name).shape[0] > 0:  # arrays of the laws it has
-                f.create_dataset(f"pairs/{name}", data=getattr(s.pairs, name)[:n])
-        f.create_dataset("pairs/x_built", data=s.pairs.x_built)
+                _put(f, f"pairs/{name}", getattr(s.pairs, name)[:n])
+        _put(f, "pairs/x_built", s.pairs.x_built)
         if restart.resumption is not None:
             _write_resumption(meta.create_group("checkpoint"), restart.resumption)
+        seal(meta)
     os.replace(tmp, path)
 
 
 def _write_resumption(group: h5py.Group, resumption: Resumption) -> None:
     for name, value in vars(resumption).items():
         if name == "events":
-            group.create_dataset(name, data=value)
+            _put(group, name, value)
         else:
             group.attrs[name] = value
+    seal(group)
 
 
-def _read_resumption(group: h5py.Group) -> Resumption:
+def digest(data: np.ndarray) -> str:
+    """SHA-256 of an array's type, shape and bytes."""
+    a = np.ascontiguousarray(data)
+    return hashlib.sha256(f"{a.dtype.str} {a.shape} ".encode() + a.tobytes()).hexdigest()
+
+
+def _put(group: h5py.Group, name: str, data: np.ndarray) -> None:
+    """A dataset with the digest of its contents, which `_verified` checks on reading."""
+    group.create_dataset(name, data=data).attrs["sha256"] = digest(np.asarray(data))
+
+
+def _attributes_digest(group: h5py.Group) -> str:
+    """SHA-256 of a group's attributes but its own digest, by name."""
+    plain = {k: np.asarray(v).tolist() for k, v in group.attrs.items() if k != "sha256"}
+    return hashlib.sha256(json.dumps(plain, sort_keys=True).encode()).hexdigest()
+
+
+def seal(group: h5py.Group) -> None:
+    """Store the digest of a group's attributes, once they are all written."""
+    group.attrs["sha256"] = _attributes_digest(group)
+
+
+def _check_seal(group: h5py.Group, path: Path) -> None:
+    if group.attrs.get("sha256") != _attributes_digest(group):
+        raise InputError(
+            f"{path}: damaged revdem restart (the attributes of {group.name} fail their checksum)"
+        )
+
+
+def _verified(f: h5py.File, path: Path, name: str) -> np.ndarray:
+    """Dataset `name` read, its digest checked: InputError naming it if a bit changed."""
+    dataset = get_dataset(f, path, name)
+    data = dataset[()]
+    if dataset.attrs.get("sha256") != digest(np.asarray(data)):
+        raise InputError(f"{path}: damaged revdem restart ({name} fails its checksum)")
+    return data
+
+
+def _read_resumption(f: h5py.File, path: Path) -> Resumption:
+    group = f["revdem/checkpoint"]
     attrs = group.attrs
     return Resumption(
         phase=str(attrs["phase"]),
         stage_index=int(attrs["stage_index"]),
-        events=group["events"][:],
+        events=_verified(f, path, "revdem/checkpoint/events"),
         frames=int(attrs["frames"]),
         observables=int(attrs["observables"]),
         reverse=bool(attrs["reverse"]),
@@ -153,6 +196,9 @@ def _meta(f: h5py.File, path: Path, checkpoint: bool | None) -> h5py.Group:
     if meta is None or meta.attrs.get("kind") != "restart":
         what = "a revdem trajectory" if "parameters/revdem" in f else "no /revdem group"
         raise InputError(f"{path}: not a revdem restart file ({what})")
+    _check_seal(meta, path)
+    if "checkpoint" in meta:
+        _check_seal(meta["checkpoint"], path)
     if checkpoint is None:
         return meta
     if checkpoint and "checkpoint" not in meta:
@@ -170,11 +216,11 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     forward phase: those a forward step needs)."""
 
     def read(name: str):
-        return get_dataset(f, path, name)[:]
+        return _verified(f, path, name)
 
     scenario = stored_scenario(meta.attrs["scenario_json"], path)
     shear = scenario.contact.tangential != "none"
-    resumption = _read_resumption(meta["checkpoint"]) if "checkpoint" in meta else None
+    resumption = _read_resumption(f, path) if "checkpoint" in meta else None
     reversing = resumption is None or resumption.phase == "reverse"
     particles = Particles(*(read(f"particles/{name}") for name in Particles._fields))
     n_particles = len(particles.x)
@@ -192,9 +238,11 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
             getattr(pairs, name)[:n] = read(f"pairs/{name}")
     pairs.x_built[:] = read("pairs/x_built")
     pairs.count[:] = n
+    step = int(meta.attrs["step"])
+    _check_state(path, scenario, particles, pairs, walls, step, int(meta.attrs["stage_first_step"]))
     index_by_particle(pairs.i, pairs.j, n, pairs.first, pairs.start, pairs.slots)
     return Restart(
-        state=State(particles, pairs, walls, cell, integers, step=int(meta.attrs["step"])),
+        state=State(particles, pairs, walls, cell, integers, step=step),
         scenario_json=str(meta.attrs["scenario_json"]),
         scenario_text=str(meta.attrs["scenario_text"]),
         scenario_suffix=str(meta.attrs["scenario_suffix"]),
@@ -205,6 +253,53 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         stage_dt=float(meta.attrs["stage_dt"]),
         resumption=resumption,
     )
+
+
+def _check_state(path, scenario, particles, pairs, walls, step, stage_first_step) -> None:
+    """What the compiled kernels index memory with, and what they divide by, in range: an
+    InputError naming the first value that is not (a restart edited with its checksums
+    recomputed, or written by something else)."""
+    import math
+
+    from revdem_cli import wall_shapes
+
+    def refuse(what: str):
+        raise InputError(f"{path}: damaged revdem restart ({what})")
+
+    if not 0 <= stage_first_step <= step:
+        refuse(f"revdem/step {step} is not at or after its stage's first step {stage_first_step}")
+    n, materials = len(particles.x), len(scenario.materials)
+    for name in ("x", "v", "omega", "f", "torque"):
+        bad = np.flatnonzero(~np.isfinite(getattr(particles, name)).all(axis=1))
+        if len(bad):
+            refuse(f"particles/{name} of particle {bad[0]} is not finite")
+    for name in ("radius", "mass", "inertia"):
+        bad = np.flatnonzero(
+            ~(getattr(particles, name) > 0.0) | ~np.isfinite(getattr(particles, name))
+        )
+        if len(bad):
+            refuse(f"particles/{name} of particle {bad[0]} is not a positive number")
+    for group, values in (("particles", particles.material), ("walls", walls.material)):
+        bad = np.flatnonzero((values < 0) | (values >= materials))
+        if len(bad):
+            k = bad[0]
+            refuse(
+                f"{group}/material {values[k]} of entry {k} is none of the {materials} materials"
+            )
+    bad = np.flatnonzero((walls.kind < 1) | (walls.kind > len(wall_shapes.SHAPES)))
+    if len(bad):
+        refuse(f"walls/kind {walls.kind[bad[0]]} of wall {bad[0]} is no wall shape")
+    count = int(pairs.count[0])
+    i, j = pairs.i[:count].astype(np.int64), pairs.j[:count].astype(np.int64)
+    order = i * n + j  # strictly increasing: sorted by (i, j), each pair once
+    bad = np.flatnonzero((i < 0) | (i >= j) | (j >= n))
+    if len(bad):
+        refuse(f"pairs/i, pairs/j: pair {bad[0]} is ({i[bad[0]]}, {j[bad[0]]}), not i < j < {n}")
+    bad = np.flatnonzero(np.diff(order) <= 0)
+    if len(bad):
+        refuse(f"pairs/i, pairs/j: pair {bad[0] + 1} is not after pair {bad[0]} in (i, j) order")
+    if not math.isfinite(float(np.abs(pairs.x_built).max(initial=0.0))):
+        refuse("pairs/x_built is not finite")
 
 
 def restart_scenario(path: str | Path):

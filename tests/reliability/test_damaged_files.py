@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 
 from revdem_cli.cli import app
 from revdem_cli.io import SCHEMA_VERSION
+from revdem_cli.io.restart import seal
 from tests.conftest import CONFIGS, assert_one_line_error
 
 runner = CliRunner()
@@ -191,6 +192,7 @@ def test_a_reversal_whose_forward_trajectory_is_damaged_is_refused_before_it_run
     forward.write_bytes((run / f"{NAME}.forward.h5").read_bytes()[:5000])
     with h5py.File(restart, "r+") as f:
         f["revdem"].attrs["trajectory"] = str(forward)
+        seal(f["revdem"])  # moved on purpose: its checksum recomputed
     out = tmp_path / "out"
     result = runner.invoke(app, ["reverse", str(restart), "--out", str(out), "-q"])
     assert_one_line_error(result, f"error: {forward}: not a readable HDF5 file (truncated: 5000 ")

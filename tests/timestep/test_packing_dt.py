@@ -233,5 +233,7 @@ def test_auto_dt_in_fixed_point_is_refused():
 
 
 def test_a_time_step_that_is_neither_a_number_nor_auto_is_refused():
-    with pytest.raises(ValueError, match="a valid number of seconds or 'auto', not the text 'fast'"):
+    with pytest.raises(
+        ValueError, match="a valid number of seconds or 'auto', not the text 'fast'"
+    ):
         Scenario.model_validate(lattice(3, {"model": "hertz"}, integrator={"dt": "fast"}))
