@@ -84,12 +84,17 @@ class Checkpoints:
                 signal.signal(kind, before[kind])
 
 
+def find_checkpoints(out_dir: Path) -> list[Path]:
+    """The checkpoints in `out_dir`, by name."""
+    return sorted(Path(out_dir).glob(f"*{SUFFIX}"))
+
+
 def find_checkpoint(out_dir: Path) -> Path:
     """The one checkpoint in `out_dir`; InputError if there is none or more than one."""
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         raise InputError(f"--resume {out_dir}: no such directory")
-    found = sorted(out_dir.glob(f"*{SUFFIX}"))
+    found = find_checkpoints(out_dir)
     if not found:
         raise InputError(
             f"--resume {out_dir}: no checkpoint (*{SUFFIX}) there: the run finished, or "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -18,6 +19,28 @@ class _Commands(TyperGroup):
     run that cannot go on (RunFailed) or a failure of the machine or the file system
     (RuntimeError, OSError, MemoryError) into one line and exit status 1. Any other
     exception is a bug and keeps its traceback."""
+
+    def main(self, *args, standalone_mode: bool = True, **kwargs):
+        """As click's, but a usage error (an unknown option, a missing argument) is one line
+        "error: COMMAND: what is wrong" and exit status 2, not a box with the usage."""
+        from typer._click.exceptions import NoArgsIsHelpError, UsageError
+
+        if not standalone_mode:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        try:
+            code = super().main(*args, standalone_mode=False, **kwargs)
+        except NoArgsIsHelpError as exc:  # `revdem` alone: its help
+            typer.echo(exc.ctx.get_help())
+            sys.exit(2)
+        except UsageError as exc:
+            where = exc.ctx.command_path if exc.ctx else "revdem"
+            message = " ".join(exc.format_message().split())
+            typer.echo(f"error: {where}: {message} (see {where} --help)", err=True)
+            sys.exit(2)
+        except typer.Abort:
+            typer.echo("aborted", err=True)
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
 
     def invoke(self, ctx):
         try:
@@ -36,6 +59,16 @@ class _Commands(TyperGroup):
         except (RuntimeError, OSError, MemoryError) as exc:
             typer.echo(f"failed: {type(exc).__name__}: {exc}", err=True)
             raise typer.Exit(1) from None
+
+
+def _named_path(value: str | Path) -> Path:
+    """An --out as given (or its default); an empty one is refused, not read as the current
+    directory."""
+    if isinstance(value, Path):
+        return value
+    if not value.strip():
+        raise typer.BadParameter("an empty path; give a directory (. for this one)")
+    return Path(value)
 
 
 app = typer.Typer(
@@ -79,7 +112,9 @@ def run(
     scenario: Annotated[
         Path | None, typer.Argument(help="Scenario file (.toml, .yaml or .yml).")
     ] = None,
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("out"),
+    out: Annotated[
+        Path, typer.Option("--out", parser=_named_path, help="Output directory.")
+    ] = Path("out"),
     overrides: Annotated[
         list[str] | None,
         typer.Option("--set", help="Override a scenario field, e.g. --set integrator.dt=5e-8."),
@@ -174,9 +209,15 @@ def _interruptible(command, *args):
 
 def _keep_checkpoint(out: Path, name: str, force: bool) -> None:
     """Refuse to start over an unfinished run unless forced: its checkpoint names it."""
-    from revdem_cli.checkpoint import checkpoint_path
+    from revdem_cli.checkpoint import checkpoint_path, find_checkpoints
 
     path = checkpoint_path(out, name)
+    others = [p for p in find_checkpoints(out) if p != path]
+    if others:
+        raise InputError(
+            f"{others[0]}: the checkpoint of another unfinished run is in {out}; continue it "
+            f"with revdem run --resume {out}, or give this run another --out"
+        )
     if not path.exists():
         return
     if not force:
@@ -191,7 +232,10 @@ def _keep_checkpoint(out: Path, name: str, force: bool) -> None:
 def reverse(
     restart: Annotated[Path, typer.Argument(help="Restart file written by `revdem run`.")],
     out: Annotated[
-        Path | None, typer.Option("--out", help="Output directory (default: beside the restart).")
+        Path | None,
+        typer.Option(
+            "--out", parser=_named_path, help="Output directory (default: beside the restart)."
+        ),
     ] = None,
     steps: Annotated[
         int | None, typer.Option("--steps", help="Reverse only this many steps.")
@@ -322,7 +366,11 @@ def export(
     ] = False,
     out: Annotated[
         Path | None,
-        typer.Option("--out", help="Output directory (default: TRAJECTORY without .h5, + .vtk)."),
+        typer.Option(
+            "--out",
+            parser=_named_path,
+            help="Output directory (default: TRAJECTORY without .h5, + .vtk).",
+        ),
     ] = None,
 ) -> None:
     """Export a trajectory for visualisation (VTK for ParaView).
@@ -350,7 +398,9 @@ def sweep(
             "--set", help="key=v1,v2,...: values of a scenario field; every combination runs."
         ),
     ] = None,
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("out/sweep"),
+    out: Annotated[
+        Path, typer.Option("--out", parser=_named_path, help="Output directory.")
+    ] = Path("out/sweep"),
     scheduler: Annotated[
         str | None,
         typer.Option("--scheduler", help="Address of a dask scheduler (default: a local cluster)."),
@@ -390,7 +440,10 @@ def report(
         Path, typer.Option("--paper", help="What the paper reports (paper_numbers.toml).")
     ] = Path("scenarios/hanley2020/paper_numbers.toml"),
     out: Annotated[
-        Path | None, typer.Option("--out", help="Markdown file (default: DIRECTORY/report.md).")
+        Path | None,
+        typer.Option(
+            "--out", parser=_named_path, help="Markdown file (default: DIRECTORY/report.md)."
+        ),
     ] = None,
 ) -> None:
     """Write a Markdown page setting the paper's numbers beside the runs in DIRECTORY.
@@ -411,12 +464,18 @@ def _figure_paths(out: Path, spec) -> list[Path]:
 
 
 def _keep_outputs(paths: list[Path], force: bool) -> None:
-    """Refuse to overwrite outputs of an earlier run unless forced, naming the first one."""
-    existing = [path for path in paths if path.exists()]
+    """Refuse to overwrite outputs of an earlier run unless forced, naming the first one. A
+    symbolic link at an output's place (dangling or not) counts as one; forced, the link
+    itself is removed, so that nothing is written through it, outside the output folder."""
+    existing = [path for path in paths if path.exists() or path.is_symlink()]
     if existing and not force:
         more = len(existing) - 1
         others = f" (and {more} more output{'s' * (more > 1)} of this run)" if more else ""
-        raise InputError(f"{existing[0]}: exists{others}; use --force to overwrite")
+        link = " (a symbolic link)" if existing[0].is_symlink() else ""
+        raise InputError(f"{existing[0]}: exists{link}{others}; use --force to overwrite")
+    for path in existing:
+        if path.is_symlink():
+            path.unlink()
 
 
 class _nothing:

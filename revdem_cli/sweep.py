@@ -29,7 +29,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, check_regular
 
 KIND = "sweep"
 RESULTS = (
@@ -93,6 +93,7 @@ def parse_sets(sets: list[str]) -> dict[str, list[str]]:
 def read_sweep(path: Path, sets: list[str]) -> Sweep:
     """The sweep of a sweep file or of a scenario file, with `sets` added."""
     path = Path(path)
+    check_regular(path, "scenario file")
     if path.suffix.lower() == ".toml":
         try:
             data = tomllib.loads(path.read_text())

@@ -14,7 +14,7 @@ from revdem_cli.config.checks import FieldError
 from revdem_cli.config.geometry import check_spheres
 from revdem_cli.config.host import check_host
 from revdem_cli.config.schema import Scenario
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, check_regular
 
 
 def _field_path(location: tuple) -> str:
@@ -178,6 +178,7 @@ def load_scenario(
     """Read and check a scenario file (`scenario_from_text`); returns the scenario and its
     text (kept in outputs)."""
     path = Path(path)
+    check_regular(path, "scenario file")
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:

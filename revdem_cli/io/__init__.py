@@ -28,9 +28,10 @@ def open_hdf5(path):
     is a revdem trajectory or restart that this revdem cannot read (`check_revdem_file`)."""
     from pathlib import Path
 
-    from revdem_cli.errors import InputError
+    from revdem_cli.errors import InputError, check_regular
 
     path = Path(path)
+    check_regular(path, "it as HDF5")
     try:
         f = _open_for_reading(path)
     except OSError as exc:

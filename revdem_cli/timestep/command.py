@@ -15,6 +15,8 @@ from revdem_cli.errors import InputError
 
 SHAPES = ("sphere", "ellipsoid", "superquadric", "polyhedron")
 SWEEPABLE = ("kn", "ks", "density", "damping", "omega-max")
+MAX_SWEEP = 10_000
+"""Most values one --sweep takes (each one an assessment, several with --verify)."""
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,25 @@ def _positive(option: str, value: float | None) -> float:
 
 
 def _body(particle: _Particle, prefix: str):
+    """The Body the options describe, its volume, mass, moments and half-lengths positive
+    finite float64 numbers; InputError names the options at fault."""
+    try:
+        body = _described(particle, prefix)
+        sizes = (body.volume, body.mass, *body.moments, *body.half_lengths)
+        representable = all(math.isfinite(v) and v > 0.0 for v in sizes)
+    except ArithmeticError:  # a size whose powers leave float64 on the way
+        representable = False
+    if not representable:
+        size = {"sphere": "radius", "polyhedron": "vertices"}.get(particle.shape, "semi-axes")
+        raise InputError(
+            f"--{prefix}{size} with --{prefix}density {particle.density:g}: the "
+            f"{particle.shape}'s volume, mass and moments of inertia are not all positive "
+            "finite float64 numbers; give sizes in metres within about 1e-60 to 1e60"
+        )
+    return body
+
+
+def _described(particle: _Particle, prefix: str):
     """The Body the options describe; InputError names the option at fault."""
     from revdem_cli.timestep import shapes
 
@@ -101,7 +122,14 @@ class _Case:
             raise InputError(f"--damping must be zero or positive, got {self.damping:g}")
         if self.omega_max is not None:
             _positive("--omega-max", self.omega_max)
-        return assess(first, other, kn, ks, self.damping, self.omega_max, check)
+        try:
+            return assess(first, other, kn, ks, self.damping, self.omega_max, check)
+        except ArithmeticError:  # a square or a quotient left float64 on the way
+            raise InputError(
+                "the particles' sizes, densities and --kn, --ks give numbers outside float64's "
+                "range in the criteria (a square underflows or overflows); give SI values "
+                "closer to 1"
+            ) from None
 
 
 def _sweep_values(spec: str) -> tuple[str, list[float]]:
@@ -113,11 +141,12 @@ def _sweep_values(spec: str) -> tuple[str, list[float]]:
         raise InputError(f"--sweep {spec!r}: the parameter must be one of {', '.join(SWEEPABLE)}")
     try:
         start, stop, count = span.split(":")
-        values = np.linspace(float(start), float(stop), int(count))
+        start, stop, count = float(start), float(stop), int(count)
     except ValueError:
         raise InputError(f"--sweep {spec!r}: expected {name}=START:STOP:COUNT") from None
-    if values.size < 1:
-        raise InputError(f"--sweep {spec!r}: COUNT must be at least 1")
+    if not 1 <= count <= MAX_SWEEP:
+        raise InputError(f"--sweep {spec!r}: COUNT must be between 1 and {MAX_SWEEP}")
+    values = np.linspace(start, stop, count)
     return name, values.tolist()
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, check_regular
 
 # Relative tolerance (times the particle diameter) of the polyhedron checks.
 GEOMETRY_RTOL = 1e-6
@@ -160,6 +160,7 @@ def _vertex_rows(text: str, path: Path) -> list:
 
 def read_vertices(path: Path) -> np.ndarray:
     """Vertices (n, 3) from a JSON or plain-text file (one `x y z` a line, # comments)."""
+    check_regular(path, "vertex file")
     try:
         text = Path(path).read_text()
     except OSError as exc:

@@ -16,7 +16,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from revdem_cli.config import apply_overrides, describe_validation_error, parse_text
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, check_regular
 from revdem_cli.timestep import shapes
 
 KIND = "critical_time_step"
@@ -241,6 +241,7 @@ def read_study(path: str | Path, overrides: list[str] = ()) -> TimestepStudy | N
     A file that cannot be read is no study here: the scenario loader reports it.
     """
     path = Path(path)
+    check_regular(path, "scenario file")
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError):

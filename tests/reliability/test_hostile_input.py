@@ -85,3 +85,79 @@ def test_a_file_nested_without_end_is_refused(suffix, tmp_path):
     separator = " = " if suffix == ".toml" else ": "
     path.write_text("name" + separator + "[" * 50000 + "]" * 50000 + "\n")
     assert_one_line_error(invoke("validate", path), f"{path}: nested more than 64 levels deep")
+
+
+@pytest.mark.parametrize(
+    ("size", "fragment"),
+    [
+        ("1e-300 1e-300 1e-300", "--semi-axes with --density 1000: the ellipsoid's volume"),
+        ("1e300 1e300 1e300", "--semi-axes with --density 1000: the ellipsoid's volume"),
+        ("1e200 1 1", "are not all positive finite float64 numbers"),
+        ("3 2 1e-300", "outside float64's range in the criteria"),
+    ],
+)
+def test_dt_of_a_particle_float64_cannot_hold_is_one_line(size, fragment):
+    """These once ended in ZeroDivisionError and OverflowError tracebacks."""
+    args = ["dt", "--shape", "ellipsoid", "--semi-axes", *size.split(), "--density", "1000"]
+    assert_one_line_error(invoke(*args, "--kn", "1e10"), fragment)
+
+
+def test_a_polyhedron_scaled_out_of_float64_is_one_line(tmp_path):
+    corners = [[sx * 1e-300, sy * 1e-300, sz * 1e-300] for sx in (-1, 1) for sy in (-1, 1)
+               for sz in (-1, 1)]  # fmt: skip
+    path = tmp_path / "cube.txt"
+    path.write_text("\n".join(" ".join(str(v) for v in c) for c in corners))
+    result = invoke(
+        "dt", "--shape", "polyhedron", "--vertices", path, "--density", "1", "--kn", "1"
+    )
+    assert_one_line_error(result, "--vertices with --density 1: the polyhedron's volume")
+
+
+def test_a_sweep_of_a_hundred_million_values_is_refused():
+    args = ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "1000", "--kn", "1e5"]
+    result = invoke(*args, "--sweep", "kn=1:2:100000000")
+    assert_one_line_error(result, "COUNT must be between 1 and 10000")
+
+
+@pytest.mark.parametrize("arguments", [["run", COLLISION, "--bogus"], ["bogus"], ["run", "--out"]])
+def test_a_usage_error_is_one_line(arguments):
+    result = invoke(*arguments)
+    assert_one_line_error(result, "(see revdem")
+
+
+def test_an_empty_out_is_refused_not_read_as_here(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = invoke("run", COLLISION, "--out", "", "-q")
+    assert_one_line_error(result, "Invalid value for '--out': an empty path")
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("what", ["validate", "info", "reverse", "dt"])
+def test_a_fifo_is_refused_at_once(what, tmp_path):
+    """Reading a FIFO once blocked for ever, waiting for a writer."""
+    import os
+
+    fifo = tmp_path / "pipe.h5"
+    os.mkfifo(fifo)
+    args = {"validate": ["validate", fifo], "info": ["info", fifo], "reverse": ["reverse", fifo],
+            "dt": ["dt", "--restart", fifo]}[what]  # fmt: skip
+    assert_one_line_error(invoke(*args), "not a regular file: a FIFO, socket or device")
+
+
+def test_a_symbolic_link_at_an_output_is_not_written_through(tmp_path):
+    out, outside = tmp_path / "out", tmp_path / "outside.h5"
+    out.mkdir()
+    link = out / "collision.forward.h5"
+    link.symlink_to(outside)
+    args = ["run", COLLISION, "--out", out, "-q", "--set", "stages.0.steps=100"]
+    assert_one_line_error(invoke(*args), f"{link}: exists (a symbolic link)")
+    assert invoke(*args, "--force").exit_code == 0
+    assert not outside.exists() and not link.is_symlink() and link.is_file()
+
+
+def test_a_run_beside_another_runs_checkpoint_is_refused(tmp_path):
+    (tmp_path / "oedometer.checkpoint.h5").write_bytes(b"")
+    for force in ([], ["--force"]):
+        result = invoke("run", COLLISION, "--out", tmp_path, "-q", *force)
+        assert_one_line_error(result, "the checkpoint of another unfinished run")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["oedometer.checkpoint.h5"]
