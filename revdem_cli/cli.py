@@ -172,7 +172,7 @@ def run(
         return
 
     from revdem_cli.config import load_scenario
-    from revdem_cli.engine import output_paths, run_scenario
+    from revdem_cli.engine import check_time_step, output_paths, run_scenario
 
     spec, text = load_scenario(scenario, overrides or [], host=True)
     paths = output_paths(out, spec.name)
@@ -180,6 +180,8 @@ def run(
     if not no_reverse and spec.reversed_stage is not None:
         written += [paths["reverse"], paths["compare"]]
     _keep_checkpoint(out, spec.name, force)
+    if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
+        check_time_step(spec)
     _keep_outputs(written + _figure_paths(out, spec), force)
     with _progress(quiet) or _nothing() as progress:
         outputs = _interruptible(
@@ -254,10 +256,11 @@ def reverse(
     """
     from revdem_cli.engine import output_paths, reverse_run
     from revdem_cli.io.h5md import open_trajectory
-    from revdem_cli.io.restart import restart_scenario
+    from revdem_cli.io.restart import read_restart, restart_scenario
     from revdem_cli.report.summary import print_summary
 
     spec, forward = restart_scenario(restart)
+    read_restart(restart)  # every dataset checked before earlier outputs are replaced
     folder = out if out is not None else restart.parent
     paths = output_paths(folder, spec.name)
     written = [paths["reverse"]]
@@ -464,9 +467,11 @@ def _figure_paths(out: Path, spec) -> list[Path]:
 
 
 def _keep_outputs(paths: list[Path], force: bool) -> None:
-    """Refuse to overwrite outputs of an earlier run unless forced, naming the first one. A
-    symbolic link at an output's place (dangling or not) counts as one; forced, the link
-    itself is removed, so that nothing is written through it, outside the output folder."""
+    """Refuse to overwrite outputs of an earlier run unless forced, naming the first one;
+    forced, remove them all before the run starts, so that a run that fails leaves none of
+    the earlier run's files beside its own (a verdict, a restart of another run). A symbolic
+    link at an output's place (dangling or not) counts as an output: it is removed, not
+    written through."""
     existing = [path for path in paths if path.exists() or path.is_symlink()]
     if existing and not force:
         more = len(existing) - 1
@@ -474,8 +479,7 @@ def _keep_outputs(paths: list[Path], force: bool) -> None:
         link = " (a symbolic link)" if existing[0].is_symlink() else ""
         raise InputError(f"{existing[0]}: exists{link}{others}; use --force to overwrite")
     for path in existing:
-        if path.is_symlink():
-            path.unlink()
+        path.unlink()
 
 
 class _nothing:

@@ -33,6 +33,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
     state, so the round trip returned exactly the state it started from.
     """
     with open_trajectory(first) as a, open_trajectory(second) as b:
+        pairing = check_pairing(a, b, Path(first), Path(second))
         tolerance = tolerance or tolerances_of(a)
         steps_a, steps_b = frame_steps(a), frame_steps(b)
         common, index_a, index_b = np.intersect1d(steps_a, steps_b, return_indices=True)
@@ -76,6 +77,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         "bitwise_identical": identical,
         "reversible": first_divergence is None,
         "divergence_causes": causes,
+        "pairing": pairing,
         "tolerance": tolerance.model_dump(),
         "smallest_diameter": diameter,
         "frames": {
@@ -84,6 +86,41 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
             "velocity_error": table[:, 2].tolist(),
         },
     }
+
+
+def check_pairing(forward, reverse, first: Path, second: Path) -> str:
+    """That `second` reverses `first`: a forward trajectory and a reversed one, in that order,
+    of one scenario, the reversal from a restart that ends `first` (when that restart is
+    still there: else said so). InputError naming what does not fit; returns one line on
+    what was checked."""
+    import json
+
+    from revdem_cli.io.restart import restart_scenario
+
+    if first.resolve() == second.resolve():
+        raise InputError(f"{first}: compared with itself; give its reversed trajectory second")
+    directions = tuple(
+        str(run["parameters/revdem"].attrs.get("direction", "?")) for run in (forward, reverse)
+    )
+    if directions != ("forward", "reverse"):
+        raise InputError(
+            f"{first} and {second}: a comparison takes a forward trajectory and its reversal, "
+            f"in that order; these are {directions[0]} and {directions[1]}"
+        )
+    scenarios = [
+        json.loads(run["parameters/revdem"].attrs["scenario_json"]) for run in (forward, reverse)
+    ]
+    if scenarios[0] != scenarios[1]:
+        raise InputError(f"{first} and {second}: runs of different scenarios (or of other --set)")
+    source = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
+    if not source.is_file():
+        return f"one scenario; the reversal's restart {source} is not there to say it ends {first}"
+    ends = restart_scenario(source)[1]
+    if ends.resolve() != first.resolve():
+        raise InputError(
+            f"{second} reverses {source}, which ends the forward run {ends}, not {first}"
+        )
+    return f"{second} reverses {source}, the restart that ends {first}"
 
 
 def first_divergence_of(rows, tolerance: Reversal) -> int | None:

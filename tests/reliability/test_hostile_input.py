@@ -161,3 +161,55 @@ def test_a_run_beside_another_runs_checkpoint_is_refused(tmp_path):
         result = invoke("run", COLLISION, "--out", tmp_path, "-q", *force)
         assert_one_line_error(result, "the checkpoint of another unfinished run")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["oedometer.checkpoint.h5"]
+
+
+@pytest.fixture(scope="module")
+def two_runs(tmp_path_factory):
+    """The collision, 200 steps each way, run twice into two folders."""
+    folders = []
+    for name in ("a", "b"):
+        out = tmp_path_factory.mktemp(name)
+        args = ["run", COLLISION, "--out", out, "-q", "--set", "stages.0.steps=200"]
+        assert invoke(*args).exit_code == 0
+        folders.append(out)
+    return folders
+
+
+def test_a_comparison_takes_a_forward_run_and_its_own_reversal(two_runs, tmp_path):
+    """Once a file compared with itself was "reversible, bitwise identical", and two unrelated
+    runs were diagnosed as round-off growth."""
+    a, b = two_runs
+    forward, reverse = a / "collision.forward.h5", a / "collision.reverse.h5"
+    assert_one_line_error(invoke("compare", forward, forward), "compared with itself")
+    assert_one_line_error(invoke("compare", reverse, forward), "these are reverse and forward")
+    other = b / "collision.reverse.h5"
+    assert_one_line_error(
+        invoke("compare", forward, other),
+        f"which ends the forward run {b / 'collision.forward.h5'}",
+    )
+    result = invoke("compare", forward, reverse, "--json")
+    assert result.exit_code == 0
+    assert '"pairing": ' in result.output and "the restart that ends" in result.output
+
+
+def test_a_comparison_of_runs_of_other_settings_is_refused(two_runs, tmp_path):
+    out = tmp_path / "c"
+    args = ["run", COLLISION, "--out", out, "-q", "--set", "stages.0.steps=100"]
+    assert invoke(*args).exit_code == 0
+    result = invoke("compare", two_runs[0] / "collision.forward.h5", out / "collision.reverse.h5")
+    assert_one_line_error(result, "runs of different scenarios")
+
+
+def test_a_forced_run_that_fails_leaves_none_of_the_earlier_runs_files(tmp_path):
+    """A forced run removes the earlier outputs before it starts: one that then blows up
+    leaves its own files only, not the earlier verdict beside them."""
+    args = ["run", COLLISION, "--out", tmp_path, "-q", "--set", "stages.0.steps=200"]
+    assert invoke(*args).exit_code == 0
+    assert (tmp_path / "collision.compare.json").exists()
+    refused = invoke(*args, "--force", "--set", "integrator.dt=1e-3")  # input: nothing removed
+    assert_one_line_error(refused, "times the critical time step")
+    assert (tmp_path / "collision.compare.json").exists()
+    failed = invoke(*args, "--force", "--set", "integrator.dt=1e-3", "--allow-unstable-dt")
+    assert failed.exit_code == 1 and "blown up" in failed.output
+    assert not (tmp_path / "collision.compare.json").exists()
+    assert invoke("info", tmp_path / "collision.forward.h5").exit_code == 0
