@@ -118,7 +118,8 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     ends = restart_scenario(source)[1]
     if ends.resolve() != first.resolve():
         raise InputError(
-            f"{second} reverses {source}, which ends the forward run {ends}, not {first}"
+            f"{first}: not the forward run that {second} reverses: its restart {source} ends "
+            f"the forward run {ends}"
         )
     return f"{second} reverses {source}, the restart that ends {first}"
 
