@@ -185,7 +185,8 @@ def test_a_comparison_takes_a_forward_run_and_its_own_reversal(two_runs, tmp_pat
     other = b / "collision.reverse.h5"
     assert_one_line_error(
         invoke("compare", forward, other),
-        f"which ends the forward run {b / 'collision.forward.h5'}",
+        f"{forward}: not the forward run that {other} reverses",
+        f"ends the forward run {b / 'collision.forward.h5'}",
     )
     result = invoke("compare", forward, reverse, "--json")
     assert result.exit_code == 0
