@@ -491,7 +491,17 @@ class _nothing:
 
 
 def main() -> None:
-    app()
+    try:
+        app()
+    except SystemExit as exc:
+        stuck = sys.modules.get("revdem_cli.io.h5md")
+        if stuck is not None and stuck.STUCK:  # see io.h5md.STUCK: its message is out
+            import os
+
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(exc.code if isinstance(exc.code, int) else 1)
+        raise
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ from revdem_cli.checkpoint import Checkpoints, checkpoint_path, find_checkpoint
 from revdem_cli.compare import compare_trajectories
 from revdem_cli.config import Scenario
 from revdem_cli.errors import InputError
-from revdem_cli.io import open_hdf5
+from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
 from revdem_cli.kernels.events import COLUMNS, KINDS
@@ -313,7 +313,7 @@ def _reverse(
     forward = Path(start.trajectory)
     if forward.exists():
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
-        paths["compare"].write_text(json.dumps(verdict, indent=2) + "\n")
+        write_text(paths["compare"], json.dumps(verdict, indent=2) + "\n")
         outputs.comparison, outputs.verdict = paths["compare"], verdict
         outputs.figures = _figures(scenario, forward, paths["reverse"], run.out_dir)
     run.checkpoints.discard()

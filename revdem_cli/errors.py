@@ -28,3 +28,26 @@ def check_regular(path, what: str) -> None:
         raise InputError(
             f"{path}: cannot read {what} (not a regular file: a FIFO, socket or device)"
         )
+
+
+class WriteFailed(RunFailed):
+    """A file could not be written (a full disk, a file-size limit, a lost mount): the
+    message names the file and why."""
+
+    def __init__(self, path, exc: BaseException):
+        super().__init__(f"cannot write {path}: {why_not_written(exc)}")
+
+
+def why_not_written(exc: BaseException) -> str:
+    """The reason of a failed write in a few words: the system's for its errno (HDF5 puts it
+    in its message), else the message itself."""
+    import os
+    import re
+
+    number = getattr(exc, "errno", None)
+    if not isinstance(number, int):
+        found = re.search(r"errno = (\d+)", str(exc))
+        number = int(found[1]) if found else None
+    if number:
+        return f"{os.strerror(number)} (errno {number})"
+    return " ".join(str(exc).split())[:200] or type(exc).__name__

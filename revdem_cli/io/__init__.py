@@ -23,6 +23,24 @@ DAMAGE = (KeyError, OSError, RuntimeError, ValueError, TypeError, IndexError, At
 """What h5py raises when it reads a damaged file."""
 
 
+def write_text(path, text: str) -> None:
+    """Write a text file under a temporary name renamed over `path`: the old file or the new
+    one, whole; WriteFailed naming it if it cannot be written, the temporary removed."""
+    import os
+    from pathlib import Path
+
+    from revdem_cli.errors import WriteFailed
+
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise WriteFailed(path, exc) from None
+
+
 def open_hdf5(path):
     """Open an HDF5 file for reading; InputError naming the file if it is not one, or if it
     is a revdem trajectory or restart that this revdem cannot read (`check_revdem_file`)."""

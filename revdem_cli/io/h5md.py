@@ -31,7 +31,7 @@ import h5py
 import numpy as np
 
 from revdem_cli import __version__
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, WriteFailed
 from revdem_cli.io import DAMAGE, FRAME_FIELDS, GRID_FIELDS, SCHEMA_VERSION, one_line, open_hdf5
 
 
@@ -64,6 +64,12 @@ def bounding_box(x: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Edge lengths of the smallest axis-aligned box holding every sphere, m: the box of a
     frame whose boundaries are open."""
     return (x + radius[:, None]).max(axis=0) - (x - radius[:, None]).min(axis=0)
+
+
+STUCK: list[TrajectoryWriter] = []
+"""Writers whose file HDF5 could not close after a failed write, kept with their objects:
+freeing them, or shutting HDF5 down, would try the file again and fail (tracebacks, then
+a segmentation fault in HDF5 1.14), so the command line leaves at once instead."""
 
 
 class _Appender:
@@ -109,7 +115,19 @@ class TrajectoryWriter:
         parameters: dict,
     ):
         self.path = Path(path)
-        self.file = h5py.File(self.path, "w", libver="latest")
+        self.closed = False
+        try:
+            self.file = h5py.File(self.path, "w", libver="latest")
+            self._create(radius, mass, periodic, particle_stress, fixed_point, observables,
+                         events_shape, parameters)  # fmt: skip
+        except (OSError, RuntimeError) as exc:
+            self._abandon(exc)
+
+    def _create(
+        self, radius, mass, periodic, particle_stress, fixed_point, observables, events_shape,
+        parameters,
+    ) -> None:  # fmt: skip
+        """The file's groups and datasets, empty, and its parameters."""
         f = self.file
         h5md = f.create_group("h5md")
         h5md.attrs["version"] = np.array([1, 1])
@@ -247,15 +265,37 @@ class TrajectoryWriter:
             self.flush()
 
     def flush(self) -> None:
-        """Write everything waiting and flush the file to disk."""
-        for appender in self._appenders():
-            appender.write()
-        self.file.flush()
+        """Write everything waiting and flush the file to disk; WriteFailed naming the file
+        if it cannot be written."""
+        try:
+            for appender in self._appenders():
+                appender.write()
+            self.file.flush()
+        except (OSError, RuntimeError) as exc:
+            self._abandon(exc)
         self.flushed = time.monotonic()
 
+    def _abandon(self, exc: BaseException):
+        """Close a file that can no longer be written (HDF5 then closes every object in it,
+        so none is left to fail as the process exits) and raise WriteFailed."""
+        self.closed = True
+        file = getattr(self, "file", None)
+        try:
+            if file is not None:
+                file.close()
+        except (OSError, RuntimeError):  # HDF5 keeps it open, to flush it as it shuts down
+            STUCK.append(self)  # its objects kept: each would fail again as it is freed
+        raise WriteFailed(self.path, exc) from None
+
     def close(self) -> None:
+        if self.closed:
+            return
         self.flush()
-        self.file.close()
+        self.closed = True
+        try:
+            self.file.close()
+        except (OSError, RuntimeError) as exc:
+            self._abandon(exc)
 
     def __enter__(self) -> TrajectoryWriter:
         return self

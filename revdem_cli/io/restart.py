@@ -8,6 +8,7 @@ to a temporary name and renamed, so either is complete or absent.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 from dataclasses import dataclass
@@ -16,7 +17,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, WriteFailed
 from revdem_cli.io import (
     DAMAGE,
     SCHEMA_VERSION,
@@ -77,39 +78,54 @@ class Restart:
 
 
 def write_restart(path: Path, restart: Restart) -> None:
+    """Write a restart (or checkpoint) to a temporary name and rename it over `path`, so
+    that `path` is the old file or the new one, whole; WriteFailed naming it if it cannot be
+    written, the temporary removed and the old file left as it was. The HDF5 image is made
+    in memory and written as plain bytes: a write that fails then leaves HDF5 no file it
+    cannot close (it would fail again, and crash, as the process exits)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
+    image = io.BytesIO()
+    with h5py.File(image, "w") as f:
+        _write_state(f, restart)
+    try:
+        tmp.write_bytes(image.getbuffer())
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise WriteFailed(path, exc) from None
+
+
+def _write_state(f: h5py.File, restart: Restart) -> None:
     s = restart.state
-    with h5py.File(tmp, "w") as f:
-        meta = f.create_group("revdem")
-        meta.attrs["kind"] = "restart"
-        meta.attrs["schema_version"] = SCHEMA_VERSION
-        meta.attrs["step"] = s.step
-        meta.attrs["stage"] = restart.stage
-        meta.attrs["scenario_json"] = restart.scenario_json
-        meta.attrs["scenario_text"] = restart.scenario_text
-        meta.attrs["scenario_suffix"] = restart.scenario_suffix
-        meta.attrs["trajectory"] = restart.trajectory
-        meta.attrs["stage_first_step"] = restart.stage_first_step
-        meta.attrs["stage_first_time"] = restart.stage_first_time
-        meta.attrs["stage_dt"] = restart.stage_dt
-        for name in Particles._fields:
-            _put(f, f"particles/{name}", getattr(s.particles, name))
-        for name in WALL_FIELDS:
-            _put(f, f"walls/{name}", getattr(s.walls, name))
-        for name in CELL_ARRAYS:
-            _put(f, f"cell/{name}", getattr(s.cell, name))
-        for name in Fixed._fields:
-            _put(f, f"fixed/{name}", getattr(s.fixed, name))
-        n = int(s.pairs.count[0])
-        for name in PAIR_FIELDS:
-            if getattr(s.pairs, name).shape[0] > 0:  # arrays of the laws it has
-                _put(f, f"pairs/{name}", getattr(s.pairs, name)[:n])
-        _put(f, "pairs/x_built", s.pairs.x_built)
-        if restart.resumption is not None:
-            _write_resumption(meta.create_group("checkpoint"), restart.resumption)
-        seal(meta)
-    os.replace(tmp, path)
+    meta = f.create_group("revdem")
+    meta.attrs["kind"] = "restart"
+    meta.attrs["schema_version"] = SCHEMA_VERSION
+    meta.attrs["step"] = s.step
+    meta.attrs["stage"] = restart.stage
+    meta.attrs["scenario_json"] = restart.scenario_json
+    meta.attrs["scenario_text"] = restart.scenario_text
+    meta.attrs["scenario_suffix"] = restart.scenario_suffix
+    meta.attrs["trajectory"] = restart.trajectory
+    meta.attrs["stage_first_step"] = restart.stage_first_step
+    meta.attrs["stage_first_time"] = restart.stage_first_time
+    meta.attrs["stage_dt"] = restart.stage_dt
+    for name in Particles._fields:
+        _put(f, f"particles/{name}", getattr(s.particles, name))
+    for name in WALL_FIELDS:
+        _put(f, f"walls/{name}", getattr(s.walls, name))
+    for name in CELL_ARRAYS:
+        _put(f, f"cell/{name}", getattr(s.cell, name))
+    for name in Fixed._fields:
+        _put(f, f"fixed/{name}", getattr(s.fixed, name))
+    n = int(s.pairs.count[0])
+    for name in PAIR_FIELDS:
+        if getattr(s.pairs, name).shape[0] > 0:  # arrays of the laws it has
+            _put(f, f"pairs/{name}", getattr(s.pairs, name)[:n])
+    _put(f, "pairs/x_built", s.pairs.x_built)
+    if restart.resumption is not None:
+        _write_resumption(meta.create_group("checkpoint"), restart.resumption)
+    seal(meta)
 
 
 def _write_resumption(group: h5py.Group, resumption: Resumption) -> None:

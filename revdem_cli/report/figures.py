@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from revdem_cli.errors import WriteFailed
+
 
 def _frames(path: Path, field: str) -> tuple[np.ndarray, np.ndarray]:
     from revdem_cli.io.h5md import open_trajectory
@@ -69,8 +71,13 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel(xlabel)
     fig.tight_layout()
-    fig.savefig(png)
-    plt.close(fig)
+    try:
+        fig.savefig(png)
+    except OSError as exc:
+        Path(png).unlink(missing_ok=True)
+        raise WriteFailed(png, exc) from None
+    finally:
+        plt.close(fig)
     return png
 
 

@@ -11,7 +11,7 @@ from typing import Annotated
 
 import typer
 
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, WriteFailed
 
 SHAPES = ("sphere", "ellipsoid", "superquadric", "polyhedron")
 SWEEPABLE = ("kn", "ks", "density", "damping", "omega-max")
@@ -164,13 +164,19 @@ def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
             "recommended_dt": assessment.recommended,
         }
         rows.append(row | {f"dt_{e.key}": e.dt for e in estimates})
+    try:  # a path that cannot be opened is bad input; a write that fails, a failure
+        stream = open(out, "w", newline="") if out else contextlib.nullcontext(sys.stdout)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write it ({exc.strerror})") from None
     try:
-        with open(out, "w", newline="") if out else contextlib.nullcontext(sys.stdout) as stream:
-            writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+        with stream as opened:
+            writer = csv.DictWriter(opened, fieldnames=list(rows[0]))
             writer.writeheader()
             writer.writerows(rows)
     except OSError as exc:
-        raise InputError(f"--out {out}: cannot write it ({exc.strerror})") from None
+        if out:
+            out.unlink(missing_ok=True)
+        raise WriteFailed(out or "standard output", exc) from None
     if out:
         typer.echo(f"wrote {len(rows)} rows to {out}")
 
