@@ -108,7 +108,7 @@ def check_inside_cell(scenario) -> None:
     outside = np.nonzero(((x < 0.0) | (x >= size)).any(axis=1))[0]
     if len(outside):
         where, sphere = located(scenario, int(outside[0]))
-        raise FieldError(where, f"{sphere} starts outside the cell [0, L) of size {list(size)}")
+        raise FieldError(where, f"{sphere} starts outside the cell [0, L) of size {size.tolist()}")
     r_max = float(scenario.spheres.radius.max())
     reach = 2.0 * r_max + (scenario.neighbours.skin or 0.1 * r_max)
     for axis, edge in zip("xyz", size, strict=True):

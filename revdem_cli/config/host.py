@@ -34,12 +34,21 @@ def memory_bytes() -> int:
     return min(memory, int(limit)) if limit.isdigit() else memory
 
 
-def _size(nbytes: float) -> str:
+def _size(nbytes: float, digits: int = 3) -> str:
     """A byte count for people: 3.2 GB, 512 MB, 64 kB."""
     for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if nbytes >= scale:
-            return f"{nbytes / scale:.3g} {unit}"
+            return f"{nbytes / scale:.{digits}g} {unit}"
     return f"{nbytes:.0f} bytes"
+
+
+def _sizes(needed: float, available: float) -> tuple[str, str]:
+    """Two byte counts with the digits it takes to tell them apart (not 25.3 GB > 25.3 GB)."""
+    for digits in range(3, 10):
+        shown = _size(needed, digits), _size(available, digits)
+        if shown[0] != shown[1]:
+            return shown
+    return shown
 
 
 def check_host(scenario) -> None:
@@ -59,10 +68,11 @@ def check_memory(scenario) -> None:
     for field, source in generated:
         count += source.count
         if count * per_sphere > memory:
+            needed, available = _sizes(count * per_sphere, memory)
             raise FieldError(
                 field,
-                f"{count} spheres would need about {_size(count * per_sphere)} of memory "
-                f"({per_sphere} bytes each), more than the {_size(memory)} of this machine",
+                f"{count} spheres would need about {needed} of memory "
+                f"({per_sphere} bytes each), more than the {available} of this machine",
             )
 
 
