@@ -364,30 +364,50 @@ def info(
 @app.command()
 def export(
     trajectory: Annotated[Path, typer.Argument(help="Trajectory, e.g. out/collision.forward.h5.")],
-    vtk: Annotated[
-        bool, typer.Option("--vtk", help="VTK XML: one .vtp a frame and a .pvd series.")
-    ] = False,
+    format: Annotated[
+        str | None,
+        typer.Option(
+            "--format",
+            help="vtk (a .vtp a frame and a .pvd series, for ParaView), gsd (one .gsd, for "
+            "OVITO and HOOMD-blue) or lammps-dump (one text dump, for OVITO, VMD, LAMMPS).",
+        ),
+    ] = None,
+    vtk: Annotated[bool, typer.Option("--vtk", help="The same as --format vtk.")] = False,
     out: Annotated[
         Path | None,
         typer.Option(
             "--out",
             parser=_named_path,
-            help="Output directory (default: TRAJECTORY without .h5, + .vtk).",
+            help="Output directory (vtk) or file (default: TRAJECTORY without .h5, + .vtk, "
+            ".gsd or .dump).",
         ),
     ] = None,
 ) -> None:
-    """Export a trajectory for visualisation (VTK for ParaView).
+    """Export a trajectory for visualisation: VTK for ParaView, GSD or a LAMMPS dump for OVITO.
 
-    Open the .pvd in ParaView and glyph the points with spheres scaled by `radius`.
+    ParaView: open the .pvd and glyph the points with spheres scaled by `radius`. OVITO
+    reads the radii and the box of a .gsd or a .dump as they are.
 
-    Example: revdem export --vtk out/collision.forward.h5 --out out/vtk
+    Example: revdem export out/collision.forward.h5 --format gsd
     """
-    if not vtk:
-        raise InputError("export: choose a format (--vtk)")
-    from revdem_cli.io.vtk import export_vtk
+    formats = {"vtk": ".vtk", "gsd": ".gsd", "lammps-dump": ".dump"}
+    if vtk and format not in (None, "vtk"):
+        raise InputError(f"export: --vtk and --format {format} ask for two formats; give one")
+    format = "vtk" if vtk else format
+    if format not in formats:
+        given = "give one" if format is None else f"got {format!r}"
+        raise InputError(f"export: --format must be one of {', '.join(formats)}; {given}")
+    target = out or trajectory.with_suffix(formats[format])
+    if format == "vtk":
+        from revdem_cli.io.vtk import export_vtk
 
-    written = export_vtk(trajectory, out or trajectory.with_suffix(".vtk"))
-    typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
+        written = export_vtk(trajectory, target)
+        typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
+        return
+    from revdem_cli.io.particles import export_gsd, export_lammps_dump
+
+    exporter = export_gsd if format == "gsd" else export_lammps_dump
+    typer.echo(f"wrote {exporter(trajectory, target)}")
 
 
 @app.command()

@@ -113,15 +113,15 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     if scenarios[0] != scenarios[1]:
         raise InputError(f"{first} and {second}: runs of different scenarios (or of other --set)")
     source = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
-    if not source.is_file():
-        return f"one scenario; the reversal's restart {source} is not there to say it ends {first}"
+    if not source.is_file():  # names only: the same words wherever the runs were made
+        return f"one scenario; the reversal's restart {source.name} is not there to say more"
     ends = restart_scenario(source)[1]
     if ends.resolve() != first.resolve():
         raise InputError(
             f"{first}: not the forward run that {second} reverses: its restart {source} ends "
             f"the forward run {ends}"
         )
-    return f"{second} reverses {source}, the restart that ends {first}"
+    return f"{second.name} reverses {source.name}, the restart that ends {first.name}"
 
 
 def first_divergence_of(rows, tolerance: Reversal) -> int | None:

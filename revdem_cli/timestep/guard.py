@@ -101,6 +101,8 @@ def kinematic_dt(scenario: Scenario) -> tuple[float, str]:
     walls' own in every stage."""
     from revdem_cli.state import default_skin
 
+    if scenario.sphere_count < 2 and not scenario.walls:
+        return math.inf, "one sphere and no walls: no contact to miss"
     walls = [w.velocity for w in scenario.walls]
     walls += [v for stage in scenario.stages for v in stage.wall_velocities.values()]
     fastest = max([float(particle_speeds(scenario).max())] + [math.hypot(*v) for v in walls])
