@@ -8,7 +8,6 @@ to a temporary name and renamed, so either is complete or absent.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
 from dataclasses import dataclass
@@ -85,11 +84,12 @@ def write_restart(path: Path, restart: Restart) -> None:
     cannot close (it would fail again, and crash, as the process exits)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    image = io.BytesIO()
-    with h5py.File(image, "w") as f:
+    with h5py.File(path.name, "w", driver="core", backing_store=False) as f:  # in memory
         _write_state(f, restart)
+        f.flush()
+        image = f.id.get_file_image()
     try:
-        tmp.write_bytes(image.getbuffer())
+        tmp.write_bytes(image)
         os.replace(tmp, path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
