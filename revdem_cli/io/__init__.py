@@ -24,8 +24,13 @@ DAMAGE = (KeyError, OSError, RuntimeError, ValueError, TypeError, IndexError, At
 
 
 def write_text(path, text: str) -> None:
-    """Write a text file under a temporary name renamed over `path`: the old file or the new
-    one, whole; WriteFailed naming it if it cannot be written, the temporary removed."""
+    """`write_file` of a text."""
+    write_file(path, text.encode())
+
+
+def write_file(path, data: bytes) -> None:
+    """Write a file under a temporary name renamed over `path`: the old file or the new one,
+    whole; WriteFailed naming it if it cannot be written, the temporary removed."""
     import os
     from pathlib import Path
 
@@ -34,7 +39,7 @@ def write_text(path, text: str) -> None:
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     try:
-        tmp.write_text(text)
+        tmp.write_bytes(data)
         os.replace(tmp, path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)

@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from revdem_cli.errors import InputError, WriteFailed
+from revdem_cli.errors import InputError
 from revdem_cli.io import (
     DAMAGE,
     SCHEMA_VERSION,
@@ -24,6 +23,7 @@ from revdem_cli.io import (
     one_line,
     open_hdf5,
     stored_scenario,
+    write_file,
 )
 from revdem_cli.kernels.arrays import Cell, Fixed, Pairs, Particles, Walls
 from revdem_cli.kernels.neighbours import index_by_particle
@@ -83,17 +83,11 @@ def write_restart(path: Path, restart: Restart) -> None:
     in memory and written as plain bytes: a write that fails then leaves HDF5 no file it
     cannot close (it would fail again, and crash, as the process exits)."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
     with h5py.File(path.name, "w", driver="core", backing_store=False) as f:  # in memory
         _write_state(f, restart)
         f.flush()
         image = f.id.get_file_image()
-    try:
-        tmp.write_bytes(image)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise WriteFailed(path, exc) from None
+    write_file(path, image)
 
 
 def _write_state(f: h5py.File, restart: Restart) -> None:

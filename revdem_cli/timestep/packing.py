@@ -155,8 +155,7 @@ class Mode:
 class PackingLimit:
     """The assembly's critical time step and where it comes from."""
 
-    contacts: int
-    wall_contacts: int
+    contacts: Contacts  # those of the state, whose stiffness the limit is of
     omega_max: float  # rad/s, √λ_max of M⁻¹K
     dt: float  # 2 / omega_max, s (Peng 2020 Eq 47)
     damped_dt: float  # with the top mode's own viscous damping, s
@@ -167,8 +166,8 @@ class PackingLimit:
 
     def to_dict(self) -> dict:
         return {
-            "contacts": self.contacts,
-            "wall_contacts": self.wall_contacts,
+            "contacts": len(self.contacts),
+            "wall_contacts": self.contacts.walls,
             "omega_max": self.omega_max,
             "dt": self.dt,
             "damped_dt": self.damped_dt,
@@ -205,7 +204,7 @@ def packing_limit(state: State, model: Model, tolerance: float = 1e-9) -> Packin
     scale = _mass_scale(state)
     if len(contacts) == 0 or not contacts.kn.any():
         mode = Mode(0.0, 0.0, [], (math.nan,) * 3)
-        return PackingLimit(0, 0, 0.0, math.inf, math.inf, 0.0, mode, np.zeros((n, 6)), 0.0)
+        return PackingLimit(contacts, 0.0, math.inf, math.inf, 0.0, mode, np.zeros((n, 6)), 0.0)
     stiffness = StiffnessOperator(contacts, n, contacts.kn, contacts.ks, contacts.kr)
 
     def matvec(y):
@@ -223,8 +222,7 @@ def packing_limit(state: State, model: Model, tolerance: float = 1e-9) -> Packin
     )
     omega = math.sqrt(lam)
     return PackingLimit(
-        contacts=len(contacts),
-        wall_contacts=contacts.walls,
+        contacts=contacts,
         omega_max=omega,
         dt=2.0 / omega,
         damped_dt=dt_velocity_verlet(lam, c_mode, 1.0),
@@ -383,8 +381,7 @@ def engine_bracket(
     dyn = Dynamics(np.array(model.scenario.gravity, dtype=float), 0.0, 1.0)
     scale = _mass_scale(state)
     shape = scale * limit.vector  # velocities along the mode
-    contacts = contacts_of(state, model)
-    size = 1e-6 * float(np.median(contacts.overlap)) * limit.omega_max / np.abs(shape).max()
+    size = 1e-6 * float(np.median(limit.contacts.overlap)) * limit.omega_max / np.abs(shape).max()
     kick = size * shape
     weight = 1.0 / scale**2  # M, so that the difference is measured in kinetic energy's norm
 
@@ -442,7 +439,8 @@ def assess_restart(path, verify: bool) -> dict:
     scenario = Scenario.model_validate_json(restart.scenario_json)
     model, state = Model.of(scenario), restart.state
     limit = packing_limit(state, model)
-    single = single_contact_limits(contacts_of(state, model), state)
+    single = single_contact_limits(limit.contacts, state)
+    guard, why = critical_time_step(scenario)
     stage = next(s for s in scenario.stages if s.name == restart.stage)
     estimates = {
         "single_contact_normal": (
@@ -462,10 +460,7 @@ def assess_restart(path, verify: bool) -> dict:
             head_on_limit(scenario),
         ),
         "rayleigh": ("Rayleigh time step of the smallest sphere (guard)", rayleigh_limit(scenario)),
-        "guard": (
-            "the run's start-up check: " + critical_time_step(scenario)[1],
-            critical_time_step(scenario)[0],
-        ),
+        "guard": ("the run's start-up check: " + why, guard),
         "in_use": (f"the time step of stage {stage.name!r}", restart.stage_dt),
     }
     if not laws.chosen(scenario.contact, "normal").FROM_MATERIALS:
