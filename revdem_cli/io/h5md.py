@@ -195,15 +195,20 @@ class TrajectoryWriter:
         """(frames, observables rows) in the file: all of them just after a flush."""
         return self.frame_rows[0].dataset.shape[0], self.observable_clock[0].dataset.shape[0]
 
+    def _phases(self) -> tuple[list[_Appender], list[_Appender]]:
+        """The appenders in the two phases of a flush: every value and time, then the steps.
+        The file is flushed after each phase, so HDF5 has written the values' and times' new
+        extents before any step grows: a run killed at any moment leaves rows of values past
+        the last step (which readers ignore), never a step short of its values (which
+        `io._check_trajectory` calls damage). Without the flush between, HDF5's metadata
+        cache may write one dataset's extent before another's, in any order."""
+        values = self.frame_rows[1:2] + self.frame_rows[2:]
+        values += [self.observable_clock[1]] + [appender for appender, _ in self.observable_rows]
+        return values, [self.observable_clock[0], self.frame_rows[0]]
+
     def _appenders(self):
-        """Every appender, in the order a flush writes them: each clock after the values it
-        times, its time before its step, so that a run killed in the middle of a flush leaves
-        rows of values past the last step (which readers ignore), never a step short of its
-        values (which `io._check_trajectory` calls damage)."""
-        yield from self.frame_rows[2:]
-        yield from (appender for appender, _ in self.observable_rows)
-        yield from reversed(self.observable_clock)
-        yield from reversed(self.frame_rows[:2])
+        for phase in self._phases():
+            yield from phase
 
     def _observable_appenders(self):
         yield from self.observable_clock
@@ -268,9 +273,10 @@ class TrajectoryWriter:
         """Write everything waiting and flush the file to disk; WriteFailed naming the file
         if it cannot be written."""
         try:
-            for appender in self._appenders():
-                appender.write()
-            self.file.flush()
+            for phase in self._phases():
+                for appender in phase:
+                    appender.write()
+                self.file.flush()
         except (OSError, RuntimeError) as exc:
             self._abandon(exc)
         self.flushed = time.monotonic()

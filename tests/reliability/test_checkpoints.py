@@ -185,6 +185,40 @@ def test_a_flush_cut_short_at_any_dataset_leaves_a_trajectory_that_opens(tmp_pat
     assert datasets > 10
 
 
+def test_a_flush_writes_no_step_before_the_file_holds_its_values(tmp_path, monkeypatch):
+    """SIGKILL leaves whatever HDF5's metadata cache had written, in any order, since the
+    last H5Fflush. So between two flushes a step dataset must never grow beside a value or
+    time dataset: then a killed run leaves either values past the last step, or steps whose
+    values already reached the file. (A random kill found this in CI: a coordination
+    number's values shorter than its steps.)"""
+    scenario = two_spheres()
+    model, state = Model.of(scenario), initial_state(scenario)
+    writer = _writer(tmp_path / "t.h5", state, model, "", "forward")
+    since_flush: list[list[str]] = [[]]
+    real_append, real_flush = h5md._append, writer.file.flush
+
+    def append(dataset, values):
+        since_flush[-1].append(dataset.name)
+        real_append(dataset, values)
+
+    def flush():
+        since_flush.append([])
+        real_flush()
+
+    monkeypatch.setattr(h5md, "_append", append)
+    monkeypatch.setattr(writer.file, "flush", flush)
+    for step in range(3):
+        writer.frame(step, float(step), state.particles, empty_events())
+        writer.observables(np.array([step]), np.array([float(step)]), np.zeros((1, model.layout.width)))
+        writer.flush()
+    writer.close()
+    written = [names for names in since_flush if names]
+    assert sum(map(len, written)) > 10
+    for names in written:
+        steps = [name.endswith("/step") for name in names]
+        assert all(steps) or not any(steps), names
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_a_run_killed_at_random_moments_resumes_to_the_uninterrupted_files(
     case, uninterrupted, tmp_path, kills
