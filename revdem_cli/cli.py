@@ -96,11 +96,6 @@ def _root(
     """revdem: reversible DEM experiments and critical time steps."""
 
 
-def _progress(quiet: bool):
-    """A rich progress display of steps, or None when quiet."""
-    return None if quiet else _progress_of("steps")
-
-
 def _progress_of(unit: str):
     from revdem_cli.report.progress import RunProgress
 
@@ -147,16 +142,13 @@ def run(
 
     Example: revdem run configs/collision.toml --out out
     """
+    from revdem_cli import api
     from revdem_cli.report.summary import print_summary
 
     if resume is not None:
         if scenario is not None or overrides:
             raise InputError("--resume DIR continues a run as it was: give no scenario or --set")
-        from revdem_cli.engine import resume_run
-
-        with _progress(quiet) or _nothing() as progress:
-            outputs = _interruptible(resume_run, resume, progress)
-        print_summary(outputs)
+        print_summary(_interruptible(api.resume, resume, not quiet).outputs)
         return
     if scenario is None:
         raise InputError("give a scenario file, or --resume DIR")
@@ -166,35 +158,17 @@ def run(
     study = read_study(scenario, overrides or [])
     if study is not None:
         stems = [f"{study.name}.figure{number}" for number in study.figures]
-        _keep_outputs([out / f"{stem}.{ext}" for stem in stems for ext in ("csv", "png")], force)
+        paths = [out / f"{stem}.{ext}" for stem in stems for ext in ("csv", "png")]
+        api.keep_outputs(paths, force)
         for path in run_study(study, out):
             typer.echo(f"wrote {path}")
         return
 
-    from revdem_cli.config import load_scenario
-    from revdem_cli.engine import check_time_step, output_paths, run_scenario
-
-    spec, text = load_scenario(scenario, overrides or [], host=True)
-    paths = output_paths(out, spec.name)
-    written = [paths["forward"], paths["restart"]]
-    if not no_reverse and spec.reversed_stage is not None:
-        written += [paths["reverse"], paths["compare"]]
-    _keep_checkpoint(out, spec.name, force)
-    if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
-        check_time_step(spec)
-    _keep_outputs(written + _figure_paths(out, spec), force)
-    with _progress(quiet) or _nothing() as progress:
-        outputs = _interruptible(
-            run_scenario,
-            spec,
-            text,
-            scenario.suffix.lower(),
-            out,
-            not no_reverse,
-            progress,
-            allow_unstable_dt,
-        )
-    print_summary(outputs)
+    experiment = api.load(scenario, overrides=overrides or [])
+    result = _interruptible(
+        api.run, experiment, out, not no_reverse, force, allow_unstable_dt, not quiet
+    )
+    print_summary(result.outputs)
 
 
 def _interruptible(command, *args):
@@ -207,27 +181,6 @@ def _interruptible(command, *args):
     except Interrupted as exc:
         typer.echo(f"stopped: {exc}", err=True)
         raise typer.Exit(exc.exit_code) from None
-
-
-def _keep_checkpoint(out: Path, name: str, force: bool) -> None:
-    """Refuse to start over an unfinished run unless forced: its checkpoint names it."""
-    from revdem_cli.checkpoint import checkpoint_path, find_checkpoints
-
-    path = checkpoint_path(out, name)
-    others = [p for p in find_checkpoints(out) if p != path]
-    if others:
-        raise InputError(
-            f"{others[0]}: the checkpoint of another unfinished run is in {out}; continue it "
-            f"with revdem run --resume {out}, or give this run another --out"
-        )
-    if not path.exists():
-        return
-    if not force:
-        raise InputError(
-            f"{path}: an unfinished run; continue it with revdem run --resume {out}, or start "
-            "again with --force"
-        )
-    path.unlink()
 
 
 @app.command()
@@ -254,23 +207,10 @@ def reverse(
 
     Example: revdem reverse out/collision.restart.h5
     """
-    from revdem_cli.engine import output_paths, reverse_run
-    from revdem_cli.io.h5md import open_trajectory
-    from revdem_cli.io.restart import read_restart, restart_scenario
+    from revdem_cli import api
     from revdem_cli.report.summary import print_summary
 
-    spec, forward = restart_scenario(restart)
-    read_restart(restart)  # every dataset checked before earlier outputs are replaced
-    folder = out if out is not None else restart.parent
-    paths = output_paths(folder, spec.name)
-    written = [paths["reverse"]]
-    if forward.is_file():  # compared with, and drawn beside, the reversed run
-        open_trajectory(forward).close()  # checked before the reversal, not after it
-        written += [paths["compare"], *_figure_paths(folder, spec)]
-    _keep_checkpoint(folder, spec.name, force)
-    _keep_outputs(written, force)
-    with _progress(quiet) or _nothing() as progress:
-        outputs = _interruptible(reverse_run, restart, out, steps, progress)
+    outputs = _interruptible(api.reverse, restart, out, steps, force, not quiet).outputs
     print_summary(outputs)
 
 
@@ -369,7 +309,8 @@ def export(
         typer.Option(
             "--format",
             help="vtk (a .vtp a frame and a .pvd series, for ParaView), gsd (one .gsd, for "
-            "OVITO and HOOMD-blue) or lammps-dump (one text dump, for OVITO, VMD, LAMMPS).",
+            "OVITO and HOOMD-blue), lammps-dump (one text dump, for OVITO, VMD, LAMMPS) or "
+            "lammps-data (the last frame as a data file, for LAMMPS' read_data).",
         ),
     ] = None,
     vtk: Annotated[bool, typer.Option("--vtk", help="The same as --format vtk.")] = False,
@@ -379,18 +320,20 @@ def export(
             "--out",
             parser=_named_path,
             help="Output directory (vtk) or file (default: TRAJECTORY without .h5, + .vtk, "
-            ".gsd or .dump).",
+            ".gsd, .dump or .data).",
         ),
     ] = None,
 ) -> None:
-    """Export a trajectory for visualisation: VTK for ParaView, GSD or a LAMMPS dump for OVITO.
+    """Export a trajectory: VTK for ParaView, GSD or a LAMMPS dump for OVITO, a LAMMPS data
+    file of its last frame for LAMMPS and LIGGGHTS.
 
     ParaView: open the .pvd and glyph the points with spheres scaled by `radius`. OVITO
-    reads the radii and the box of a .gsd or a .dump as they are.
+    reads the radii and the box of a .gsd or a .dump as they are. A scenario reads a data
+    file back with [[particles_from]] lammps_data.
 
     Example: revdem export out/collision.forward.h5 --format gsd
     """
-    formats = {"vtk": ".vtk", "gsd": ".gsd", "lammps-dump": ".dump"}
+    formats = {"vtk": ".vtk", "gsd": ".gsd", "lammps-dump": ".dump", "lammps-data": ".data"}
     if vtk and format not in (None, "vtk"):
         raise InputError(f"export: --vtk and --format {format} ask for two formats; give one")
     format = "vtk" if vtk else format
@@ -404,9 +347,13 @@ def export(
         written = export_vtk(trajectory, target)
         typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
         return
-    from revdem_cli.io.particles import export_gsd, export_lammps_dump
+    from revdem_cli.io import particles
 
-    exporter = export_gsd if format == "gsd" else export_lammps_dump
+    exporter = {
+        "gsd": particles.export_gsd,
+        "lammps-dump": particles.export_lammps_dump,
+        "lammps-data": particles.export_lammps_data,
+    }[format]
     typer.echo(f"wrote {exporter(trajectory, target)}")
 
 
@@ -443,8 +390,9 @@ def sweep(
     from revdem_cli.sweep import read_sweep, run_sweep
 
     plan = read_sweep(scenario, sets or [])
-    progress = None if quiet else _progress_of("variants")
-    with progress or _nothing() as shown:
+    from contextlib import nullcontext
+
+    with nullcontext() if quiet else _progress_of("variants") as shown:
         rows, tables = run_sweep(plan, out, scheduler, workers, shown)
     failed = [row for row in rows if row["error"]]
     for path in tables:
@@ -479,35 +427,6 @@ def report(
 
 
 app.command("dt")(_dt)
-
-
-def _figure_paths(out: Path, spec) -> list[Path]:
-    """The figures a run of `spec` writes into `out`."""
-    return [out / f"{spec.name}.{kind}.png" for kind in spec.output.figures]
-
-
-def _keep_outputs(paths: list[Path], force: bool) -> None:
-    """Refuse to overwrite outputs of an earlier run unless forced, naming the first one;
-    forced, remove them all before the run starts, so that a run that fails leaves none of
-    the earlier run's files beside its own (a verdict, a restart of another run). A symbolic
-    link at an output's place (dangling or not) counts as an output: it is removed, not
-    written through."""
-    existing = [path for path in paths if path.exists() or path.is_symlink()]
-    if existing and not force:
-        more = len(existing) - 1
-        others = f" (and {more} more output{'s' * (more > 1)} of this run)" if more else ""
-        link = " (a symbolic link)" if existing[0].is_symlink() else ""
-        raise InputError(f"{existing[0]}: exists{link}{others}; use --force to overwrite")
-    for path in existing:
-        path.unlink()
-
-
-class _nothing:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False
 
 
 def main() -> None:

@@ -53,9 +53,11 @@ def _writer(
         path,
         state.particles.radius,
         state.particles.mass,
+        state.particles.material,
         scenario.cell is not None,
         scenario.output.particle_stress,
         scenario.integrator.arithmetic == "fixed",
+        scenario.output.contacts,
         model.layout.series(),
         (len(KINDS), len(COLUMNS)),
         {

@@ -12,6 +12,7 @@ from functools import cached_property
 import numpy as np
 
 from revdem_cli.config import Scenario, Stage
+from revdem_cli.contacts import contact_list
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli, Stepping
 from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
@@ -337,14 +338,15 @@ def set_cell_motion(cell: Cell, fixed: Fixed, stage: Stage, forward: bool) -> No
 
 def _write_frame(writer, state: State, model: Model, clock: StageClock, events) -> None:
     """A trajectory frame of the state as it is: the periodic cell's edges as its box, and
-    each sphere's stress when the scenario asks for it."""
+    each sphere's stress and the contact list when the scenario asks for them."""
     stress = None
     if model.scenario.output.particle_stress:
         stress = np.zeros((len(state.particles.x), 3, 3))
         particle_stress(state.particles, state.pairs, state.walls, state.cell, stress)
     box = state.cell.length.copy() if state.cell.periodic.any() else None
     time = float(clock.time(state.step))
-    writer.frame(state.step, time, state.particles, events, box, stress, state.fixed)
+    contacts = contact_list(state) if model.scenario.output.contacts else None
+    writer.frame(state.step, time, state.particles, events, box, stress, state.fixed, contacts)
 
 
 def _record_now(state, model, dyn, clock, writer, events) -> None:

@@ -11,7 +11,9 @@ from revdem_cli.config.loader import (
     describe_validation_error,
     load_scenario,
     parse_text,
+    scenario_from_data,
     scenario_from_text,
+    set_field,
 )
 from revdem_cli.config.schema import (
     AxisMotion,
@@ -25,6 +27,7 @@ from revdem_cli.config.schema import (
     Output,
     Packing,
     Particle,
+    ParticlesFrom,
     PeriodicCell,
     Region,
     Reversal,
@@ -47,6 +50,7 @@ __all__ = [
     "Output",
     "Packing",
     "Particle",
+    "ParticlesFrom",
     "PeriodicCell",
     "Region",
     "Reversal",
@@ -59,5 +63,7 @@ __all__ = [
     "describe_validation_error",
     "load_scenario",
     "parse_text",
+    "scenario_from_data",
     "scenario_from_text",
+    "set_field",
 ]

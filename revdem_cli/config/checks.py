@@ -20,13 +20,12 @@ def check_consistency(scenario) -> None:
     """How the fields of a scenario fit together: names that refer to materials, walls and
     stages exist and are unique, one reversed stage and the last, the cell and its
     servo, the container of [solid_fraction]; FieldError at the first that does not."""
-    for kind, items in (*scenario._sphere_sources(), ("walls", scenario.walls)):
-        for i, item in enumerate(items):
-            if item.material not in scenario.materials:
-                raise FieldError(
-                    f"{kind}[{i}].material",
-                    f"unknown material '{item.material}' (known: {', '.join(scenario.materials)})",
-                )
+    for path, material in _materials_named(scenario):
+        if material not in scenario.materials:
+            raise FieldError(
+                path, f"unknown material '{material}' (known: {', '.join(scenario.materials)})"
+            )
+    check_particles_from(scenario)
     check_wall_materials(scenario)
     wall_names = [w.name for w in scenario.walls]
     check_solid_fraction(scenario)
@@ -82,15 +81,47 @@ def check_automatic_dt(scenario) -> None:
             )
 
 
+def _materials_named(scenario) -> list[tuple[str, str]]:
+    """(field path, material name) of every table that names a material: spheres, then
+    walls."""
+    named = []
+    for kind, items in scenario._sphere_sources():
+        for i, item in enumerate(items):
+            if kind == "particles_from":
+                named += [(f"{kind}[{i}].materials.{t}", m) for t, m in item.materials.items()]
+            else:
+                named.append((f"{kind}[{i}].material", item.material))
+    return named + [(f"walls[{i}].material", w.material) for i, w in enumerate(scenario.walls)]
+
+
+def check_particles_from(scenario) -> None:
+    """Spheres read from a file: its atom types are whole numbers, its sphere count known
+    (the loader reads it from the header), and a periodic box needs a [cell]."""
+    for i, source in enumerate(scenario.particles_from):
+        for atom_type in source.materials:
+            if not atom_type.isdigit() or int(atom_type) < 1:
+                raise FieldError(
+                    f"particles_from[{i}].materials.{atom_type}",
+                    "a LAMMPS atom type is a whole number from 1",
+                )
+        if source.count is None:
+            raise FieldError(
+                f"particles_from[{i}].count",
+                "unknown: load the scenario from its file, which reads the header",
+            )
+        if source.periodic and scenario.cell is None:
+            raise FieldError(f"particles_from[{i}].periodic", "a periodic box needs a [cell] table")
+
+
 def check_wall_materials(scenario) -> None:
     """With contact.wall_moduli = 'wall' a wall's material sets its contacts alone, so no
     sphere may be of it: a sphere pair of that material would be ambiguous."""
     if scenario.contact.wall_moduli != "wall":
         return
     spheres = {
-        item.material: f"{kind}[{i}]"
-        for kind, items in scenario._sphere_sources()
-        for i, item in enumerate(items)
+        material: path.removesuffix(".material")
+        for path, material in _materials_named(scenario)
+        if not path.startswith("walls")
     }
     for i, wall in enumerate(scenario.walls):
         if wall.material in spheres:

@@ -41,10 +41,15 @@ def generate(scenario) -> Spheres:
         except PackingError as exc:
             raise FieldError(f"packings[{i}]", str(exc)) from None
     parts += [lattice_spheres(lattice, materials) for lattice in scenario.lattices]
+    parts += [
+        spheres_from(source, f"particles_from[{i}]", scenario, materials)
+        for i, source in enumerate(scenario.particles_from)
+    ]
     spheres = Spheres.join(parts, materials)
     if not len(spheres):
         raise FieldError(
-            "particles", "no spheres: give [[particles]], [[packings]] or [[lattices]]"
+            "particles",
+            "no spheres: give [[particles]], [[packings]], [[lattices]] or [[particles_from]]",
         )
     return spheres
 
@@ -73,6 +78,51 @@ def lattice_spheres(lattice, materials: tuple[str, ...]) -> Spheres:
     )
     return uniform(len(x), lattice.radius, materials.index(lattice.material), materials, x, v)
 
+
+def spheres_from(source, path: str, scenario, materials: tuple[str, ...]) -> Spheres:
+    """The spheres of a [[particles_from]] table, read from its LAMMPS data file: each atom
+    type's material, each density that material's (to DENSITY_RTOL); positions unwrapped by
+    their image flags, or, in a periodic box (the scenario's cell), as the file has them
+    inside it, from the box's lower corner."""
+    from revdem_cli.errors import InputError
+    from revdem_cli.io.lammps_data import read_lammps_data
+
+    try:
+        data = read_lammps_data(source.lammps_data)
+    except InputError as exc:
+        raise FieldError(f"{path}.lammps_data", str(exc)) from None
+    if len(data) != source.count:
+        raise FieldError(f"{path}.count", f"{source.count}, but {data.path} has {len(data)} atoms")
+    names = [source.materials.get(str(t)) for t in data.type]
+    if None in names:
+        missing = int(data.type[names.index(None)])
+        raise FieldError(f"{path}.materials", f"no material for atom type {missing} of {data.path}")
+    material = np.array([materials.index(name) for name in names], dtype=np.int64)
+    density = np.array([scenario.materials[name].density for name in materials])[material]
+    off = np.flatnonzero(~(np.abs(data.density - density) <= DENSITY_RTOL * density))
+    if len(off):
+        k = int(off[0])
+        raise FieldError(
+            f"{path}.materials.{data.type[k]}",
+            f"atom {data.id[k]} of {data.path} has density {data.density[k]:.17g} kg/m^3, its "
+            f"material '{names[k]}' {density[k]:.17g}: a sphere's mass comes from its material",
+        )
+    position = data.unwrapped
+    if source.periodic:
+        edges = data.upper - data.lower
+        if not np.allclose(edges, scenario.cell.size, rtol=1e-12, atol=0.0):
+            raise FieldError(
+                "cell.size",
+                f"{list(scenario.cell.size)}, but the periodic box of {data.path} has edges "
+                f"{edges.tolist()}",
+            )
+        position = data.position - data.lower  # inside the cell, as the file has them
+    return Spheres(data.radius, position, data.velocity, data.angular_velocity, material, materials)
+
+
+DENSITY_RTOL = 1e-9
+"""How far a data file's density may be from its material's, relative: LAMMPS writes the
+density it recomputes from each sphere's mass, to its last digit or two."""
 
 RESOLUTION = 1e-6
 """A position must be resolved by float64 to this fraction of its sphere's radius (the
@@ -175,6 +225,7 @@ def located(scenario, index: int) -> tuple[str, str]:
     index -= len(scenario.particles)
     sources = [("packings", k, p) for k, p in enumerate(scenario.packings)]
     sources += [("lattices", k, g) for k, g in enumerate(scenario.lattices)]
+    sources += [("particles_from", k, g) for k, g in enumerate(scenario.particles_from)]
     for kind, k, source in sources:
         if index < source.count:
             return f"{kind}[{k}]", f"sphere {index} of {kind}[{k}]"

@@ -65,6 +65,7 @@ def check_memory(scenario) -> None:
     count = len(scenario.particles)
     generated = [(f"packings[{k}].count", p) for k, p in enumerate(scenario.packings)]
     generated += [(f"lattices[{k}].cells", g) for k, g in enumerate(scenario.lattices)]
+    generated += [(f"particles_from[{k}].count", g) for k, g in enumerate(scenario.particles_from)]
     for field, source in generated:
         count += source.count
         if count * per_sphere > memory:

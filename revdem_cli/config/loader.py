@@ -126,30 +126,59 @@ def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
             value = tomllib.loads(f"v = {raw}")["v"]
         except tomllib.TOMLDecodeError:
             value = raw
-        node = data
-        parts = key.split(".")
-        for part in parts[:-1]:
-            node = _child(node, part, key)
-        last = parts[-1]
-        if isinstance(node, list):
-            node[_index(node, last, key)] = value
-        else:
-            node[last] = value
+        set_field(data, key, value, "--set ")
     return data
 
 
-def _child(node, part: str, key: str):
+def set_field(data: dict, key: str, value, label: str = "") -> None:
+    """Set the field at the dotted path `key` (`stages.0.steps`: list items by index) of a
+    scenario's fields to `value`, making tables on the way; InputError naming `label` + key
+    where the path goes through a value or past a list's end."""
+    node = data
+    parts = key.split(".")
+    for part in parts[:-1]:
+        node = _child(node, part, key, label)
+    last = parts[-1]
+    if isinstance(node, list):
+        node[_index(node, last, key, label)] = value
+    else:
+        node[last] = value
+
+
+def _child(node, part: str, key: str, label: str):
     """The table or list `part` of `node` (a new table if it has none)."""
-    child = node[_index(node, part, key)] if isinstance(node, list) else node.setdefault(part, {})
+    if isinstance(node, list):
+        child = node[_index(node, part, key, label)]
+    else:
+        child = node.setdefault(part, {})
     if not isinstance(child, dict | list):
-        raise InputError(f"--set {key}: '{part}' holds a value, not a table or a list")
+        raise InputError(f"{label}{key}: '{part}' holds a value, not a table or a list")
     return child
 
 
-def _index(node: list, part: str, key: str) -> int:
+def _index(node: list, part: str, key: str, label: str) -> int:
     if not part.isdigit() or int(part) >= len(node):
-        raise InputError(f"--set {key}: '{part}' is not an index of a list of {len(node)}")
+        raise InputError(f"{label}{key}: '{part}' is not an index of a list of {len(node)}")
     return int(part)
+
+
+def read_particle_files(data: dict, base: Path, origin: str) -> None:
+    """Each [[particles_from]] file's path made absolute (a relative one is relative to the
+    scenario file, `base`) and its sphere count read from its header, so that the stored
+    scenario says both and is checked again without the file."""
+    from revdem_cli.io.lammps_data import read_header
+
+    sources = data.get("particles_from")
+    for k, source in enumerate(sources if isinstance(sources, list) else []):
+        if not isinstance(source, dict) or not isinstance(source.get("lammps_data"), str):
+            continue  # the schema names what is wrong
+        path = (base / source["lammps_data"]).absolute()
+        source["lammps_data"] = str(path)
+        try:
+            atoms = read_header(path)[0]
+        except InputError as exc:
+            raise InputError(f"{origin}: particles_from[{k}].lammps_data: {exc}") from None
+        source.setdefault("count", atoms)
 
 
 def scenario_from_text(
@@ -159,6 +188,13 @@ def scenario_from_text(
     fit together; with `host`, whether a run of it fits this machine (`revdem run`); then its
     spheres, generated and checked where they start."""
     data = apply_overrides(parse_text(text, suffix, origin), list(overrides), origin)
+    return scenario_from_data(data, origin, Path(origin).parent, host)
+
+
+def scenario_from_data(data: dict, origin: str, base: Path, host: bool = False) -> Scenario:
+    """A scenario from its fields as parsed, checked as `scenario_from_text` says; files it
+    names are relative to `base`. `origin` names it in error messages."""
+    read_particle_files(data, base, origin)
     try:
         scenario = Scenario.model_validate(data)
     except ValidationError as exc:
@@ -178,10 +214,15 @@ def load_scenario(
     """Read and check a scenario file (`scenario_from_text`); returns the scenario and its
     text (kept in outputs)."""
     path = Path(path)
+    text = read_scenario_text(path)
+    return scenario_from_text(text, path.suffix.lower(), str(path), overrides, host), text
+
+
+def read_scenario_text(path: Path) -> str:
+    """The text of a scenario file; InputError naming it if it cannot be read."""
     check_regular(path, "scenario file")
     try:
-        text = path.read_text()
+        return path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
         raise InputError(f"{path}: cannot read scenario file ({reason})") from None
-    return scenario_from_text(text, path.suffix.lower(), str(path), overrides, host), text

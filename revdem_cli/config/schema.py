@@ -314,6 +314,35 @@ class Lattice(_Model):
         return self.spacing or 2.0 * math.sqrt(2.0) * self.radius
 
 
+class ParticlesFrom(_Model):
+    """Spheres read from a file another code wrote: a LAMMPS data file of atom_style sphere
+    in units si (`write_data`), its atoms in the order of their ids, with their diameters,
+    positions (unwrapped by their image flags) and, where the file has them, velocities and
+    angular velocities. A sphere's mass is its material's density times its volume: the
+    density the file gives must be that material's."""
+
+    lammps_data: str = Field(
+        min_length=1, description="path of the LAMMPS data file, relative to the scenario file"
+    )
+    materials: dict[str, str] = Field(
+        min_length=1, description="the material in [materials] of each LAMMPS atom type, by type"
+    )
+    periodic: bool = Field(
+        strict=True,
+        default=False,
+        description="the file's box is the scenario's periodic [cell] (a data file does not "
+        "say which axes are periodic): [cell] size must be its edges, and positions are "
+        "taken relative to its lower corner",
+    )
+    count: Int | None = Field(
+        default=None,
+        gt=0,
+        le=MAX_GENERATED,
+        description="number of spheres in the file, read from its header as the scenario is "
+        "loaded (given, it must be the header's)",
+    )
+
+
 class Integrator(_Model):
     """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
 
@@ -524,17 +553,26 @@ class Reversal(_Model):
     )
 
 
+FIGURE_KINDS = (
+    "speed", "forces", "velocity_z", "wall_forces", "stress_ratios", "contact_forces",
+    "contact_normals",
+)  # fmt: skip
+"""The figures `revdem_cli.report.figures.FIGURES` draws."""
+
+
 class Output(_Model):
     """What is written besides the trajectories."""
 
-    figures: list[Literal["speed", "forces", "velocity_z", "wall_forces", "stress_ratios"]] = Field(
+    figures: list[Literal[FIGURE_KINDS]] = Field(
         default_factory=list,
         description="figures written beside the trajectories, forward and reversed overlaid: "
         "'speed' = |v| of each particle, 'forces' = largest normal and shear contact force, "
         "'velocity_z' = vertical velocity of each particle, all against time; 'wall_forces' "
         "= z force on each plane wall against the solid fraction (or against time); "
         "'stress_ratios' = principal stress ratios and coordination number against the "
-        "compression of a periodic cell",
+        "compression of a periodic cell; with contacts = true, at the end of the run: "
+        "'contact_forces' = distribution of normal contact forces over their mean, semi-log; "
+        "'contact_normals' = rose diagrams of the contact normals in the xz and xy planes",
     )
     particle_stress: bool = Field(
         strict=True,
@@ -542,6 +580,21 @@ class Output(_Model):
         description="write each sphere's stress (Hanley 2020 Eq 22) at every frame, "
         "particles/all/stress [F, N, 3, 3], Pa",
     )
+    contacts: bool = Field(
+        strict=True,
+        default=False,
+        description="write every contact at every frame (connectivity/contacts: the pair or "
+        "sphere and wall, contact point, normal and tangential force, overlap, sliding), for "
+        "force chains (`revdem export`) and the contact figures",
+    )
+
+    @model_validator(mode="after")
+    def _contact_figures(self) -> Output:
+        for kind in self.figures:
+            if kind.startswith("contact_") and not self.contacts:
+                raise ValueError(f"figure '{kind}' needs contacts = true")
+        return self
+
     checkpoint_interval: Float = Field(
         default=60.0,
         ge=0,
@@ -566,6 +619,9 @@ class Scenario(_Model):
         default_factory=list, description="spheres generated at random in regions"
     )
     lattices: list[Lattice] = Field(default_factory=list, description="spheres on lattices")
+    particles_from: list[ParticlesFrom] = Field(
+        default_factory=list, description="spheres read from files other codes wrote"
+    )
     walls: list[Wall] = Field(default_factory=list, description="walls")
     cell: PeriodicCell | None = Field(default=None, description="periodic boundaries in x, y and z")
     gravity: Vector3 = Field(
@@ -587,6 +643,7 @@ class Scenario(_Model):
             ("particles", self.particles),
             ("packings", self.packings),
             ("lattices", self.lattices),
+            ("particles_from", self.particles_from),
         )
 
     @model_validator(mode="after")

@@ -156,6 +156,8 @@ def _check_trajectory(f, path) -> None:
             )
         if _rows(f, path, f"particles/all/{name}/time") < frames:
             raise InputError(f"{path}: damaged revdem trajectory (particles/all/{name}/time)")
+    if "connectivity/contacts" in f:
+        _check_contacts(f, path, frames)
     for name in _series_in(f.get("observables")):
         rows = _rows(f, path, f"observables/{name}/step")
         for part in ("time", "value"):
@@ -170,6 +172,21 @@ def _check_trajectory(f, path) -> None:
             f"{path}: particles/all/radius: {n} spheres, but the stored scenario has "
             f"{scenario.sphere_count}"
         )
+
+
+def _check_contacts(f, path, frames: int) -> None:
+    """The contact list holds a count for each frame and the rows those counts add up to."""
+    from revdem_cli.errors import InputError
+
+    if _rows(f, path, "connectivity/contacts/count") < frames:
+        raise InputError(f"{path}: damaged revdem trajectory (connectivity/contacts/count)")
+    rows = int(get_dataset(f, path, "connectivity/contacts/count")[:frames].sum())
+    for name in ("value", "point", "normal_force", "tangential_force", "overlap", "sliding"):
+        if _rows(f, path, f"connectivity/contacts/{name}") < rows:
+            raise InputError(
+                f"{path}: damaged revdem trajectory (connectivity/contacts/{name} is shorter "
+                f"than the {rows} contacts of its frames)"
+            )
 
 
 def _check_restart(f, path) -> None:

@@ -3,6 +3,8 @@
 /h5md                               version [1, 1]; author; creator revdem
 /particles/all/{position,velocity,angular_velocity,force}   step [F], time [F], value [F, N, 3]
 /particles/all/{radius,mass,id}     time-independent [N]
+/particles/all/species              time-independent [N]: each sphere's material, numbered in
+                                    the order of [materials] from 0
 /particles/all/stress               [F, N, 3, 3] each sphere's stress (Eq 22), if asked for
 /particles/all/{position,velocity,angular_velocity}_grid   [F, N, 3] int64, in fixed-point
                                     arithmetic: the integer state (steps in /parameters/revdem
@@ -13,6 +15,13 @@
 /observables/<name>                 step, time, value [F], [F, 3] or [F, 3, 3]
 /observables/events                 value [F, kinds, columns] at each frame: the log of
                                     information-destroying mechanisms (kernels/events.py)
+/connectivity/contacts              with [output] contacts: every contact at every frame, its
+                                    frames' rows one after another (H5MD 1.1 connectivity,
+                                    particles_group /particles/all): step, time [F] (the
+                                    frames'), count [F] contacts in each frame, value [C, 2]
+                                    (sphere, partner: another sphere, or -1 - w on wall w),
+                                    point, normal_force, tangential_force [C, 3] (N, on the
+                                    sphere), overlap [C], sliding [C] (revdem_cli/contacts.py)
 /parameters/revdem                  attrs: schema_version (revdem_cli.io.SCHEMA_VERSION, checked on
                                     reading), direction, dt, arithmetic, scenario, source restart
 Rows are written in blocks at least every two seconds and at every checkpoint. The file is
@@ -58,6 +67,34 @@ def _append(dataset: h5py.Dataset, values) -> None:
     n = dataset.shape[0]
     dataset.resize(n + values.shape[0], axis=0)
     dataset[n:] = values
+
+
+CONTACTS = "connectivity/contacts"
+CONTACT_COUNT = f"{CONTACTS}/count"
+CONTACT_FIELDS = {  # name: (shape of a contact's row, type)
+    "value": ((2,), np.int64),
+    "point": ((3,), np.float64),
+    "normal_force": ((3,), np.float64),
+    "tangential_force": ((3,), np.float64),
+    "overlap": ((), np.float64),
+    "sliding": ((), np.int8),
+}
+
+
+def _contact_rows(f: h5py.File, particles: h5py.Group, clock: h5py.Group) -> dict:
+    """The datasets of the contact list, empty, each with its appender: `count` a frame and
+    the contacts of each frame one after another."""
+    group = f.create_group(CONTACTS)
+    group.attrs["particles_group"] = particles.ref
+    group["step"], group["time"] = clock["step"], clock["time"]
+    group.create_dataset("count", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
+    rows = {"count": _Appender(group["count"])}
+    for name, (shape, dtype) in CONTACT_FIELDS.items():
+        dataset = group.create_dataset(
+            name, shape=(0, *shape), maxshape=(None, *shape), dtype=dtype, chunks=(4096, *shape)
+        )
+        rows[name] = _Appender(dataset)
+    return rows
 
 
 def bounding_box(x: np.ndarray, radius: np.ndarray) -> np.ndarray:
@@ -107,9 +144,11 @@ class TrajectoryWriter:
         path: Path,
         radius,
         mass,
+        species,
         periodic: bool,
         particle_stress: bool,
         fixed_point: bool,
+        contacts: bool,
         observables: list[tuple[str, tuple[int, ...]]],
         events_shape: tuple[int, int],
         parameters: dict,
@@ -118,14 +157,14 @@ class TrajectoryWriter:
         self.closed = False
         try:
             self.file = h5py.File(self.path, "w", libver="latest")
-            self._create(radius, mass, periodic, particle_stress, fixed_point, observables,
-                         events_shape, parameters)  # fmt: skip
+            self._create(radius, mass, species, periodic, particle_stress, fixed_point,
+                         contacts, observables, events_shape, parameters)  # fmt: skip
         except (OSError, RuntimeError) as exc:
             self._abandon(exc)
 
     def _create(
-        self, radius, mass, periodic, particle_stress, fixed_point, observables, events_shape,
-        parameters,
+        self, radius, mass, species, periodic, particle_stress, fixed_point, contacts,
+        observables, events_shape, parameters,
     ) -> None:  # fmt: skip
         """The file's groups and datasets, empty, and its parameters."""
         f = self.file
@@ -148,6 +187,7 @@ class TrajectoryWriter:
         everything.create_dataset("radius", data=radius)
         everything.create_dataset("mass", data=mass)
         everything.create_dataset("id", data=np.arange(n, dtype=np.int64))
+        everything.create_dataset("species", data=np.asarray(species, dtype=np.int64))
         events = _series(f, "observables/events", events_shape, clock)
         edges = _series(box, "edges", (3,), clock)
         self.frame_rows = [_Appender(clock["step"]), _Appender(clock["time"])]
@@ -162,6 +202,7 @@ class TrajectoryWriter:
                 values = _series(everything, name, (n, 3), clock, np.int64)["value"]
                 self.grid_rows.append(_Appender(values))
             self.frame_rows += self.grid_rows
+        self.contact_rows = _contact_rows(f, everything, clock) if contacts else None
         clock = None
         widths = []
         for name, shape in observables:
@@ -185,6 +226,10 @@ class TrajectoryWriter:
             appender.add(source[appender.dataset.name][:frames])
         for appender in self._observable_appenders():
             appender.add(source[appender.dataset.name][:observables])
+        if self.contact_rows is not None:
+            rows = int(source[CONTACT_COUNT][:frames].sum())
+            for appender in self.contact_rows.values():
+                appender.add(source[appender.dataset.name][:rows])
         steps = source[self.frame_rows[0].dataset.name][:frames]
         self.last_step = int(steps[-1]) if frames else None
         steps = source[self.observable_clock[0].dataset.name][:observables]
@@ -204,6 +249,7 @@ class TrajectoryWriter:
         cache may write one dataset's extent before another's, in any order."""
         values = self.frame_rows[1:2] + self.frame_rows[2:]
         values += [self.observable_clock[1]] + [appender for appender, _ in self.observable_rows]
+        values += list((self.contact_rows or {}).values())
         return values, [self.observable_clock[0], self.frame_rows[0]]
 
     def _appenders(self):
@@ -223,11 +269,13 @@ class TrajectoryWriter:
         box=None,
         stress=None,
         integers=None,
+        contacts=None,
     ) -> None:
         """Append one frame; a frame at the step already written last is skipped. `box`: the
         edges of the periodic cell; None, the bounding box of the spheres. `stress`: each
         sphere's stress, when the writer keeps it; `integers`: the fixed-point state, in
-        fixed-point arithmetic."""
+        fixed-point arithmetic; `contacts`: the contact list (`contacts.ContactList`), when
+        the writer keeps it."""
         if step == self.last_step:
             return
         self.last_step = step
@@ -245,6 +293,11 @@ class TrajectoryWriter:
             values += tuple(getattr(integers, name)[None] for name in ("x", "v", "omega"))
         for appender, value in zip(self.frame_rows, values, strict=True):
             appender.add(np.array(value))
+        if self.contact_rows is not None:
+            self.contact_rows["count"].add(np.array([len(contacts)], dtype=np.int64))
+            self.contact_rows["value"].add(np.column_stack([contacts.particle, contacts.partner]))
+            for name in contacts.FIELDS:
+                self.contact_rows[name].add(getattr(contacts, name))
         self._flush_if_due()
 
     def last_observable_step(self) -> int | None:
@@ -355,3 +408,14 @@ def read_observable(f: h5py.File, name: str) -> tuple[np.ndarray, np.ndarray]:
     """(time, value) of an observable."""
     rows = slice(len(_read(f, f"observables/{name}/step")))
     return _read(f, f"observables/{name}/time", rows), _read(f, f"observables/{name}/value", rows)
+
+
+def read_contacts(f: h5py.File, index: int) -> dict[str, np.ndarray] | None:
+    """The contacts of frame `index` by name (value: sphere and partner, point, ...), or
+    None if the trajectory has none."""
+    if CONTACTS not in f:
+        return None
+    index %= len(frame_steps(f))  # -1: the last frame
+    counts = _read(f, CONTACT_COUNT, slice(index + 1))
+    rows = slice(int(counts[:-1].sum()), int(counts.sum()))
+    return {name: _read(f, f"{CONTACTS}/{name}", rows) for name in CONTACT_FIELDS}

@@ -1,21 +1,24 @@
-"""A trajectory's frames in the formats particle viewers read: GSD (HOOMD-blue's, which OVITO
-reads with radii and the box) and LAMMPS text dumps (`dump custom`, which OVITO, VMD and
-LAMMPS' own tools read).
+"""A trajectory's frames in the formats particle viewers and other codes read: GSD
+(HOOMD-blue's, which OVITO reads with radii and the box), LAMMPS text dumps (`dump custom`,
+which OVITO, VMD and LAMMPS' own tools read) and a LAMMPS data file of the last frame
+(`read_data`, to continue the run in LAMMPS or LIGGGHTS).
 
-Both take the frames of a revdem H5MD trajectory as they are: one particle type, its id,
-radius, position and velocity, and the box at each frame, the periodic cell [0, L) where
-the run had one, else the bounding box of the spheres (open boundaries).
+Each takes the frames of a revdem H5MD trajectory as they are: each sphere's id, type (its
+material, numbered from 1 in the order of [materials]), radius, position and velocity, and
+the box at each frame, the periodic cell [0, L) where the run had one, else the bounding box
+of the spheres (open boundaries).
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from revdem_cli.io.h5md import frame_steps, open_trajectory, read_frame
+from revdem_cli.io.h5md import frame_steps, open_trajectory, read_contacts, read_frame
 
 
 @dataclass(frozen=True)
@@ -26,16 +29,21 @@ class Frame:
     upper: np.ndarray  # upper corner, m, (3,)
     periodic: bool
     id: np.ndarray  # (N,)
+    type: np.ndarray  # the material, numbered from 1, (N,)
     radius: np.ndarray  # m, (N,)
+    mass: np.ndarray  # kg, (N,)
     position: np.ndarray  # m, (N, 3)
     velocity: np.ndarray  # m/s, (N, 3)
+    angular_velocity: np.ndarray  # rad/s, (N, 3)
+    contacts: dict[str, np.ndarray] | None  # the frame's contact list, if the run wrote it
 
 
 def frames(trajectory: str | Path) -> Iterator[Frame]:
     """The frames of a revdem trajectory, checked by `open_trajectory` first."""
     with open_trajectory(trajectory) as f:
         particles = f["particles/all"]
-        radius, ids = particles["radius"][:], particles["id"][:]
+        radius, mass, ids = particles["radius"][:], particles["mass"][:], particles["id"][:]
+        species = particles["species"][:] if "species" in particles else np.zeros_like(ids)
         periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
         for k, step in enumerate(frame_steps(f)):
@@ -45,9 +53,9 @@ def frames(trajectory: str | Path) -> Iterator[Frame]:
             else:
                 lower = (position - radius[:, None]).min(axis=0)
                 upper = (position + radius[:, None]).max(axis=0)
-            velocity = read_frame(f, "velocity", k)
-            yield Frame(int(step), float(times[k]), lower, upper, periodic, ids, radius,
-                        position, velocity)  # fmt: skip
+            yield Frame(int(step), float(times[k]), lower, upper, periodic, ids, species + 1,
+                        radius, mass, position, read_frame(f, "velocity", k),
+                        read_frame(f, "angular_velocity", k), read_contacts(f, k))  # fmt: skip
 
 
 def export_lammps_dump(trajectory: str | Path, path: str | Path) -> Path:
@@ -66,12 +74,26 @@ def export_lammps_dump(trajectory: str | Path, path: str | Path) -> Path:
         lines += ["ITEM: ATOMS id type radius x y z vx vy vz"]
         table = np.column_stack([frame.radius, frame.position, frame.velocity])
         lines += [
-            f"{i} 1 " + " ".join(f"{v:.17g}" for v in row)
-            for i, row in zip(frame.id, table, strict=True)
+            f"{i} {t} " + " ".join(f"{v:.17g}" for v in row)
+            for i, t, row in zip(frame.id, frame.type, table, strict=True)
         ]
     path.parent.mkdir(parents=True, exist_ok=True)
     write_text(path, "\n".join(lines) + "\n")
     return path
+
+
+def _bonds(snapshot, contacts: dict[str, np.ndarray]) -> None:
+    """The contacts between spheres as GSD bonds, one bond type, with each contact's normal
+    force magnitude, forces, overlap and sliding as per-bond logged quantities."""
+    pairs = contacts["value"][:, 1] >= 0
+    snapshot.bonds.N = int(pairs.sum())
+    snapshot.bonds.types = ["contact"]
+    snapshot.bonds.typeid = np.zeros(snapshot.bonds.N, dtype=np.uint32)
+    snapshot.bonds.group = contacts["value"][pairs].astype(np.uint32)
+    normal = contacts["normal_force"][pairs]
+    snapshot.log["bonds/normal_force_magnitude"] = np.sqrt((normal**2).sum(axis=1))
+    for name in ("normal_force", "tangential_force", "overlap", "sliding"):
+        snapshot.log[f"bonds/{name}"] = contacts[name][pairs]
 
 
 def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
@@ -83,7 +105,9 @@ def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
     from revdem_cli.errors import WriteFailed
 
     path = Path(path)
-    open_trajectory(trajectory).close()  # checked before anything is written
+    with open_trajectory(trajectory) as f:  # checked before anything is written
+        stored = json.loads(f["parameters/revdem"].attrs["scenario_json"])
+    materials = list(stored["materials"])  # the types' names, in the order of their numbers
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
     try:
@@ -94,14 +118,40 @@ def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
                 edges = frame.upper - frame.lower
                 snapshot.configuration.box = [*edges, 0.0, 0.0, 0.0]
                 snapshot.particles.N = len(frame.id)
-                snapshot.particles.types = ["sphere"]
                 centre = 0.5 * (frame.lower + frame.upper)
                 snapshot.particles.position = (frame.position - centre).astype(np.float32)
                 snapshot.particles.diameter = (2.0 * frame.radius).astype(np.float32)
                 snapshot.particles.velocity = frame.velocity.astype(np.float32)
+                snapshot.particles.typeid = (frame.type - 1).astype(np.uint32)
+                snapshot.particles.types = materials
+                if frame.contacts is not None:
+                    _bonds(snapshot, frame.contacts)
                 out.append(snapshot)
         tmp.replace(path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise WriteFailed(path, exc) from None
+    return path
+
+
+def export_lammps_data(trajectory: str | Path, path: str | Path) -> Path:
+    """The last frame as a LAMMPS data file (atom_style sphere, units si, `read_data`):
+    radius, density, position (in a periodic box wrapped into it, with image flags),
+    velocity and angular velocity of every sphere, 17 significant digits, so that
+    `[[particles_from]]` reads back the same numbers bit for bit."""
+    from revdem_cli.io import write_text
+    from revdem_cli.io.lammps_data import lammps_data_text, wrapped
+
+    *_, last = frames(trajectory)
+    position, image = last.position, np.zeros(last.position.shape, dtype=np.int64)
+    if last.periodic:  # inside the box, with the crossings as image flags, as LAMMPS has them
+        position, image = wrapped(last.position, last.upper)
+    text = lammps_data_text(
+        last.radius, last.mass, position, image, last.velocity, last.angular_velocity,
+        last.type, last.lower, last.upper, last.step,
+        f"{Path(trajectory).name} at step {last.step}",
+    )  # fmt: skip
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_text(path, text)
     return path

@@ -3,7 +3,12 @@ series that names them with their times.
 
 Each particle is a point (and a vertex cell) carrying its radius, id, velocity, angular
 velocity and force as point data, so a Glyph filter with spheres scaled by `radius` draws
-the particles. Plain XML with ASCII data; no VTK library is needed to write or read them.
+the particles. A trajectory with contacts ([output] contacts) also gets the force chains,
+STEM.contacts.NNNNN.vtp and STEM.contacts.pvd: a line a contact, from the sphere's centre
+to its partner's (the nearest image across a periodic face) or to the contact point on a
+wall, with the contact's forces as cell data; colour by `normal_force_magnitude`, or give
+the lines a width by it with a Tube filter. Plain XML with ASCII data; no VTK library is
+needed to write or read them.
 """
 
 from __future__ import annotations
@@ -13,7 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from revdem_cli.io.h5md import FRAME_FIELDS, frame_steps, open_trajectory, read_frame
+from revdem_cli.io.h5md import (
+    FRAME_FIELDS,
+    frame_steps,
+    open_trajectory,
+    read_contacts,
+    read_frame,
+)
 
 
 def _data_array(parent: ET.Element, name: str, values: np.ndarray, kind: str) -> None:
@@ -41,18 +52,60 @@ def _polydata(position: np.ndarray, point_data: dict[str, np.ndarray]) -> ET.Ele
     return ET.ElementTree(root)
 
 
-def export_vtk(trajectory: str | Path, out_dir: str | Path) -> list[Path]:
-    """Write every frame of `trajectory` as out_dir/STEM.NNNNN.vtp and the series
-    out_dir/STEM.pvd (STEM: the trajectory's name without .h5); returns the .pvd first."""
-    trajectory, out_dir = Path(trajectory), Path(out_dir)
-    stem = trajectory.stem
+def _force_chains(position: np.ndarray, box: np.ndarray | None, contacts: dict) -> ET.ElementTree:
+    """The contacts of a frame as lines (see the module's docstring)."""
+    i, partner = contacts["value"][:, 0], contacts["value"][:, 1]
+    on_wall = partner < 0
+    start = position[i]
+    end = contacts["point"].copy()
+    j = partner[~on_wall]
+    d = position[j] - start[~on_wall]
+    if box is not None:
+        d -= box * np.round(d / box)  # nearest image
+    end[~on_wall] = start[~on_wall] + d
+    k = len(i)
+    points = np.empty((2 * k, 3))
+    points[0::2], points[1::2] = start, end
+    root = ET.Element("VTKFile", type="PolyData", version="0.1", byte_order="LittleEndian")
+    piece = ET.SubElement(
+        ET.SubElement(root, "PolyData"), "Piece", NumberOfPoints=str(2 * k), NumberOfLines=str(k)
+    )
+    _data_array(ET.SubElement(piece, "Points"), "position", points, "Float64")
+    lines = ET.SubElement(piece, "Lines")
+    _data_array(lines, "connectivity", np.arange(2 * k), "Int64")
+    _data_array(lines, "offsets", 2 * np.arange(1, k + 1), "Int64")
+    data = ET.SubElement(piece, "CellData", Scalars="normal_force_magnitude")
+    magnitude = np.sqrt((contacts["normal_force"] ** 2).sum(axis=1))
+    _data_array(data, "normal_force_magnitude", magnitude, "Float64")
+    for name in ("normal_force", "tangential_force", "overlap"):
+        _data_array(data, name, contacts[name], "Float64")
+    _data_array(data, "sliding", contacts["sliding"], "Int64")
+    _data_array(data, "particle", i, "Int64")
+    _data_array(data, "partner", partner, "Int64")
+    return ET.ElementTree(root)
+
+
+def _series(frames: list[tuple[float, Path]], path: Path) -> None:
+    """A .pvd file naming each frame's file with its time."""
     root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
     collection = ET.SubElement(root, "Collection")
-    written = []
+    for time, frame in frames:
+        ET.SubElement(collection, "DataSet", timestep=repr(time), part="0", file=frame.name)
+    ET.ElementTree(root).write(path, xml_declaration=True)
+
+
+def export_vtk(trajectory: str | Path, out_dir: str | Path) -> list[Path]:
+    """Write every frame of `trajectory` as out_dir/STEM.NNNNN.vtp and the series
+    out_dir/STEM.pvd (STEM: the trajectory's name without .h5), and with contacts the force
+    chains STEM.contacts.NNNNN.vtp and STEM.contacts.pvd; returns the .pvd first."""
+    trajectory, out_dir = Path(trajectory), Path(out_dir)
+    stem = trajectory.stem
+    spheres, chains = [], []
     with open_trajectory(trajectory) as f:  # checked before anything is written
         out_dir.mkdir(parents=True, exist_ok=True)
         particles = f["particles/all"]
         constant = {"radius": particles["radius"][:], "id": particles["id"][:]}
+        periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
         width = max(5, len(str(len(times) - 1)))
         for frame in range(len(frame_steps(f))):
@@ -60,14 +113,17 @@ def export_vtk(trajectory: str | Path, out_dir: str | Path) -> list[Path]:
             position = fields.pop("position")
             path = out_dir / f"{stem}.{frame:0{width}d}.vtp"
             _polydata(position, {**constant, **fields}).write(path, xml_declaration=True)
-            ET.SubElement(
-                collection,
-                "DataSet",
-                timestep=repr(float(times[frame])),
-                part="0",
-                file=path.name,
-            )
-            written.append(path)
+            spheres.append((float(times[frame]), path))
+            contacts = read_contacts(f, frame)
+            if contacts is not None:
+                box = particles["box/edges/value"][frame] if periodic else None
+                path = out_dir / f"{stem}.contacts.{frame:0{width}d}.vtp"
+                _force_chains(position, box, contacts).write(path, xml_declaration=True)
+                chains.append((float(times[frame]), path))
     series = out_dir / f"{stem}.pvd"
-    ET.ElementTree(root).write(series, xml_declaration=True)
-    return [series, *written]
+    _series(spheres, series)
+    written = [series, *(path for _, path in spheres)]
+    if chains:
+        _series(chains, out_dir / f"{stem}.contacts.pvd")
+        written += [out_dir / f"{stem}.contacts.pvd", *(path for _, path in chains)]
+    return written

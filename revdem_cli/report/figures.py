@@ -70,6 +70,13 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel(xlabel)
+    return _save(fig, png)
+
+
+def _save(fig, png: Path) -> Path:
+    """Write a figure and close it; WriteFailed naming the file if it cannot be written."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     try:
         fig.savefig(png)
@@ -199,11 +206,93 @@ def stress_ratios_figure(forward: Path, reverse: Path | None, png: Path) -> Path
     return _panels(forward, reverse, png, panels, f"compression along {'xyz'[axis]} (mm)")
 
 
+def _last_contacts(path: Path) -> dict[str, np.ndarray]:
+    """The contacts between spheres (walls left out) of a trajectory's last frame."""
+    from revdem_cli.io.h5md import frame_steps, open_trajectory, read_contacts
+
+    with open_trajectory(path) as f:
+        contacts = read_contacts(f, len(frame_steps(f)) - 1)
+    pairs = contacts["value"][:, 1] >= 0
+    return {name: values[pairs] for name, values in contacts.items()}
+
+
+def _normalised_forces(path: Path) -> np.ndarray:
+    """|f_n| / <|f_n|> of the last frame's sphere contacts."""
+    normal = _last_contacts(path)["normal_force"]
+    magnitude = np.sqrt((normal**2).sum(axis=1))
+    return magnitude / magnitude.mean() if len(magnitude) else magnitude
+
+
+def contact_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """The distribution of normal contact forces normalised by their mean, semi-log, at the
+    end of the forward run and at the end of its reversal: the exponential tail of strong
+    forces (Radjai et al. 1996) and how the reversal brings back the starting network."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
+    for run, path, style in (
+        ("forward end", forward, {"lw": 2.5, "alpha": 0.5}),
+        ("reversed end", reverse, {"lw": 1.2, "ls": "--"}),
+    ):
+        if path is None:
+            continue
+        forces = _normalised_forces(path)
+        if not len(forces):
+            continue
+        density, edges = np.histogram(forces, bins=40, range=(0.0, max(4.0, forces.max())),
+                                      density=True)  # fmt: skip
+        ax.step(edges[:-1], np.where(density > 0, density, np.nan), where="post",
+                label=f"{run} ({len(forces)} contacts)", **style)  # fmt: skip
+    ax.set_yscale("log")
+    ax.set_xlabel("normal contact force / mean")
+    ax.set_ylabel("probability density")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no contacts between spheres", ha="center", transform=ax.transAxes)
+    ax.grid(alpha=0.3)
+    return _save(fig, png)
+
+
+def contact_normals_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """Rose diagrams of the contact normals at the end of the forward run, projected on the
+    xz and the xy planes: each 10° sector holds the contacts whose projected normal points
+    in it, each weighted by the square of its projection (so that the rose is the in-plane
+    part of the fabric tensor <n ⊗ n>, Oda 1982) and counted at n and -n."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    contacts = _last_contacts(forward)
+    normal = contacts["normal_force"]
+    length = np.sqrt((normal**2).sum(axis=1))
+    n = normal[length > 0] / length[length > 0, None]
+    fig, axes = plt.subplots(1, 2, figsize=(8, 4), dpi=120, subplot_kw={"projection": "polar"})
+    edges = np.linspace(-np.pi, np.pi, 37)
+    for ax, (a, b, plane) in zip(axes, ((0, 2, "xz"), (0, 1, "xy")), strict=True):
+        angle = np.arctan2(n[:, b], n[:, a])
+        both = np.concatenate([angle, np.where(angle > 0, angle - np.pi, angle + np.pi)])
+        weight = np.tile(n[:, a] ** 2 + n[:, b] ** 2, 2)
+        counts, _ = np.histogram(both, bins=edges, weights=weight)
+        share = counts / max(weight.sum(), np.finfo(float).tiny)
+        ax.bar(edges[:-1], share, width=np.diff(edges), align="edge", alpha=0.7, edgecolor="k")
+        ax.set_title(f"contact normals, {plane} plane ({len(n)} contacts)", fontsize=9)
+        ax.set_xticks(np.radians([0, 90, 180, 270]), [plane[0], plane[1], f"-{plane[0]}",
+                                                      f"-{plane[1]}"])  # fmt: skip
+    return _save(fig, png)
+
+
 FIGURES = {
     "speed": speed_figure,
     "velocity_z": velocity_z_figure,
     "forces": forces_figure,
     "wall_forces": wall_forces_figure,
     "stress_ratios": stress_ratios_figure,
+    "contact_forces": contact_forces_figure,
+    "contact_normals": contact_normals_figure,
 }
 """Figure kinds a scenario can ask for in [output] figures."""

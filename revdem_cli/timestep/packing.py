@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from revdem_cli import laws
+from revdem_cli.contacts import touching_pairs, wall_touches
 from revdem_cli.errors import InputError
 from revdem_cli.kernels.arrays import Dynamics
 from revdem_cli.kernels.cell import FIXED
@@ -41,7 +42,6 @@ from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import BLOWN_UP, OK, advance
 from revdem_cli.kernels.stiffness import apply_stiffness, contact_stiffnesses
-from revdem_cli.kernels.wall_contacts import wall_normal
 from revdem_cli.stage import Model, stepping_bundles
 from revdem_cli.state import State, empty_events, fixed_arrays
 from revdem_cli.timestep.criteria import dt_velocity_verlet
@@ -70,29 +70,14 @@ class Contacts:
 
 def contacts_of(state: State, model: Model) -> Contacts:
     """The contacts of `state` in overlap, with their stiffnesses from the scenario's laws."""
-    p, pairs, cell = state.particles, state.pairs, state.cell
-    count = int(pairs.count[0])
-    i, j = pairs.i[:count].astype(np.int64), pairs.j[:count].astype(np.int64)
-    d = p.x[j] - p.x[i]
-    for axis in np.flatnonzero(cell.periodic):  # nearest image, as `cell.nearest_image`
-        length = cell.length[axis]
-        d[:, axis] -= length * np.floor(d[:, axis] / length + 0.5)
-    distance = np.sqrt((d * d).sum(axis=1))
-    overlap = p.radius[i] + p.radius[j] - distance
-    touching = overlap > 0.0
-    i, j, d, distance, overlap = (
-        i[touching],
-        j[touching],
-        d[touching],
-        distance[touching],
-        overlap[touching],
-    )
-    q, w = np.nonzero(state.walls.overlap > 0.0)  # sphere q on wall w
-    n_walls = np.array([wall_normal(p, state.walls, a, b) for a, b in zip(q, w, strict=True)])
+    p = state.particles
+    t = touching_pairs(state)
+    i, j, d, distance, overlap = t.i, t.j, t.d, t.distance, t.overlap
+    q, w, n_walls = wall_touches(state)  # sphere q on wall w
     r_i, r_j, m_i, m_j = p.radius[i], p.radius[j], p.mass[i], p.mass[j]
     a = np.concatenate([i, q])
     b = np.concatenate([j, np.full(len(q), len(p.x))])
-    n = np.concatenate([d / distance[:, None], n_walls.reshape(-1, 3)])
+    n = np.concatenate([d / distance[:, None], n_walls])
     wall_overlap = state.walls.overlap[q, w]
     rstar = np.concatenate([r_i * r_j / (r_i + r_j), p.radius[q]])  # on a wall R* = r
     mstar = np.concatenate([m_i * m_j / (m_i + m_j), p.mass[q]])  # and m* = m

@@ -56,7 +56,7 @@ def test_export_needs_a_format_and_a_trajectory(smoke_run):
     for args, message in (
         (
             ["export", str(smoke_run / "collision_smoke.forward.h5")],
-            "--format must be one of vtk, gsd, lammps-dump; give one",
+            "--format must be one of vtk, gsd, lammps-dump, lammps-data; give one",
         ),
         (
             ["export", str(smoke_run / "collision_smoke.forward.h5"), "--vtk", "--format", "gsd"],
@@ -70,18 +70,18 @@ def test_export_needs_a_format_and_a_trajectory(smoke_run):
 
 @pytest.fixture(scope="module")
 def packings(tmp_path_factory) -> dict[str, Path]:
-    """Short runs of the smoke oedometer (walls, open boundaries) and of the fcc triaxial
-    test (a periodic cell that deforms): their forward trajectories."""
+    """Runs of the smoke oedometer (walls, open boundaries; its compression short) and of
+    the fcc triaxial test (a periodic cell that deforms; both stages short), writing their
+    contacts: their forward trajectories. The last stage of each is undamped."""
     out = tmp_path_factory.mktemp("packings")
-    runs = {
-        "oedometer": (CONFIGS / "smoke" / "oedometer.toml", 4, "oedometer_smoke"),
-        "fcc": (CONFIGS / "fcc_triaxial.toml", 2, "fcc_triaxial"),
+    runs = {  # the oedometer poured, closed and settled in full: its spheres touch
+        "oedometer": (CONFIGS / "smoke" / "oedometer.toml", [3], "oedometer_smoke"),
+        "fcc": (CONFIGS / "fcc_triaxial.toml", [0, 1], "fcc_triaxial"),
     }
     found = {}
     for key, (config, stages, name) in runs.items():
-        short = [
-            f"stages.{k}.{f}" for k in range(stages) for f in ("steps=400", "output_every=100")
-        ]
+        short = [f"stages.{k}.{f}" for k in stages for f in ("steps=400", "output_every=100")]
+        short += ["output.contacts=true", "output.figures=['contact_forces','contact_normals']"]
         sets = [part for item in short for part in ("--set", item)]
         args = ["run", str(config), "--out", str(out / key), "-q", "--no-reverse", *sets]
         result = runner.invoke(app, args)
@@ -124,3 +124,100 @@ def test_ovito_reads_every_frame_of_an_export(packings, kind, fmt, tmp_path):
         if kind == "fcc":
             np.testing.assert_allclose(data.cell[:, :3].diagonal(), edges[frame], rtol=1e-6)
             assert all(data.cell.pbc)
+
+
+def _contacts(trajectory: Path, frame: int) -> dict[str, np.ndarray]:
+    from revdem_cli.io.h5md import read_contacts
+
+    with h5py.File(trajectory, "r") as f:
+        return read_contacts(f, frame)
+
+
+@pytest.mark.parametrize("kind", ["oedometer", "fcc"])
+def test_the_contacts_of_a_frame_sum_to_each_sphere_s_net_force(packings, kind):
+    """Newton's second law at a frame of an undamped stage: each sphere's weight plus the
+    forces of its contacts (on it where it is `particle`, the reaction where it is the
+    partner, wall contacts) is the net force the engine summed, to round-off; normal forces
+    push the spheres apart; the count of sphere contacts is the coordination number."""
+    import json
+
+    trajectory = packings[kind]
+    with h5py.File(trajectory, "r") as f:
+        force = f["particles/all/force/value"][-1]
+        position = f["particles/all/position/value"][-1]
+        mass = f["particles/all/mass"][:]
+        step = f["particles/all/force/step"][-1]
+        scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])
+        rows = f["observables/coordination_number/step"][:]
+        coordination = f["observables/coordination_number/value"][np.flatnonzero(rows == step)[0]]
+    contacts = _contacts(trajectory, -1)
+    particle, partner = contacts["value"][:, 0], contacts["value"][:, 1]
+    on_wall = partner < 0
+    assert (~on_wall).sum() > 100 and (kind == "fcc" or on_wall.sum() > 10)
+    total = contacts["normal_force"] + contacts["tangential_force"]
+    summed = mass[:, None] * np.array(scenario["gravity"])
+    np.add.at(summed, particle, total)
+    np.subtract.at(summed, partner[~on_wall], total[~on_wall])
+    scale = np.abs(total).max()
+    np.testing.assert_allclose(summed, force, rtol=0, atol=1e-12 * scale)
+    towards = contacts["point"] - position[particle]  # r - δ/2 along the normal
+    assert ((contacts["normal_force"] * towards).sum(axis=1) < 0).all()
+    assert np.all(contacts["overlap"] > 0)
+    assert 2 * (~on_wall).sum() / len(mass) == pytest.approx(coordination, rel=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["oedometer", "fcc"])
+def test_force_chains_open_in_vtk_and_bonds_in_ovito(packings, kind, tmp_path):
+    """The force-chain VTK series, read by VTK's own XML reader (ParaView's): a line a
+    contact, coloured by |f_n|; the GSD export's bonds, read by OVITO: the sphere pairs."""
+    import vtk
+    from ovito.io import import_file
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    trajectory = packings[kind]
+    name = trajectory.stem
+    result = runner.invoke(
+        app, ["export", str(trajectory), "--format", "vtk", "--out", str(tmp_path)]
+    )
+    assert result.exit_code == 0, result.output
+    series = ET.parse(tmp_path / f"{name}.contacts.pvd").getroot()
+    files = [d.get("file") for d in series.findall("Collection/DataSet")]
+    with h5py.File(trajectory, "r") as f:
+        frames = len(f["particles/all/position/step"])
+        position = f["particles/all/position/value"][-1]
+    assert len(files) == frames
+    reader = vtk.vtkXMLPolyDataReader()
+    reader.SetFileName(str(tmp_path / files[-1]))
+    reader.Update()
+    chains = reader.GetOutput()
+    contacts = _contacts(trajectory, -1)
+    assert chains.GetNumberOfLines() == len(contacts["value"])
+    magnitude = vtk_to_numpy(chains.GetCellData().GetArray("normal_force_magnitude"))
+    np.testing.assert_array_equal(magnitude, np.linalg.norm(contacts["normal_force"], axis=1))
+    ends = vtk_to_numpy(chains.GetPoints().GetData()).reshape(-1, 2, 3)
+    np.testing.assert_array_equal(ends[:, 0], position[contacts["value"][:, 0]])
+    length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    with h5py.File(trajectory, "r") as f:
+        radius = f["particles/all/radius"][:]
+    pairs = contacts["value"][:, 1] >= 0
+    i, j = contacts["value"][pairs].T
+    np.testing.assert_allclose(
+        length[pairs], radius[i] + radius[j] - contacts["overlap"][pairs], rtol=1e-12
+    )
+
+    target = tmp_path / "export.gsd"
+    result = runner.invoke(
+        app, ["export", str(trajectory), "--format", "gsd", "--out", str(target)]
+    )
+    assert result.exit_code == 0, result.output
+    data = import_file(str(target)).compute(frames - 1)
+    bonds = np.sort(np.asarray(data.particles.bonds.topology), axis=1)
+    np.testing.assert_array_equal(bonds, contacts["value"][pairs])
+
+
+@pytest.mark.parametrize("kind", ["oedometer", "fcc"])
+def test_contact_figures_are_drawn(packings, kind):
+    out = packings[kind].parent
+    for figure in ("contact_forces", "contact_normals"):
+        png = out / f"{packings[kind].name.removesuffix('.forward.h5')}.{figure}.png"
+        assert png.stat().st_size > 10_000, png

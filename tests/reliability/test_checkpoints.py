@@ -209,7 +209,9 @@ def test_a_flush_writes_no_step_before_the_file_holds_its_values(tmp_path, monke
     monkeypatch.setattr(writer.file, "flush", flush)
     for step in range(3):
         writer.frame(step, float(step), state.particles, empty_events())
-        writer.observables(np.array([step]), np.array([float(step)]), np.zeros((1, model.layout.width)))
+        writer.observables(
+            np.array([step]), np.array([float(step)]), np.zeros((1, model.layout.width))
+        )
         writer.flush()
     writer.close()
     written = [names for names in since_flush if names]

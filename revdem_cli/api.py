@@ -1,0 +1,288 @@
+"""revdem from Python: the engine the command line drives, with its checks, and the results
+as numpy arrays.
+
+    from revdem_cli import api as revdem
+
+    experiment = revdem.load("configs/collision_shear.toml")
+    experiment = experiment.changed({"contact.friction": 0.3, "stages.0.steps": 12000})
+    result = revdem.run(experiment, "out/shear", force=True)
+    result.comparison["reversible"]                    # False: friction destroyed information
+    time, energy = result.observable("kinetic_energy")  # forward; run="reverse" for the other
+
+Bad input raises `revdem_cli.errors.InputError` with the one line the command line prints;
+a run that cannot go on raises `RunFailed`. No progress is shown unless asked for
+(`progress=True`).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from revdem_cli.config import Scenario
+from revdem_cli.engine import Outputs
+from revdem_cli.errors import InputError
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A validated scenario, with the fields it was made from and where they came from."""
+
+    scenario: Scenario
+    fields: dict  # the scenario's fields as parsed, with every change made
+    origin: str  # the file it was read from, or "<dict>"
+    base: Path  # the folder files it names are relative to
+    text: str  # kept in the outputs: the file's text, or the fields as YAML
+    suffix: str  # the format of `text`
+
+    @property
+    def name(self) -> str:
+        return self.scenario.name
+
+    def changed(self, changes: Mapping[str, Any], host: bool = True) -> Experiment:
+        """This experiment with the fields at dotted paths (as `--set` names them,
+        `stages.0.steps`) set to Python values, checked again."""
+        fields = _changed(self.fields, changes)
+        text, suffix = (self.text, self.suffix) if self.origin != "<dict>" else _yaml(fields)
+        return _experiment(fields, self.origin, self.base, text, suffix, host)
+
+
+def _changed(fields: dict, changes: Mapping[str, Any] | None) -> dict:
+    from revdem_cli.config import set_field
+
+    fields = copy.deepcopy(fields)
+    for key, value in (changes or {}).items():
+        set_field(fields, key, value)
+    return fields
+
+
+def _experiment(fields: dict, origin: str, base: Path, text: str, suffix: str, host: bool):
+    """The experiment of a scenario's fields, checked as a scenario file is (`revdem run`'s
+    checks of this machine too, with `host`)."""
+    from revdem_cli.config import scenario_from_data
+
+    scenario = scenario_from_data(copy.deepcopy(fields), origin, base, host)
+    return Experiment(scenario, fields, origin, base, text, suffix)
+
+
+def _yaml(fields: dict) -> tuple[str, str]:
+    import yaml
+
+    return yaml.safe_dump(fields, sort_keys=False), ".yaml"
+
+
+def load(
+    path: str | Path,
+    changes: Mapping[str, Any] | None = None,
+    overrides: Sequence[str] = (),
+    host: bool = True,
+) -> Experiment:
+    """The experiment of a scenario file (TOML or YAML), with `changes` (Python values at
+    dotted paths) and `overrides` (`--set` texts, `key=value` with the value in TOML) made."""
+    from revdem_cli.config import apply_overrides, parse_text
+    from revdem_cli.config.loader import read_scenario_text
+
+    path = Path(path)
+    text, suffix = read_scenario_text(path), path.suffix.lower()
+    fields = apply_overrides(parse_text(text, suffix, str(path)), list(overrides), str(path))
+    return _experiment(_changed(fields, changes), str(path), path.parent, text, suffix, host)
+
+
+def from_dict(
+    fields: Mapping,
+    base: str | Path = ".",
+    changes: Mapping[str, Any] | None = None,
+    host: bool = True,
+) -> Experiment:
+    """The experiment of a scenario given as a dict of its fields (files it names are
+    relative to `base`), with `changes` made."""
+    fields = _changed(dict(fields), changes)
+    return _experiment(fields, "<dict>", Path(base), *_yaml(fields), host)
+
+
+@dataclass(frozen=True)
+class Result:
+    """What a run wrote, and its numbers as arrays."""
+
+    outputs: Outputs
+
+    @property
+    def comparison(self) -> dict | None:
+        """The forward-versus-reversed comparison (`compare.json`), None without reversal."""
+        return self.outputs.verdict
+
+    def trajectory(self, run: str = "forward") -> Path:
+        path = {"forward": self.outputs.forward, "reverse": self.outputs.reverse}.get(run)
+        if path is None:
+            raise InputError(f"no {run} trajectory (runs: forward, reverse where reversed)")
+        return path
+
+    def observable(self, name: str, run: str = "forward") -> tuple[np.ndarray, np.ndarray]:
+        """(time in s, values) of an observable of the forward or the reversed run."""
+        from revdem_cli.io.h5md import open_trajectory, read_observable
+
+        with open_trajectory(self.trajectory(run)) as f:
+            if f"observables/{name}" not in f:
+                known = ", ".join(sorted(f["observables"]))
+                raise InputError(f"no observable '{name}' (the run has: {known})")
+            return read_observable(f, name)
+
+    def observables(self, run: str = "forward") -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Every observable of a run by name, as `observable` gives it."""
+        from revdem_cli.io.h5md import open_trajectory
+
+        with open_trajectory(self.trajectory(run)) as f:
+            names = [name for name in f["observables"] if name != "events"]
+        return {name: self.observable(name, run) for name in names}
+
+    def frames(self, field: str = "position", run: str = "forward") -> tuple[np.ndarray, ...]:
+        """(steps, times in s, values [F, N, 3]) of a per-sphere field at every frame:
+        position, velocity, angular_velocity or force."""
+        from revdem_cli.io import FRAME_FIELDS
+        from revdem_cli.io.h5md import open_trajectory
+
+        if field not in FRAME_FIELDS:
+            raise InputError(f"no frame field '{field}' (fields: {', '.join(FRAME_FIELDS)})")
+        with open_trajectory(self.trajectory(run)) as f:
+            group = f[f"particles/all/{field}"]
+            steps = group["step"][:]
+            frames = len(steps)
+            return steps, group["time"][:frames], group["value"][:frames]
+
+    def contacts(self, frame: int = -1, run: str = "forward") -> dict[str, np.ndarray] | None:
+        """The contact list of a frame (`[output] contacts`), None if the run has none."""
+        from revdem_cli.io.h5md import open_trajectory, read_contacts
+
+        with open_trajectory(self.trajectory(run)) as f:
+            return read_contacts(f, frame)
+
+
+def output_paths_of(experiment: Experiment, out: Path, reverse: bool) -> list[Path]:
+    """Every file a run of `experiment` into `out` writes."""
+    from revdem_cli.engine import output_paths
+
+    spec = experiment.scenario
+    paths = output_paths(out, spec.name)
+    written = [paths["forward"], paths["restart"]]
+    if reverse and spec.reversed_stage is not None:
+        written += [paths["reverse"], paths["compare"]]
+    return written + figure_paths(out, spec)
+
+
+def figure_paths(out: Path, spec: Scenario) -> list[Path]:
+    """The figures a run of `spec` writes into `out`."""
+    return [out / f"{spec.name}.{kind}.png" for kind in spec.output.figures]
+
+
+def keep_outputs(paths: list[Path], force: bool) -> None:
+    """Refuse to overwrite outputs of an earlier run unless forced, naming the first one;
+    forced, remove them all before the run starts, so that a run that fails leaves none of
+    the earlier run's files beside its own (a verdict, a restart of another run). A symbolic
+    link at an output's place (dangling or not) counts as an output: it is removed, not
+    written through."""
+    existing = [path for path in paths if path.exists() or path.is_symlink()]
+    if existing and not force:
+        more = len(existing) - 1
+        others = f" (and {more} more output{'s' * (more > 1)} of this run)" if more else ""
+        link = " (a symbolic link)" if existing[0].is_symlink() else ""
+        raise InputError(f"{existing[0]}: exists{link}{others}; use --force to overwrite")
+    for path in existing:
+        path.unlink()
+
+
+def keep_checkpoint(out: Path, name: str, force: bool) -> None:
+    """Refuse to start over an unfinished run unless forced: its checkpoint names it."""
+    from revdem_cli.checkpoint import checkpoint_path, find_checkpoints
+
+    path = checkpoint_path(out, name)
+    others = [p for p in find_checkpoints(out) if p != path]
+    if others:
+        raise InputError(
+            f"{others[0]}: the checkpoint of another unfinished run is in {out}; continue it "
+            f"with revdem run --resume {out}, or give this run another --out"
+        )
+    if not path.exists():
+        return
+    if not force:
+        raise InputError(
+            f"{path}: an unfinished run; continue it with revdem run --resume {out}, or start "
+            "again with --force"
+        )
+    path.unlink()
+
+
+def _progress(progress):
+    """A rich progress display when asked for (True), or none."""
+    from contextlib import nullcontext
+
+    if progress:
+        from revdem_cli.report.progress import RunProgress
+
+        return RunProgress(unit="steps")
+    return nullcontext()
+
+
+def run(
+    experiment: Experiment,
+    out: str | Path = "out",
+    reverse: bool = True,
+    force: bool = False,
+    allow_unstable_dt: bool = False,
+    progress=False,
+) -> Result:
+    """Run every stage forward, and the reversed stage backwards with the comparison unless
+    `reverse` is False, into the folder `out`, as `revdem run` does: earlier outputs are
+    kept unless `force`, and a time step above the critical estimate is refused unless
+    `allow_unstable_dt`."""
+    from revdem_cli.engine import check_time_step, run_scenario
+
+    out = Path(out)
+    keep_checkpoint(out, experiment.name, force)
+    if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
+        check_time_step(experiment.scenario)
+    keep_outputs(output_paths_of(experiment, out, reverse), force)
+    with _progress(progress) as shown:
+        outputs = run_scenario(experiment.scenario, experiment.text, experiment.suffix, out,
+                               reverse, shown, allow_unstable_dt)  # fmt: skip
+    return Result(outputs)
+
+
+def reverse(
+    restart: str | Path,
+    out: str | Path | None = None,
+    steps: int | None = None,
+    force: bool = False,
+    progress=False,
+) -> Result:
+    """Run the stage that ended at a restart backwards and compare it with its forward
+    trajectory, as `revdem reverse` does."""
+    from revdem_cli.engine import output_paths, reverse_run
+    from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.io.restart import read_restart, restart_scenario
+
+    restart = Path(restart)
+    spec, forward = restart_scenario(restart)
+    read_restart(restart)  # every dataset checked before earlier outputs are replaced
+    folder = Path(out) if out is not None else restart.parent
+    paths = output_paths(folder, spec.name)
+    written = [paths["reverse"]]
+    if forward.is_file():  # compared with, and drawn beside, the reversed run
+        open_trajectory(forward).close()  # checked before the reversal, not after it
+        written += [paths["compare"], *figure_paths(folder, spec)]
+    keep_checkpoint(folder, spec.name, force)
+    keep_outputs(written, force)
+    with _progress(progress) as shown:
+        return Result(reverse_run(restart, out, steps, shown))
+
+
+def resume(out: str | Path, progress=False) -> Result:
+    """Continue the run whose checkpoint is in `out` to its end, as `revdem run --resume`."""
+    from revdem_cli.engine import resume_run
+
+    with _progress(progress) as shown:
+        return Result(resume_run(Path(out), shown))

@@ -1,0 +1,168 @@
+"""LAMMPS packings in and out: a data file that LAMMPS itself wrote (the fcc Hertz benchmark,
+tests/data/lammps/fcc_hertz_write_data.in) runs here forward and reversed and moves as it
+moved in LAMMPS; a trajectory's last frame exported as a data file reads back bit for bit."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from revdem_cli.cli import app
+from revdem_cli.config import load_scenario
+from revdem_cli.io.h5md import open_trajectory
+from revdem_cli.io.lammps_data import read_header, read_lammps_data
+from tests.conftest import assert_one_line_error
+
+DATA = Path(__file__).parents[1] / "data" / "lammps"
+STEPS = 100  # what LAMMPS ran between its two write_data
+
+SCENARIO = """
+name = "fcc_from_lammps"
+[materials.sphere]
+density = 1000.0
+shear_modulus = 2.0e6
+poisson_ratio = 0.2
+[contact]
+model = "hertz"
+[[particles_from]]
+lammps_data = "{data}"
+materials = {{ 1 = "sphere" }}
+periodic = true
+[cell]
+size = [{edge!r}, {edge!r}, {edge!r}]
+[integrator]
+dt = 1.0e-6
+[neighbours]
+skin = 5.0e-4
+[[stages]]
+name = "run"
+steps = {steps}
+output_every = {steps}
+reverse = true
+"""
+
+
+def _scenario(tmp_path: Path, data: Path, **changes) -> Path:
+    edge = float(read_header(DATA / "fcc_step0.data")[2][0])  # every file here has its box
+    fields = {"data": data, "edge": edge, "steps": STEPS, **changes}
+    path = tmp_path / "from_lammps.toml"
+    path.write_text(SCENARIO.format(**fields))
+    return path
+
+
+def _last_frame(trajectory: Path) -> dict[str, np.ndarray]:
+    with open_trajectory(trajectory) as f:
+        names = ("position", "velocity", "angular_velocity")
+        return {name: f[f"particles/all/{name}/value"][-1] for name in names}
+
+
+@pytest.fixture(scope="module")
+def lammps_run(tmp_path_factory) -> Path:
+    """The packing LAMMPS wrote at step 0, run here 100 steps forward and reversed."""
+    out = tmp_path_factory.mktemp("lammps")
+    scenario = _scenario(out, DATA / "fcc_step0.data")
+    result = CliRunner().invoke(app, ["run", str(scenario), "--out", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    return out
+
+
+def test_a_lammps_packing_moves_here_as_it_moved_in_lammps(lammps_run):
+    """LAMMPS' Hertz (hertz/material, the same E, ν, ρ) and revdem's are the same law
+    (Hanley 2020 Eq 6), both velocity Verlet: after 100 steps every sphere is where LAMMPS
+    put it, to a few units in the last place of a coordinate (1e-15 of the box, 4e-17 m;
+    measured 3.5e-18 m, of the 1e-6 m they moved), and at its velocity to 1e-9 of it."""
+    start = read_lammps_data(DATA / "fcc_step0.data")
+    lammps = read_lammps_data(DATA / "fcc_step100.data")
+    here = _last_frame(lammps_run / "fcc_from_lammps.forward.h5")
+    moved = np.abs(lammps.unwrapped - start.unwrapped).max()
+    assert 1e-7 < moved < 1e-5  # the spheres moved: the comparison can fail
+    assert np.abs(lammps.image).max() == 1  # some crossed the box: unwrapped as revdem has them
+    assert np.abs(here["position"] - lammps.unwrapped).max() < 1e-15 * lammps.upper[0]
+    speed = np.abs(lammps.velocity).max()
+    assert np.abs(here["velocity"] - lammps.velocity).max() < 1e-9 * speed
+    assert np.abs(here["angular_velocity"]).max() == 0.0  # frictionless: no spin in either
+
+
+def test_a_lammps_packing_reverses_to_its_start(lammps_run):
+    """Frictionless, undamped: the reversed run retraces the forward one (compare.json)."""
+    verdict = json.loads((lammps_run / "fcc_from_lammps.compare.json").read_text())
+    assert verdict["reversible"] is True
+    assert verdict["max_position_error_rel"] < 1e-9
+
+
+def test_a_frame_exported_as_a_data_file_reads_back_bit_for_bit(lammps_run, tmp_path):
+    """export --format lammps-data writes 17 digits: the scenario that reads it starts from
+    the last frame's positions, velocities, angular velocities and radii to the bit."""
+    trajectory = lammps_run / "fcc_from_lammps.forward.h5"
+    exported = tmp_path / "last.data"
+    result = CliRunner().invoke(
+        app, ["export", str(trajectory), "--format", "lammps-data", "--out", str(exported)]
+    )
+    assert result.exit_code == 0, result.output
+    frame = _last_frame(trajectory)
+    spheres = load_scenario(_scenario(tmp_path, exported))[0].spheres
+    edge = read_lammps_data(exported).upper
+    inside = ((frame["position"] >= 0.0) & (frame["position"] < edge)).all(axis=1)
+    assert 0 < inside.sum() < len(inside)  # some spheres left the box, to be wrapped back
+    assert np.array_equal(spheres.position[inside], frame["position"][inside])
+    shift = spheres.position[~inside] - frame["position"][~inside]  # whole box edges
+    assert np.allclose(shift / edge, np.round(shift / edge), rtol=0.0, atol=1e-12)
+    assert ((spheres.position >= 0.0) & (spheres.position < edge)).all()
+    assert np.array_equal(spheres.velocity, frame["velocity"])
+    assert np.array_equal(spheres.angular_velocity, frame["angular_velocity"])
+    with open_trajectory(trajectory) as f:
+        assert np.array_equal(spheres.radius, f["particles/all/radius"][:])
+
+
+def test_a_data_file_round_trip_keeps_every_number(tmp_path):
+    """Numbers with all 17 digits, spins and two materials survive the writer and reader."""
+    from revdem_cli.io.lammps_data import lammps_data_text
+
+    rng = np.random.default_rng(3)
+    n = 7
+    radius = rng.uniform(1e-3, 2e-3, n)
+    density = np.where(np.arange(n) % 2, 2500.0, 1000.0)
+    mass = density * 4.0 / 3.0 * math.pi * radius**3
+    x, v, w = (scale * rng.normal(size=(n, 3)) for scale in (1e-2, 1e-1, 1e1))
+    image = rng.integers(-2, 3, size=(n, 3))
+    text = lammps_data_text(radius, mass, x, image, v, w, 1 + np.arange(n) % 2, x.min(0) - 1,
+                            x.max(0) + 1, 5, "test")  # fmt: skip
+    path = tmp_path / "t.data"
+    path.write_text(text)
+    data = read_lammps_data(path)
+    assert np.array_equal(data.position, x) and np.array_equal(data.image, image)
+    assert np.array_equal(data.velocity, v)
+    assert np.array_equal(data.angular_velocity, w) and np.array_equal(data.radius, radius)
+    assert np.allclose(data.density, density, rtol=1e-15) and list(data.type) == [1, 2] * 3 + [1]
+
+
+@pytest.mark.parametrize(
+    ("edit", "fragments"),
+    [
+        (lambda t: t.replace("Atoms # sphere", "Atoms # atomic"), ["line 10", "atom_style atomic"]),
+        (lambda t: t.replace("units = si", "units = lj"), ["line 1", "units lj"]),
+        (lambda t: t.replace("108 atoms", "109 atoms"), ["109 atoms", "108"]),
+        (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 1 0.01 2000 0 0 0"), ["density 2000"]),
+        (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 2 0.01 1000 0 0 0"), ["atom type 2"]),
+        (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 1 -0.01 1000 0 0 0"), ["line 12"]),
+    ],
+)
+def test_a_bad_data_file_is_one_line_naming_it(tmp_path, edit, fragments):
+    data = tmp_path / "bad.data"
+    data.write_text(edit((DATA / "fcc_step0.data").read_text()))
+    scenario = _scenario(tmp_path, data)
+    result = CliRunner().invoke(app, ["validate", str(scenario)])
+    assert_one_line_error(result, "particles_from[0]", *fragments)
+
+
+def test_a_periodic_box_must_be_the_cell(tmp_path):
+    scenario = _scenario(tmp_path, DATA / "fcc_step0.data")
+    text = scenario.read_text().replace("size = [0.04", "size = [0.05", 1)
+    scenario.write_text(text)
+    result = CliRunner().invoke(app, ["validate", str(scenario)])
+    assert_one_line_error(result, "cell.size", "periodic box")
