@@ -31,6 +31,9 @@ SOLVER_ITERATIONS = 60
 BISECTIONS = 200  # the cold start's bisection on λ
 HESSIAN_FLOOR = 1e-6  # body coordinates / semi-axis below which a pointed tip's curvature is capped
 
+SPLITTING_AXES = (2, 1, 0, 1, 2)  # body axes of the symmetric splitting, z y x y z
+SPLITTING_FRACTIONS = (0.5, 0.5, 1.0, 0.5, 0.5)  # of the step, each
+
 STABLE, UNSTABLE, NOT_CONVERGED = 0, 1, 2
 """What a trial found: bounded, growing, or a contact the solver could not find."""
 
@@ -80,14 +83,15 @@ def _turn(vector, axis, angle):
 def free_rotation(q, momentum, moments, dt):
     """The free rigid body over dt: rotations about the body axes z, y, x, y, z for dt/2, dt/2,
     dt, dt/2, dt/2, each exact (Dullweber, Leimkuhler & McLachlan 1997). Returns (q, π)."""
-    for axis, fraction in ((2, 0.5), (1, 0.5), (0, 1.0), (1, 0.5), (2, 0.5)):
+    q = (q[0], q[1], q[2], q[3])
+    for k in range(5):
+        axis, fraction = SPLITTING_AXES[k], SPLITTING_FRACTIONS[k]
         angle = fraction * dt * momentum[axis] / moments[axis]  # ω_L = I⁻¹ π (Peng 2020 Eq 11)
-        half = 0.5 * angle
-        turn = [0.0, 0.0, 0.0]
-        turn[axis] = math.sin(half)
-        q = np.array(quaternion_product((q[0], q[1], q[2], q[3]), (math.cos(half), *turn)))
+        sine = math.sin(0.5 * angle)
+        turn = (math.cos(0.5 * angle), sine * (axis == 0), sine * (axis == 1), sine * (axis == 2))
+        q = quaternion_product(q, turn)
         momentum = _turn(momentum, axis, -angle)  # dπ/dt = π × ω_L (Peng 2020 Eq 11)
-    return q, momentum
+    return np.array(q), momentum
 
 
 @jit

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-from revdem_cli.timestep import criteria, verify
+from revdem_cli.timestep import criteria, rigid_pair, verify
 from revdem_cli.timestep.criteria import Contact
 from revdem_cli.timestep.shapes import Body
 
@@ -125,7 +125,41 @@ def _integrated(body1, body2, contact) -> tuple[Estimate, ...]:
         )
         for key, (label, source, verifier) in verify.ENGINE_VERIFIERS.items()
     )
-    return tuple(e for e in found if e.dt is not None)
+    return tuple(e for e in found if e.dt is not None) + _rigid(body1, body2, contact)
+
+
+def _rigid(body1, body2, contact) -> tuple[Estimate, ...]:
+    """The two rigid bodies integrated (`rigid_pair`): each Figure 2 configuration, the worst
+    random draw, and the smallest of all as `rigid_body_integrated`; none for a polyhedron."""
+    limits = rigid_pair.rigid_body_limits(body1, body2, contact)
+    if limits is None:
+        return ()
+    source = "kernels.rigid_pair, bonded contact"
+    figure2 = tuple(
+        Estimate(
+            f"rigid_body_{name}_integrated",
+            f"rigid pair, Figure 2{name}",
+            source,
+            limits[name],
+        )
+        for name in "ABC"
+    )
+    drawn = {name: dt for name, dt in limits.items() if name not in "ABC"}
+    worst = min(drawn, key=drawn.get)
+    return figure2 + (
+        Estimate(
+            "rigid_body_random_integrated",
+            f"rigid pair, worst of {len(drawn)} draws",
+            f"{source}, seed {rigid_pair.SEED}",
+            drawn[worst],
+        ),
+        Estimate(
+            "rigid_body_integrated",
+            "rigid pair, integrated",
+            "smallest of the rigid pair's rows",
+            min(limits.values()),
+        ),
+    )
 
 
 def _euler(body1, body2, contact) -> tuple[Estimate, ...]:
@@ -157,6 +191,20 @@ def _findings(items, checks, reference) -> tuple[str, ...]:
             f"{estimate.source} ({estimate.label}) is {ratio:.3g} × the reference, "
             f"{reference.label}: {verdict}."
         )
+    rigid = next((c for c in checks if c.key == "rigid_body_integrated"), None)
+    if rigid is not None:
+        formulas = [e for e in items if e.dt is not None and e.key != "rotation"]
+        above = [e for e in formulas if e.dt > rigid.dt * (1.0 + AGREEMENT_RTOL)]
+        if len(above) == len(formulas):
+            lines.append(
+                f"The two rigid bodies integrated are stable only up to {rigid.dt:.4e} s, "
+                "below every formula: no formula here is safe for this pair."
+            )
+        for estimate in above:
+            lines.append(
+                f"{estimate.source} ({estimate.label}) is {estimate.dt / rigid.dt:.3g} × the "
+                f"limit of the two rigid bodies integrated ({rigid.dt:.4e} s): unsafe for them."
+            )
     euler = {c.key: c.dt for c in checks}
     if "eq40_all_eigenvalues" in euler:
         stable_up_to = (
