@@ -186,7 +186,8 @@ def _minimiser(shapes, positions, rotations, weight):
 
 @jit
 def cold_contact(shapes, positions, rotations):
-    """(x*, λ) from no earlier solution: bisection on λ (G₁ - G₂ falls with λ), then Newton."""
+    """(x*, λ) from no earlier solution: bisection on λ (G₁ - G₂ falls with λ), then Newton
+    (`solve_contact`, which the next force computation repeats and checks)."""
     low, high = 0.0, 1.0
     for _ in range(BISECTIONS):
         weight = 0.5 * (low + high)
@@ -202,6 +203,7 @@ def cold_contact(shapes, positions, rotations):
     solution = np.empty(4)
     solution[:3] = x
     solution[3] = 0.5 * (low + high)
+    solve_contact(shapes, positions, rotations, solution)
     return solution
 
 
@@ -222,15 +224,17 @@ def solve_contact(shapes, positions, rotations, solution):
 
 @jit
 def contact_geometry(shapes, positions, rotations, solution):
-    """Contact point, unit normal (from body 1 to body 2) and overlap δ of a solved contact."""
+    """Each body's deepest point along the contact normal, the unit normal (from body 1 to
+    body 2) and the overlap δ of a solved contact."""
     x = solution[:3]
     g1, d1, _ = _world_shape(shapes[0], positions[0], rotations[0], x)
     normal = d1 / np.sqrt(d1 @ d1)
     root = math.sqrt(g1)
     overlap = (positions[1] - positions[0]) @ normal * (1.0 / root - 1.0)  # (x₂ - x₁)·n (1/√S - 1)
-    deepest1 = positions[0] + (x - positions[0]) / root
-    deepest2 = positions[1] + (x - positions[1]) / root
-    return 0.5 * (deepest1 + deepest2), normal, overlap
+    deepest = np.empty((2, 3))
+    for i in range(2):
+        deepest[i] = positions[i] + (x - positions[i]) / root
+    return deepest, normal, overlap
 
 
 @jit
@@ -279,13 +283,14 @@ def compute_forces(bodies, loads, law, shapes, moments, anchors, solution):
     positions = bodies[0]
     rotations = rotations_of(bodies[2])
     converged = solve_contact(shapes, positions, rotations, solution)
-    point, normal, overlap = contact_geometry(shapes, positions, rotations, solution)
+    deepest, normal, overlap = contact_geometry(shapes, positions, rotations, solution)
+    point = 0.5 * (deepest[0] + deepest[1])
     force, stretch = _contact_force(
         bodies, law, moments, rotations, anchors, point, normal, overlap
     )
     loads[0][1] = force
     loads[0][0] = -force
-    for i in range(2):
+    for i in range(2):  # one line of action: angular momentum is conserved
         loads[1][i] = np.cross(point - positions[i], loads[0][i])  # Peng 2020 Eq 3-4
     return converged, overlap, stretch
 

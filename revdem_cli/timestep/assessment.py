@@ -143,6 +143,7 @@ def _rigid(body1, body2, contact) -> tuple[Estimate, ...]:
             limits[name],
         )
         for name in "ABC"
+        if name in limits
     )
     drawn = {name: dt for name, dt in limits.items() if name not in "ABC"}
     worst = min(drawn, key=drawn.get)

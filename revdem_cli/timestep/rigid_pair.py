@@ -60,7 +60,13 @@ def figure2(body1: Body, body2: Body) -> tuple[Configuration, ...]:
     tangent contact of smooth bodies (the tips' normals are x and z), so body 2 keeps the
     paper's orientation and touches the tip with its side (lever arm c₂). (B) body 2 standing
     on its tip on body 1's face. (C) body 2 on its side on that face.
+
+    Empty unless both bodies are ellipsoids: at an axis tip a superquadric has a flat face
+    (ε < 1) or a vertex (ε > 1), where two bodies meet in a patch or without one normal, and
+    no point contact can be solved for.
     """
+    if any(e != 1.0 for body in (body1, body2) for e in body.surface[3:]):
+        return ()
     a1, _, c1 = body1.surface[:3]
     a2, b2, c2 = body2.surface[:3]
     return (
