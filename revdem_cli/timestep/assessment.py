@@ -129,23 +129,20 @@ def _integrated(body1, body2, contact) -> tuple[Estimate, ...]:
 
 
 def _rigid(body1, body2, contact) -> tuple[Estimate, ...]:
-    """The two rigid bodies integrated (`rigid_pair`): each Figure 2 configuration, the worst
-    random draw, and the smallest of all as `rigid_body_integrated`; none for a polyhedron."""
+    """The two rigid bodies integrated (`rigid_pair`): each Figure 2 configuration and the
+    coaxial tips, the worst random draw, and the smallest of all as `rigid_body_integrated`;
+    none for a polyhedron."""
     limits = rigid_pair.rigid_body_limits(body1, body2, contact)
     if limits is None:
         return ()
     source = "kernels.rigid_pair, bonded contact"
+    placed = {f"Figure 2{name}": name for name in "ABC"} | {"coaxial tips": "tips"}
     figure2 = tuple(
-        Estimate(
-            f"rigid_body_{name}_integrated",
-            f"rigid pair, Figure 2{name}",
-            source,
-            limits[name],
-        )
-        for name in "ABC"
+        Estimate(f"rigid_body_{name}_integrated", f"rigid pair, {words}", source, limits[name])
+        for words, name in placed.items()
         if name in limits
     )
-    drawn = {name: dt for name, dt in limits.items() if name not in "ABC"}
+    drawn = {name: dt for name, dt in limits.items() if name not in placed.values()}
     worst = min(drawn, key=drawn.get)
     return figure2 + (
         Estimate(

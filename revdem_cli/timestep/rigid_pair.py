@@ -8,8 +8,9 @@ moved by a small displacement and released from rest. A Δt is stable when the c
 displacement √(δ² + |stretch|²) over the second half of STEPS steps stays within GROWTH of
 its peak over the first; the limit is bisected as for Eq 30 (`verify.largest_stable_dt`).
 
-Configurations: the three of Peng 2020 Figure 2 as tangent contacts (`FIGURE2`), and random
-ones: uniformly random orientations and contact points on both surfaces, seeded.
+Configurations: the three of Peng 2020 Figure 2 as tangent contacts and the coaxial
+tip-to-tip contact (`figure2`), and random ones: uniformly random orientations and contact
+points on both surfaces, seeded.
 """
 
 from __future__ import annotations
@@ -54,12 +55,14 @@ class Configuration:
 
 
 def figure2(body1: Body, body2: Body) -> tuple[Configuration, ...]:
-    """Peng 2020 Figure 2 with the surfaces tangent at the contact.
+    """Peng 2020 Figure 2 with the surfaces tangent at the contact, and the coaxial tips.
 
     (A) body 2 across body 1's tip: the paper's orthogonal tip-to-tip placement cannot be a
     tangent contact of smooth bodies (the tips' normals are x and z), so body 2 keeps the
     paper's orientation and touches the tip with its side (lever arm c₂). (B) body 2 standing
-    on its tip on body 1's face. (C) body 2 on its side on that face.
+    on its tip on body 1's face. (C) body 2 on its side on that face. (tips) the two long axes
+    in line, tip on tip, axes parallel: the largest |ẍ_c| of Appendix A's Figure A4, and the
+    largest mobility of any tangent contact of two equal ellipsoids found.
 
     Empty unless both bodies are ellipsoids: at an axis tip a superquadric has a flat face
     (ε < 1) or a vertex (ε > 1), where two bodies meet in a patch or without one normal, and
@@ -73,6 +76,9 @@ def figure2(body1: Body, body2: Body) -> tuple[Configuration, ...]:
         Configuration("A", (IDENTITY, STANDING), (np.array([a1, 0, 0.0]), np.array([0, 0, -c2]))),
         Configuration("B", (IDENTITY, STANDING), (np.array([0, 0, c1]), np.array([a2, 0, 0.0]))),
         Configuration("C", (IDENTITY, ON_SIDE), (np.array([0, 0, c1]), np.array([0, -b2, 0.0]))),
+        Configuration(
+            "tips", (IDENTITY, IDENTITY), (np.array([a1, 0, 0.0]), np.array([-a2, 0, 0]))
+        ),
     )
 
 
@@ -119,7 +125,8 @@ class Pair:
     anchors: np.ndarray
     solution: np.ndarray
 
-    def copy(self):
+    def arguments(self):
+        """The kernel's arguments for a fresh trial: copies of what a trial changes."""
         return (
             tuple(a.copy() for a in self.bodies),
             np.zeros((2, 2, 3)),
@@ -166,7 +173,7 @@ def bonded_law(contact: Contact) -> np.ndarray:
 
 def is_stable(pair: Pair, dt: float, name: str) -> bool:
     """Whether the pair's contact stays bounded over STEPS steps of dt."""
-    status, early, late = kernel.stability_trial(*pair.copy(), dt, STEPS)
+    status, early, late = kernel.stability_trial(*pair.arguments(), dt, STEPS)
     if status == kernel.NOT_CONVERGED:
         raise RunFailed(f"rigid pair, configuration {name}: the contact solver did not converge")
     return status == kernel.STABLE and late <= GROWTH * early
@@ -186,7 +193,7 @@ def configuration_limit(body1: Body, body2: Body, contact: Contact, configuratio
 def rigid_body_limits(
     body1: Body, body2: Body, contact: Contact, draws: int = DRAWS, seed: int = SEED
 ) -> dict[str, float] | None:
-    """The integrated limit of each Figure 2 configuration and of each random draw; None
+    """The integrated limit of each `figure2` configuration and of each random draw; None
     unless both bodies are superquadrics (ellipsoids and spheres included)."""
     if body1.surface is None or body2.surface is None:
         return None
@@ -195,6 +202,6 @@ def rigid_body_limits(
 
 
 def rigid_body_limit(body1: Body, body2: Body, contact: Contact) -> float | None:
-    """Smallest integrated limit over Figure 2 and DRAWS random configurations (seed SEED)."""
+    """Smallest integrated limit over `figure2`'s and DRAWS random configurations (seed SEED)."""
     limits = rigid_body_limits(body1, body2, contact)
     return None if limits is None else min(limits.values())
