@@ -146,3 +146,23 @@ def test_polyhedra_have_no_rigid_limit():
     )
     assert rigid_pair.rigid_body_limits(cube, cube, Contact(1.0, 1.0)) is None
     assert math.isfinite(criteria.a_max(cube, cube))
+
+
+@pytest.mark.parametrize("exponents", [(1.0, 1.0), (0.5, 0.5), (1.8, 1.8), (0.6, 1.4)])
+def test_shape_function_is_barrs_with_its_derivatives(exponents):
+    """G = 1 on Barr's surface, homogeneous of degree two; gradient and Hessian match central
+    differences at a point off the axes (where the Hessian is not capped)."""
+    surface = np.array([3.0, 2.0, 1.0, *exponents])
+    eps1, eps2 = exponents
+    x, y = 3.0 * 0.6 ** (eps2 / 2), 2.0 * 0.4 ** (eps2 / 2)  # (x/a)^(2/ε2) + (y/b)^(2/ε2) = 1
+    rho = 0.5 ** (eps1 / 2)  # ρ^(2/ε1) = (z/c)^(2/ε1) = 1/2
+    point = np.array([rho * x, rho * y, 1.0 * rho])
+    value, gradient, hessian = kernel.shape_function(surface, point)
+    assert value == pytest.approx(1.0, rel=1e-12)
+    assert kernel.shape_function(surface, 1.7 * point)[0] == pytest.approx(1.7**2, rel=1e-12)
+    step = 1e-6
+    for i in range(3):
+        offset = np.eye(3)[i] * step
+        up, down = (kernel.shape_function(surface, point + s * offset) for s in (1.0, -1.0))
+        assert gradient[i] == pytest.approx((up[0] - down[0]) / (2 * step), rel=1e-6)
+        assert hessian[i] == pytest.approx((up[1] - down[1]) / (2 * step), rel=1e-5, abs=1e-8)
