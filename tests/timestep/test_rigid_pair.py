@@ -166,3 +166,14 @@ def test_shape_function_is_barrs_with_its_derivatives(exponents):
         up, down = (kernel.shape_function(surface, point + s * offset) for s in (1.0, -1.0))
         assert gradient[i] == pytest.approx((up[0] - down[0]) / (2 * step), rel=1e-6)
         assert hessian[i] == pytest.approx((up[1] - down[1]) / (2 * step), rel=1e-5, abs=1e-8)
+
+
+def test_two_spheres_integrated_anywhere_give_eq49(paper):
+    """Every contact of two equal spheres has A = 7/m, so every configuration's limit is
+    Eq 49, 2/√7 √(m/k_n)."""
+    sphere = shapes.sphere(0.01, 2500.0)
+    kn = 1e6
+    limits = rigid_pair.rigid_body_limits(sphere, sphere, Contact(kn, kn), draws=2, seed=5)
+    expected = paper["sphere"]["eq49_alpha"] * math.sqrt(sphere.mass / kn)
+    assert len(limits) == 6
+    assert list(limits.values()) == pytest.approx([expected] * 6, rel=LIMIT_RTOL)
