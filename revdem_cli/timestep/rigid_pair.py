@@ -8,9 +8,9 @@ moved by a small displacement and released from rest. A Δt is stable when the c
 displacement √(δ² + |stretch|²) over the second half of STEPS steps stays within GROWTH of
 its peak over the first; the limit is bisected as for Eq 30 (`verify.largest_stable_dt`).
 
-Configurations: the three of Peng 2020 Figure 2 as tangent contacts and the coaxial
-tip-to-tip contact (`figure2`), and random ones: uniformly random orientations and contact
-points on both surfaces, seeded.
+Configurations (`tangent_configurations`): the three of Peng 2020 Figure 2 as tangent
+contacts and the coaxial tip-to-tip contact; and random ones (`random_configurations`):
+uniformly random orientations and contact points on both surfaces, seeded.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ class Configuration:
     points: tuple[np.ndarray, np.ndarray]
 
 
-def figure2(body1: Body, body2: Body) -> tuple[Configuration, ...]:
+def tangent_configurations(body1: Body, body2: Body) -> tuple[Configuration, ...]:
     """Peng 2020 Figure 2 with the surfaces tangent at the contact, and the coaxial tips.
 
     (A) body 2 across body 1's tip: the paper's orthogonal tip-to-tip placement cannot be a
@@ -193,15 +193,17 @@ def configuration_limit(body1: Body, body2: Body, contact: Contact, configuratio
 def rigid_body_limits(
     body1: Body, body2: Body, contact: Contact, draws: int = DRAWS, seed: int = SEED
 ) -> dict[str, float] | None:
-    """The integrated limit of each `figure2` configuration and of each random draw; None
-    unless both bodies are superquadrics (ellipsoids and spheres included)."""
+    """The integrated limit of each tangent configuration and of each of `draws` random ones
+    (seeded); None unless both bodies are superquadrics (ellipsoids and spheres included)."""
     if body1.surface is None or body2.surface is None:
         return None
-    configurations = figure2(body1, body2) + random_configurations(body1, body2, draws, seed)
+    configurations = tangent_configurations(body1, body2) + random_configurations(
+        body1, body2, draws, seed
+    )
     return {c.name: configuration_limit(body1, body2, contact, c) for c in configurations}
 
 
 def rigid_body_limit(body1: Body, body2: Body, contact: Contact) -> float | None:
-    """Smallest integrated limit over `figure2`'s and DRAWS random configurations (seed SEED)."""
+    """Smallest integrated limit over the tangent and DRAWS random configurations (seed SEED)."""
     limits = rigid_body_limits(body1, body2, contact)
     return None if limits is None else min(limits.values())

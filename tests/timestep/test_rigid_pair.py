@@ -117,7 +117,7 @@ def test_integrated_limit_is_velocity_verlet_on_the_configurations_mobility(elli
     kn = 1e10
     a_max = criteria.a_max(ellipsoid, ellipsoid)
     c = criteria.damping_from_number(number, kn, a_max)
-    for configuration in rigid_pair.figure2(ellipsoid, ellipsoid)[1:]:
+    for configuration in rigid_pair.tangent_configurations(ellipsoid, ellipsoid)[1:]:
         largest = np.linalg.eigvalsh(_mobility(ellipsoid, configuration)).max()
         expected = criteria.dt_velocity_verlet(kn, c, largest)
         found = rigid_pair.configuration_limit(
