@@ -125,39 +125,54 @@ def _integrated(body1, body2, contact) -> tuple[Estimate, ...]:
         )
         for key, (label, source, verifier) in verify.ENGINE_VERIFIERS.items()
     )
-    return tuple(e for e in found if e.dt is not None) + _rigid(body1, body2, contact)
+    return tuple(e for e in found if e.dt is not None)
 
 
-def _rigid(body1, body2, contact) -> tuple[Estimate, ...]:
-    """The two rigid bodies integrated (`rigid_pair`): each Figure 2 configuration and the
-    coaxial tips, the worst random draw, and the smallest of all as `rigid_body_integrated`;
-    none for a polyhedron."""
+def _rigid(body1, body2, contact) -> tuple[tuple[Estimate, ...], tuple[str, ...]]:
+    """The two rigid bodies integrated (`rigid_pair`): each tangent configuration (Figure 2
+    and the coaxial tips), the worst random draw, and the smallest of all as
+    `rigid_body_integrated`; none where `rigid_pair` does not apply. With them, a sentence
+    on every configuration whose contact the solver lost."""
     limits = rigid_pair.rigid_body_limits(body1, body2, contact)
     if limits is None:
-        return ()
+        return (), (
+            "Two rigid bodies are integrated only as superquadrics with exponents below 2 "
+            "(smooth surfaces): not this pair.",
+        )
+    lost = tuple(
+        f"Rigid pair, configuration {name}: the contact solver lost the contact (a flat face "
+        "on a face, an edge or a vertex); it is left out of the integrated limit."
+        for name, dt in limits.items()
+        if dt is None
+    )
+    found = {name: dt for name, dt in limits.items() if dt is not None}
+    if not found:
+        return (), lost
     source = "kernels.rigid_pair, bonded contact"
     placed = {f"Figure 2{name}": name for name in "ABC"} | {"coaxial tips": "tips"}
-    figure2 = tuple(
-        Estimate(f"rigid_body_{name}_integrated", f"rigid pair, {words}", source, limits[name])
+    rows = tuple(
+        Estimate(f"rigid_body_{name}_integrated", f"rigid pair, {words}", source, found[name])
         for words, name in placed.items()
-        if name in limits
+        if name in found
     )
-    drawn = {name: dt for name, dt in limits.items() if name not in placed.values()}
-    worst = min(drawn, key=drawn.get)
-    return figure2 + (
-        Estimate(
-            "rigid_body_random_integrated",
-            f"rigid pair, worst of {len(drawn)} draws",
-            f"{source}, seed {rigid_pair.SEED}",
-            drawn[worst],
-        ),
-        Estimate(
-            "rigid_body_integrated",
-            "rigid pair, integrated",
-            "smallest of the rigid pair's rows",
-            min(limits.values()),
-        ),
+    drawn = {name: dt for name, dt in found.items() if name not in placed.values()}
+    if drawn:
+        worst = min(drawn, key=drawn.get)
+        rows += (
+            Estimate(
+                "rigid_body_random_integrated",
+                f"rigid pair, worst of {len(drawn)} draws",
+                f"{source}, seed {rigid_pair.SEED}",
+                drawn[worst],
+            ),
+        )
+    smallest = Estimate(
+        "rigid_body_integrated",
+        "rigid pair, integrated",
+        "smallest of the rigid pair's rows",
+        min(found.values()),
     )
+    return rows + (smallest,), lost
 
 
 def _euler(body1, body2, contact) -> tuple[Estimate, ...]:
@@ -237,7 +252,8 @@ def assess(
     damping = criteria.damping_from_number(damping_number, kn, inverse_mass)
     contact = Contact(kn=kn, ks=ks, cn=damping, cs=damping)
     items = _criteria(body1, body2, contact, inverse_mass, omega_max)
-    integrated = _integrated(body1, body2, contact) if check else ()
+    rigid, lost = _rigid(body1, body2, contact) if check else ((), ())
+    integrated = _integrated(body1, body2, contact) + rigid if check else ()
     checks = integrated + _euler(body1, body2, contact) if check else ()
     formula = next(e for e in items if e.key == "velocity_verlet")
     reference = min(integrated, key=lambda e: e.dt) if integrated else formula
@@ -252,5 +268,5 @@ def assess(
         checks=checks,
         reference=reference,
         recommended=min(e.dt for e in limits),
-        findings=_findings(items, checks, reference),
+        findings=_findings(items, checks, reference) + lost,
     )

@@ -154,7 +154,10 @@ def place(body1: Body, body2: Body, configuration: Configuration, law) -> Pair:
         np.zeros((2, 3)),
     )
     shapes = np.array([_surface(body1), _surface(body2)])
-    solution = kernel.cold_contact(shapes, positions, np.array(rotations))
+    try:
+        solution = kernel.cold_contact(shapes, positions, np.array(rotations))
+    except np.linalg.LinAlgError:  # a singular Newton matrix: no unique contact point
+        raise ContactLost(configuration.name) from None
     return Pair(
         bodies=bodies,
         law=np.asarray(law, dtype=float),
@@ -171,11 +174,24 @@ def bonded_law(contact: Contact) -> np.ndarray:
     return np.array([contact.kn, contact.ks, contact.cn, contact.cs, 1.0, BLOW_UP])
 
 
+class ContactLost(RunFailed):
+    """The contact solver could not follow a configuration's contact: a flat face on a flat
+    face, an edge or a vertex, where the surfaces meet in more than one point or without
+    one normal."""
+
+    def __init__(self, name: str):
+        super().__init__(f"rigid pair, configuration {name}: the contact solver lost the contact")
+        self.configuration = name
+
+
 def is_stable(pair: Pair, dt: float, name: str) -> bool:
     """Whether the pair's contact stays bounded over STEPS steps of dt."""
-    status, early, late = kernel.stability_trial(*pair.arguments(), dt, STEPS)
+    try:
+        status, early, late = kernel.stability_trial(*pair.arguments(), dt, STEPS)
+    except np.linalg.LinAlgError:  # a singular Newton matrix: no unique contact point
+        raise ContactLost(name) from None
     if status == kernel.NOT_CONVERGED:
-        raise RunFailed(f"rigid pair, configuration {name}: the contact solver did not converge")
+        raise ContactLost(name)
     return status == kernel.STABLE and late <= GROWTH * early
 
 
@@ -190,20 +206,34 @@ def configuration_limit(body1: Body, body2: Body, contact: Contact, configuratio
     )
 
 
+def _limit_or_lost(body1, body2, contact, configuration) -> float | None:
+    """`configuration_limit`, or None where the solver lost the contact."""
+    try:
+        return configuration_limit(body1, body2, contact, configuration)
+    except ContactLost:
+        return None
+
+
 def rigid_body_limits(
     body1: Body, body2: Body, contact: Contact, draws: int = DRAWS, seed: int = SEED
-) -> dict[str, float] | None:
+) -> dict[str, float | None] | None:
     """The integrated limit of each tangent configuration and of each of `draws` random ones
-    (seeded); None unless both bodies are superquadrics (ellipsoids and spheres included)."""
+    (seeded), None for one whose contact the solver lost (see `ContactLost`); None unless
+    both bodies are superquadrics (ellipsoids and spheres included) with exponents below 2
+    (at 2 the surface has edges: no normal there)."""
     if body1.surface is None or body2.surface is None:
+        return None
+    if any(e >= 2.0 for body in (body1, body2) for e in body.surface[3:]):
         return None
     configurations = tangent_configurations(body1, body2) + random_configurations(
         body1, body2, draws, seed
     )
-    return {c.name: configuration_limit(body1, body2, contact, c) for c in configurations}
+    return {c.name: _limit_or_lost(body1, body2, contact, c) for c in configurations}
 
 
 def rigid_body_limit(body1: Body, body2: Body, contact: Contact) -> float | None:
-    """Smallest integrated limit over the tangent and DRAWS random configurations (seed SEED)."""
+    """Smallest integrated limit over the tangent and DRAWS random configurations (seed SEED)
+    whose contact the solver followed; None where there is none."""
     limits = rigid_body_limits(body1, body2, contact)
-    return None if limits is None else min(limits.values())
+    found = [dt for dt in (limits or {}).values() if dt is not None]
+    return min(found) if found else None

@@ -177,3 +177,22 @@ def test_two_spheres_integrated_anywhere_give_eq49(paper):
     expected = paper["sphere"]["eq49_alpha"] * math.sqrt(sphere.mass / kn)
     assert len(limits) == 6
     assert list(limits.values()) == pytest.approx([expected] * 6, rel=LIMIT_RTOL)
+
+
+def test_flat_face_on_flat_face_is_a_lost_contact_not_a_limit():
+    """Blocky superquadrics face to face touch in a patch: no point contact to follow."""
+    blocky = shapes.superquadric(3.0, 2.0, 1.0, 0.5, 0.5, 1000.0)
+    faces = rigid_pair.Configuration(
+        "faces",
+        (kinematics.IDENTITY, kinematics.IDENTITY),
+        (np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, -1.0])),
+    )
+    with pytest.raises(rigid_pair.ContactLost, match="configuration faces"):
+        rigid_pair.configuration_limit(blocky, blocky, Contact(1e10, 1e10), faces)
+    assert rigid_pair.tangent_configurations(blocky, blocky) == ()
+
+
+def test_edged_superquadrics_are_not_integrated():
+    octahedron = shapes.superquadric(3.0, 2.0, 1.0, 2.0, 2.0, 1000.0)
+    assert rigid_pair.rigid_body_limits(octahedron, octahedron, Contact(1.0, 1.0)) is None
+    assert rigid_pair.rigid_body_limit(octahedron, octahedron, Contact(1.0, 1.0)) is None
