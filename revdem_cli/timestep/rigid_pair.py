@@ -33,6 +33,7 @@ from revdem_cli.timestep.contact_kinematics import (
 )
 from revdem_cli.timestep.criteria import Contact, a_max
 from revdem_cli.timestep.shapes import Body
+from revdem_cli.timestep.verify import largest_stable_dt
 
 STEPS = 2000  # steps per trial Δt
 GROWTH = 2.0  # late/early peak displacement that counts as unstable
@@ -197,8 +198,6 @@ def is_stable(pair: Pair, dt: float, name: str) -> bool:
 
 def configuration_limit(body1: Body, body2: Body, contact: Contact, configuration) -> float:
     """Largest stable Δt of the pair integrated from one configuration."""
-    from revdem_cli.timestep.verify import largest_stable_dt
-
     pair = place(body1, body2, configuration, bonded_law(contact))
     guess = 1.0 / math.sqrt(max(contact.kn, contact.ks) * a_max(body1, body2))
     return largest_stable_dt(

@@ -9,7 +9,7 @@ import pytest
 
 from revdem_cli.kernels import rigid_pair as kernel
 from revdem_cli.timestep import contact_kinematics as kinematics
-from revdem_cli.timestep import criteria, rigid_pair, shapes
+from revdem_cli.timestep import criteria, rigid_pair, shapes, verify
 from revdem_cli.timestep.criteria import Contact
 
 LIMIT_RTOL = 2e-3  # bisection to 1e-4; slow growth within a trial near the limit
@@ -196,3 +196,28 @@ def test_edged_superquadrics_are_not_integrated():
     octahedron = shapes.superquadric(3.0, 2.0, 1.0, 2.0, 2.0, 1000.0)
     assert rigid_pair.rigid_body_limits(octahedron, octahedron, Contact(1.0, 1.0)) is None
     assert rigid_pair.rigid_body_limit(octahedron, octahedron, Contact(1.0, 1.0)) is None
+
+
+def test_a_tumbling_pair_keeps_the_limit_at_rest(ellipsoid):
+    """The bonded pair (coaxial tips) turning as one body at 20 rad/s about a non-principal
+    axis, the contact carrying its centripetal load: the limit moves by under 1e-3, while the
+    rotation-dominant Δt (Eq 57) is 65 times larger; rotation does not couple here."""
+    kn = 1e10
+    tips = rigid_pair.tangent_configurations(ellipsoid, ellipsoid)[3]
+    law = rigid_pair.bonded_law(Contact(kn, kn))
+    law[5] = 2e-2  # room for the centripetal stretch, 3e-3 of the long semi-axis at 20 rad/s
+
+    def limit(omega):
+        pair = rigid_pair.place(ellipsoid, ellipsoid, tips, law)
+        positions, velocities, quaternions, momenta = pair.bodies
+        spin = omega * np.array([0.3, 0.4, 1.0]) / np.linalg.norm([0.3, 0.4, 1.0])
+        for i, rotation in enumerate(kernel.rotations_of(quaternions)):
+            velocities[i] = np.cross(spin, positions[i] - positions.mean(axis=0))
+            momenta[i] = np.asarray(ellipsoid.axis_moments) * (rotation.T @ spin)
+        stable = lambda dt: rigid_pair.is_stable(pair, dt, tips.name)  # noqa: E731
+        return verify.largest_stable_dt(stable, 1e-3, rigid_pair.BISECTION_RTOL)
+
+    at_rest, turning = limit(0.0), limit(20.0)
+    assert turning == pytest.approx(at_rest, rel=1e-3)
+    rotation = criteria.dt_rotation(20.0, criteria.b_max(ellipsoid), criteria.b_max(ellipsoid))
+    assert rotation > 60.0 * turning
