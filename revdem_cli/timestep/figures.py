@@ -33,7 +33,7 @@ APPENDIX_STEMS = {
     "A2": "figureA2_contact_points",
     "A4": "figureA4_orientations",
 }
-APPENDIX_GRID = 61  # polar × azimuthal angles of each Appendix A scan
+APPENDIX_GRID = 41  # polar × azimuthal angles of each Appendix A scan
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> Path:

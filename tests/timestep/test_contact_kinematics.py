@@ -96,3 +96,20 @@ def test_figure_a4_has_three_similar_maxima_one_orthogonal(paper, scenario):
     values = surface[peaks]
     assert values.min() >= 0.85 * values.max()  # "a similar maximum value"
     assert any(c[2] == pytest.approx(numbers["orthogonal_maximum_centre_z"]) for c in found)
+
+
+def test_committed_appendix_figures_hold_the_papers_maxima(paper, committed):
+    numbers = paper["appendix_a"]
+    contact_points = committed("figureA2_contact_points")
+    orientations = committed("figureA4_orientations")
+    for scenario in (1.0, 2.0):
+        rows = contact_points["scenario"] == scenario
+        top = np.argmax(contact_points["acceleration"][rows])
+        where = [contact_points[axis][rows][top] for axis in "xyz"]
+        assert where == pytest.approx(numbers["maximum_contact_point"], abs=1e-9)
+        rows = orientations["scenario"] == scenario
+        orthogonal = np.isclose(orientations["centre2_z"][rows], 3.0)
+        largest = orientations["acceleration"][rows].max()
+        assert orientations["acceleration"][rows][orthogonal].max() >= 0.85 * largest
+    mobility = committed("figure2_mobility")
+    assert np.all(mobility["largest_m1"] <= paper["ellipsoid_pair"]["a_max_times_mass"])
