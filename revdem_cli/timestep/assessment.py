@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-from revdem_cli.timestep import criteria, verify
+from revdem_cli.timestep import criteria, rigid_pair, verify
 from revdem_cli.timestep.criteria import Contact
 from revdem_cli.timestep.shapes import Body
 
@@ -128,6 +128,53 @@ def _integrated(body1, body2, contact) -> tuple[Estimate, ...]:
     return tuple(e for e in found if e.dt is not None)
 
 
+def _rigid(body1, body2, contact) -> tuple[tuple[Estimate, ...], tuple[str, ...]]:
+    """The two rigid bodies integrated (`rigid_pair`): each tangent configuration (Figure 2
+    and the coaxial tips), the worst random draw, and the smallest of all as
+    `rigid_body_integrated`; none where `rigid_pair` does not apply. With them, a sentence
+    on every configuration whose contact the solver lost."""
+    limits = rigid_pair.rigid_body_limits(body1, body2, contact)
+    if limits is None:
+        return (), (
+            "Two rigid bodies are integrated only as superquadrics with exponents below 2 "
+            "(smooth surfaces): not this pair.",
+        )
+    lost = tuple(
+        f"Rigid pair, configuration {name}: the contact solver lost the contact (a flat face "
+        "on a face, an edge or a vertex); it is left out of the integrated limit."
+        for name, dt in limits.items()
+        if dt is None
+    )
+    found = {name: dt for name, dt in limits.items() if dt is not None}
+    if not found:
+        return (), lost
+    source = "kernels.rigid_pair, bonded contact"
+    placed = {f"Figure 2{name}": name for name in "ABC"} | {"coaxial tips": "tips"}
+    rows = tuple(
+        Estimate(f"rigid_body_{name}_integrated", f"rigid pair, {words}", source, found[name])
+        for words, name in placed.items()
+        if name in found
+    )
+    drawn = {name: dt for name, dt in found.items() if name not in placed.values()}
+    if drawn:
+        worst = min(drawn, key=drawn.get)
+        rows += (
+            Estimate(
+                "rigid_body_random_integrated",
+                f"rigid pair, worst of {len(drawn)} draws",
+                f"{source}, seed {rigid_pair.SEED}",
+                drawn[worst],
+            ),
+        )
+    smallest = Estimate(
+        "rigid_body_integrated",
+        "rigid pair, integrated",
+        "smallest of the rigid pair's rows",
+        min(found.values()),
+    )
+    return rows + (smallest,), lost
+
+
 def _euler(body1, body2, contact) -> tuple[Estimate, ...]:
     return (
         Estimate(
@@ -157,6 +204,20 @@ def _findings(items, checks, reference) -> tuple[str, ...]:
             f"{estimate.source} ({estimate.label}) is {ratio:.3g} × the reference, "
             f"{reference.label}: {verdict}."
         )
+    rigid = next((c for c in checks if c.key == "rigid_body_integrated"), None)
+    if rigid is not None:
+        formulas = [e for e in items if e.dt is not None and e.key != "rotation"]
+        above = [e for e in formulas if e.dt > rigid.dt * (1.0 + AGREEMENT_RTOL)]
+        if len(above) == len(formulas):
+            lines.append(
+                f"The two rigid bodies integrated are stable only up to {rigid.dt:.4e} s, "
+                "below every formula: no formula here is safe for this pair."
+            )
+        for estimate in above:
+            lines.append(
+                f"{estimate.source} ({estimate.label}) is {estimate.dt / rigid.dt:.3g} × the "
+                f"limit of the two rigid bodies integrated ({rigid.dt:.4e} s): unsafe for them."
+            )
     euler = {c.key: c.dt for c in checks}
     if "eq40_all_eigenvalues" in euler:
         stable_up_to = (
@@ -191,7 +252,8 @@ def assess(
     damping = criteria.damping_from_number(damping_number, kn, inverse_mass)
     contact = Contact(kn=kn, ks=ks, cn=damping, cs=damping)
     items = _criteria(body1, body2, contact, inverse_mass, omega_max)
-    integrated = _integrated(body1, body2, contact) if check else ()
+    rigid, lost = _rigid(body1, body2, contact) if check else ((), ())
+    integrated = _integrated(body1, body2, contact) + rigid if check else ()
     checks = integrated + _euler(body1, body2, contact) if check else ()
     formula = next(e for e in items if e.key == "velocity_verlet")
     reference = min(integrated, key=lambda e: e.dt) if integrated else formula
@@ -206,5 +268,5 @@ def assess(
         checks=checks,
         reference=reference,
         recommended=min(e.dt for e in limits),
-        findings=_findings(items, checks, reference),
+        findings=_findings(items, checks, reference) + lost,
     )

@@ -368,7 +368,11 @@ def dt(
     ] = None,
     out: Annotated[Path | None, typer.Option(help="CSV file of a sweep (default stdout).")] = None,
     figures: Annotated[
-        Path | None, typer.Option(help="Write Peng 2020 Figures 3-6 (PNG and CSV) to this folder.")
+        Path | None,
+        typer.Option(
+            help="Write Peng 2020 Figures 3-6, A2 and A4 (PNG and CSV) and Figure 2's "
+            "mobilities (CSV) to this folder."
+        ),
     ] = None,
     restart: Annotated[
         Path | None,
@@ -387,10 +391,11 @@ def dt(
     Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
     """
     if figures is not None:
-        from revdem_cli.timestep.figures import PAPER_STEMS, write_figures
+        from revdem_cli.timestep.figures import PAPER_STEMS, write_appendix_figures, write_figures
         from revdem_cli.timestep.study import PAPER
 
-        for path in write_figures(figures, PAPER, PAPER_STEMS):
+        written = write_figures(figures, PAPER, PAPER_STEMS) + write_appendix_figures(figures)
+        for path in written:
             typer.echo(f"wrote {path}")
         return
     if restart is not None:

@@ -1,7 +1,9 @@
 """Figures 3-6 of Peng, Burns & Hanley (2020) as CSV and PNG.
 
 Figures 3-5 add, next to the paper's curves, the stability limit of velocity Verlet as a
-formula (dashed) and as found by integration (markers).
+formula (dashed) and as found by integration (markers); Figures 4 and 5, where the study asks,
+the limit of the two rigid bodies integrated (open squares, `rigid_pair`). Figure 2's
+mobilities and Appendix A's Figures A2 and A4 come from `contact_kinematics`.
 """
 
 from __future__ import annotations
@@ -26,6 +28,12 @@ PAPER_STEMS = {
     5: "figure5_density",
     6: "figure6_aspect_ratio",
 }
+APPENDIX_STEMS = {
+    "figure2": "figure2_mobility",
+    "A2": "figureA2_contact_points",
+    "A4": "figureA4_orientations",
+}
+APPENDIX_GRID = 41  # polar × azimuthal angles of each Appendix A scan
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> Path:
@@ -67,9 +75,15 @@ def figure3_data(betas: np.ndarray, every: int) -> dict[str, np.ndarray]:
 
 
 def damping_sweep_data(
-    study: TimestepStudy, parameter: str, values: np.ndarray, every: int
+    study: TimestepStudy, parameter: str, values: np.ndarray, every: int, rigid_every: int = 0
 ) -> dict[str, np.ndarray]:
-    """Figures 4 (parameter "kn") and 5 ("density"): the study's particle pair, one row per N."""
+    """Figures 4 (parameter "kn") and 5 ("density"): the study's particle pair, one row per N.
+
+    At every `every`-th value the velocity-Verlet limit is integrated; at every
+    `rigid_every`-th (0: none) also the two rigid bodies (`rigid_pair.rigid_body_limit`).
+    """
+    from revdem_cli.timestep.rigid_pair import rigid_body_limit
+
     particle, contact = study.particle, study.contact
     rows = []
     for i, value in enumerate(values):
@@ -80,6 +94,11 @@ def damping_sweep_data(
         for number in contact.damping_numbers:
             c = criteria.damping_from_number(number, kn, inverse_mass)
             integrated = _integrated_limit(kn, c, inverse_mass) if _marked(i, every) else math.nan
+            rigid = (
+                rigid_body_limit(body, body, criteria.Contact(kn, kn, c, c))
+                if _marked(i, rigid_every)
+                else math.nan
+            )
             rows.append(
                 (
                     value,
@@ -88,6 +107,7 @@ def damping_sweep_data(
                     criteria.dt_amplification(kn, c, inverse_mass),
                     criteria.dt_velocity_verlet(kn, c, inverse_mass),
                     integrated,
+                    rigid,
                 )
             )
     names = (
@@ -97,6 +117,7 @@ def damping_sweep_data(
         "eq46_amplification",
         "velocity_verlet",
         "velocity_verlet_integrated",
+        "rigid_body_integrated",
     )
     return dict(zip(names, np.array(rows).T, strict=True))
 
@@ -184,8 +205,11 @@ def _plot_damping_sweep(columns, parameter: str, xlabel: str, title: str, path: 
         )
         ax.plot(x, columns["velocity_verlet"][rows], color=colour, ls="--")
         ax.plot(x, columns["velocity_verlet_integrated"][rows], "o", color=colour, ms=4)
+        ax.plot(x, columns["rigid_body_integrated"][rows], "s", color=colour, ms=5, mfc="none")
     ax.plot([], [], "k--", label="velocity-Verlet limit")
     ax.plot([], [], "ko", ms=4, label="velocity Verlet, integrated")
+    if np.isfinite(columns["rigid_body_integrated"]).any():
+        ax.plot([], [], "ks", ms=5, mfc="none", label="two rigid bodies, integrated")
     ax.set(xlabel=xlabel, ylabel="Δt_cri (s)", yscale="log", title=title)
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
@@ -218,6 +242,78 @@ def _plot_figure6(columns, study: TimestepStudy, path: Path) -> None:
     plt.close(fig)
 
 
+def figure2_data(body: shapes.Body) -> dict[str, np.ndarray]:
+    """The mobility A of Eq 25 (from Eq 1-19) of each Figure 2 configuration, times m₁."""
+    from revdem_cli.timestep import contact_kinematics as kinematics
+
+    rows = []
+    for number, placement in enumerate(kinematics.figure2(body, body).values()):
+        mobility = kinematics.mobility((body, body), placement) * body.mass
+        rows.append((number, *mobility.ravel(), np.linalg.eigvalsh(mobility).max()))
+    names = ("configuration", *(f"A{i}{j}_m1" for i in "xyz" for j in "xyz"), "largest_m1")
+    return dict(zip(names, np.array(rows).T, strict=True))
+
+
+def appendix_data(body: shapes.Body, scan) -> dict[str, np.ndarray]:
+    """An Appendix A scan (`contact_kinematics.scan_*`) for both scenarios, stacked."""
+    parts = [scan(body, body, scenario, APPENDIX_GRID) for scenario in (1, 2)]
+    columns = {"scenario": np.repeat([1.0, 2.0], [len(p["acceleration"]) for p in parts])}
+    return columns | {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+
+
+def _plot_appendix(columns, position: str, title: str, path: Path) -> None:
+    """Both scenarios' points (`position`: the column prefix) coloured by |ẍ_c|, the largest
+    marked."""
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(11, 4.8))
+    for scenario in (1, 2):
+        rows = columns["scenario"] == scenario
+        x, y, z = (columns[f"{position}{axis}"][rows] for axis in "xyz")
+        values = columns["acceleration"][rows]
+        ax = fig.add_subplot(1, 2, scenario, projection="3d")
+        shown = ax.scatter(x, y, z, c=values, cmap="jet", s=4)
+        top = np.argmax(values)
+        ax.scatter(x[top], y[top], z[top], color="k", s=60, marker="x")
+        where = ", ".join(f"{v:.3g}" for v in np.round([x[top], y[top], z[top]], 9) + 0.0)
+        ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)")
+        ax.set_title(
+            f"Scenario {scenario}: largest {values[top]:.4g} m/s² at ({where}) m",
+            fontsize=9,
+        )
+        fig.colorbar(shown, ax=ax, shrink=0.6, label="|ẍ_c| (m/s²)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
+def write_appendix_figures(directory: Path) -> list[Path]:
+    """Figure 2's mobilities (CSV) and Appendix A's Figures A2 and A4 (CSV and PNG) for the
+    paper's ellipsoids at unit density, contact force (1, 1, 1) N; the paths written."""
+    import matplotlib
+
+    from revdem_cli.timestep import contact_kinematics as kinematics
+
+    matplotlib.use("Agg")
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    body = shapes.ellipsoid(3.0, 2.0, 1.0, 1.0)
+    written = [_write_csv(directory / f"{APPENDIX_STEMS['figure2']}.csv", figure2_data(body))]
+    figures = (
+        ("A2", kinematics.scan_contact_points, "", "ellipsoid 2 moved to touch each point"),
+        ("A4", kinematics.scan_orientations, "centre2_", "ellipsoid 2 turned about the tip"),
+    )
+    for key, scan, position, words in figures:
+        stem = directory / APPENDIX_STEMS[key]
+        columns = appendix_data(body, scan)
+        written.append(_write_csv(stem.with_suffix(".csv"), columns))
+        title = f"Peng 2020 Figure {key}: |ẍ_c| for F = (1, 1, 1) N, unit density; {words}"
+        _plot_appendix(columns, position, title, stem.with_suffix(".png"))
+        written.append(stem.with_suffix(".png"))
+    return written
+
+
 def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) -> list[Path]:
     """Write the study's figures as PNG and CSV into `directory`, figure n as `stems[n]`.*;
     the paths written."""
@@ -243,7 +339,13 @@ def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) 
             figure = study.figure4
             save(
                 4,
-                damping_sweep_data(study, "kn", figure.kn.values(), figure.integrate_every),
+                damping_sweep_data(
+                    study,
+                    "kn",
+                    figure.kn.values(),
+                    figure.integrate_every,
+                    figure.integrate_rigid_every,
+                ),
                 _plot_damping_sweep,
                 "kn",
                 "k_n = k_s (N/m)",
@@ -255,7 +357,11 @@ def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) 
             save(
                 5,
                 damping_sweep_data(
-                    study, "density", figure.density.values(), figure.integrate_every
+                    study,
+                    "density",
+                    figure.density.values(),
+                    figure.integrate_every,
+                    figure.integrate_rigid_every,
                 ),
                 _plot_damping_sweep,
                 "density",

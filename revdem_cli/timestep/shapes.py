@@ -25,7 +25,9 @@ class Body:
 
     `moments` are the principal moments of inertia in ascending order (kg m²);
     `half_lengths` are the half-lengths of the bounding box in the principal frame in
-    descending order, the paper's a ≥ b ≥ c (m).
+    descending order, the paper's a ≥ b ≥ c (m). A superquadric (an ellipsoid or sphere
+    included) also keeps its `surface`, (a, b, c, ε1, ε2) on its body axes x, y, z as given,
+    and its principal moments on those axes, `axis_moments` (kg m²); a polyhedron has None.
     """
 
     shape: str
@@ -33,18 +35,26 @@ class Body:
     mass: float
     moments: tuple[float, float, float]
     half_lengths: tuple[float, float, float]
+    surface: tuple[float, float, float, float, float] | None = None
+    axis_moments: tuple[float, float, float] | None = None
 
 
-def _body(shape, volume, density, second_moments, half_lengths) -> Body:
-    """A Body from its volume and the principal second moments of volume ∫x², ∫y², ∫z²."""
+def _body(shape, volume, density, second_moments, half_lengths, exponents=None) -> Body:
+    """A Body from its volume and the principal second moments of volume ∫x², ∫y², ∫z²;
+    with `exponents` (ε1, ε2), a superquadric that keeps its surface and axis moments."""
     jx, jy, jz = second_moments
-    moments = (density * (jy + jz), density * (jx + jz), density * (jx + jy))
+    moments = tuple(
+        float(i) for i in (density * (jy + jz), density * (jx + jz), density * (jx + jy))
+    )
+    surface = None if exponents is None else tuple(float(v) for v in (*half_lengths, *exponents))
     return Body(
         shape=shape,
         volume=float(volume),
         mass=float(density * volume),
-        moments=tuple(sorted(float(i) for i in moments)),
+        moments=tuple(sorted(moments)),
         half_lengths=tuple(sorted((float(h) for h in half_lengths), reverse=True)),
+        surface=surface,
+        axis_moments=None if exponents is None else moments,
     )
 
 
@@ -52,7 +62,7 @@ def ellipsoid(a: float, b: float, c: float, density: float) -> Body:
     """Solid ellipsoid with semi-axes a, b, c."""
     volume = 4.0 / 3.0 * math.pi * a * b * c
     second_moments = (volume * a**2 / 5.0, volume * b**2 / 5.0, volume * c**2 / 5.0)
-    return _body("ellipsoid", volume, density, second_moments, (a, b, c))
+    return _body("ellipsoid", volume, density, second_moments, (a, b, c), (1.0, 1.0))
 
 
 def sphere(radius: float, density: float) -> Body:
@@ -85,7 +95,7 @@ def superquadric(a: float, b: float, c: float, eps1: float, eps2: float, density
         octant * b**2 * _superquadric_octant_integral(1, 3, 1, eps1, eps2),
         octant * c**2 * _superquadric_octant_integral(1, 1, 3, eps1, eps2),
     )
-    return _body("superquadric", volume, density, second_moments, (a, b, c))
+    return _body("superquadric", volume, density, second_moments, (a, b, c), (eps1, eps2))
 
 
 def _tetrahedra_moments(tetrahedra: np.ndarray) -> tuple[float, np.ndarray]:

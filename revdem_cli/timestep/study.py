@@ -136,6 +136,12 @@ class Figure4(_Model):
         description="find the velocity-Verlet limit by integration at every n-th k_n, the "
         "first included; 0 for none, -",
     )
+    integrate_rigid_every: int = Field(
+        default=0,
+        ge=0,
+        description="integrate the two rigid bodies (Figure 2 and 8 random configurations, "
+        "about 7 s a point and N) at every n-th k_n, the first included; 0 for none, -",
+    )
 
 
 class Figure5(_Model):
@@ -150,6 +156,12 @@ class Figure5(_Model):
         ge=0,
         description="find the velocity-Verlet limit by integration at every n-th density, "
         "the first included; 0 for none, -",
+    )
+    integrate_rigid_every: int = Field(
+        default=0,
+        ge=0,
+        description="integrate the two rigid bodies (Figure 2 and 8 random configurations, "
+        "about 7 s a point and N) at every n-th density, the first included; 0 for none, -",
     )
 
 

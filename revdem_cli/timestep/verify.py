@@ -83,11 +83,13 @@ def eq40_real_eigenvalues_above_minus_one(k: float, c: float, inverse_mass: floa
     return bool(real.min(initial=0.0) >= -1.0 - EIGENVALUE_TOL)
 
 
-def largest_stable_dt(is_stable: Callable[[float], bool], guess: float) -> float:
+def largest_stable_dt(
+    is_stable: Callable[[float], bool], guess: float, rtol: float = BISECTION_RTOL
+) -> float:
     """Largest Δt with is_stable(Δt), where the stable Δt form an interval from 0.
 
-    Brackets the limit by doubling or halving from `guess`, then bisects. Returns 0.0 when
-    not stable even at guess / 2**MAX_HALVINGS.
+    Brackets the limit by doubling or halving from `guess`, then bisects to a relative
+    width `rtol`. Returns 0.0 when not stable even at guess / 2**MAX_HALVINGS.
     """
     stable, unstable = 0.0, guess
     while is_stable(unstable):
@@ -99,7 +101,7 @@ def largest_stable_dt(is_stable: Callable[[float], bool], guess: float) -> float
         unstable /= 2.0
     if stable == 0.0:
         return 0.0
-    while unstable - stable > BISECTION_RTOL * stable:
+    while unstable - stable > rtol * stable:
         middle = 0.5 * (stable + unstable)
         if is_stable(middle):
             stable = middle

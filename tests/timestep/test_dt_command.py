@@ -65,6 +65,12 @@ def test_damped_verification_recommends_the_integrated_limit():
         data["criteria"]["amplification"]["dt"], rel=1e-5
     )
     assert any(f.startswith("Peng 2020 Eq 46") and f.endswith("unsafe.") for f in data["findings"])
+    rigid = {k: v["dt"] for k, v in data["checks"].items() if k.startswith("rigid_body_")}
+    rows = [f"rigid_body_{name}_integrated" for name in ("A", "B", "C", "tips", "random")]
+    assert sorted(rigid) == sorted([*rows, "rigid_body_integrated"])
+    assert rigid["rigid_body_integrated"] == min(rigid[row] for row in rows)
+    assert formula < rigid["rigid_body_integrated"] < data["criteria"]["amplification"]["dt"]
+    assert any(f.startswith("Peng 2020 Eq 46") and "unsafe for them" in f for f in data["findings"])
 
 
 def test_sphere_pair_recommends_eq49(paper):

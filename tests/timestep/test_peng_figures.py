@@ -99,3 +99,20 @@ def test_figure_plots_are_written(tmp_path):
     path = tmp_path / "figure3.png"
     figures._plot_figure3(figures.figure3_data(np.linspace(0, 3, 7), every=99), path)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    "name, parameter", [("figure4_stiffness", "kn"), ("figure5_density", "density")]
+)
+def test_committed_rigid_body_curves_lie_between_velocity_verlet_and_eq46(
+    committed, name, parameter
+):
+    """The two rigid bodies integrated: above the velocity-Verlet limit with A_max (safe), and
+    below Eq 46 once damped (Eq 46 unsafe for them too)."""
+    data = committed(name)
+    rigid = data["rigid_body_integrated"]
+    marked = np.isfinite(rigid)
+    assert marked.sum() >= 2 * len(set(data["N"]))  # two or more values of the parameter
+    assert np.all(rigid[marked] > data["velocity_verlet"][marked])
+    damped = marked & (data["N"] > 0)
+    assert np.all(rigid[damped] < data["eq46_amplification"][damped])
