@@ -177,12 +177,13 @@ def _check_trajectory(f, path) -> None:
 def _check_contacts(f, path, frames: int) -> None:
     """The contact list holds a count for each frame and the rows those counts add up to."""
     from revdem_cli.errors import InputError
+    from revdem_cli.io.h5md import CONTACT_COUNT, CONTACT_FIELDS, CONTACTS
 
-    if _rows(f, path, "connectivity/contacts/count") < frames:
-        raise InputError(f"{path}: damaged revdem trajectory (connectivity/contacts/count)")
-    rows = int(get_dataset(f, path, "connectivity/contacts/count")[:frames].sum())
-    for name in ("value", "point", "normal_force", "tangential_force", "overlap", "sliding"):
-        if _rows(f, path, f"connectivity/contacts/{name}") < rows:
+    if _rows(f, path, CONTACT_COUNT) < frames:
+        raise InputError(f"{path}: damaged revdem trajectory ({CONTACT_COUNT})")
+    rows = int(get_dataset(f, path, CONTACT_COUNT)[:frames].sum())
+    for name in CONTACT_FIELDS:
+        if _rows(f, path, f"{CONTACTS}/{name}") < rows:
             raise InputError(
                 f"{path}: damaged revdem trajectory (connectivity/contacts/{name} is shorter "
                 f"than the {rows} contacts of its frames)"

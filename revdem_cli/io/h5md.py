@@ -247,8 +247,11 @@ class TrajectoryWriter:
         the last step (which readers ignore), never a step short of its values (which
         `io._check_trajectory` calls damage). Without the flush between, HDF5's metadata
         cache may write one dataset's extent before another's, in any order."""
-        values = self.frame_rows[1:2] + self.frame_rows[2:]
-        values += [self.observable_clock[1]] + [appender for appender, _ in self.observable_rows]
+        values = (
+            self.frame_rows[1:]
+            + [self.observable_clock[1]]
+            + [appender for appender, _ in self.observable_rows]
+        )
         values += list((self.contact_rows or {}).values())
         return values, [self.observable_clock[0], self.frame_rows[0]]
 

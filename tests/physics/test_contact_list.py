@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import h5py
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
@@ -67,3 +68,26 @@ def test_a_continued_trajectory_copies_the_contacts_of_its_frames(tmp_path):
             got = read_contacts(f, k)
             for name, values in expected[k].items():
                 np.testing.assert_array_equal(got[name], values)
+
+
+def test_a_contact_list_shorter_than_its_counts_is_damage(tmp_path):
+    """A trajectory whose contact rows fall short of what its frames count is refused in one
+    line naming the dataset, as any other damaged trajectory."""
+    from revdem_cli.errors import InputError
+    from revdem_cli.io.h5md import open_trajectory
+
+    sphere = {"material": "sphere", "radius": 0.005}
+    touching = [{**sphere, "position": [0, 0, 0]}, {**sphere, "position": [0.0099, 0, 0]}]
+    scenario = two_spheres(output={"contacts": True}, particles=touching)
+    model, state = Model.of(scenario), initial_state(scenario)
+    writer = _writer(tmp_path / "t.h5", state, model, "", "forward")
+    for step in range(2):
+        writer.frame(
+            step, float(step), state.particles, empty_events(), contacts=contact_list(state)
+        )
+    writer.close()
+    open_trajectory(tmp_path / "t.h5").close()  # whole, it opens
+    with h5py.File(tmp_path / "t.h5", "r+") as f:
+        f["connectivity/contacts/normal_force"].resize(1, axis=0)
+    with pytest.raises(InputError, match="contacts/normal_force is shorter than the 2 contacts"):
+        open_trajectory(tmp_path / "t.h5")
