@@ -42,13 +42,18 @@ def test_a_contact_slides_where_coulomb_caps_its_shear_force(tmp_path):
     assert (ratios[~slid] <= MU * (1 + 1e-12)).all()
 
 
-def test_a_continued_trajectory_copies_the_contacts_of_its_frames(tmp_path):
-    """A run continued from a checkpoint copies the first frames of its trajectory: their
-    contacts are the same rows, and the contacts of later frames are left behind."""
+def _touching_pair():
+    """The model and initial state of two spheres in contact, writing their contacts."""
     sphere = {"material": "sphere", "radius": 0.005}
     touching = [{**sphere, "position": [0, 0, 0]}, {**sphere, "position": [0.0099, 0, 0]}]
     scenario = two_spheres(output={"contacts": True}, particles=touching)
-    model, state = Model.of(scenario), initial_state(scenario)
+    return Model.of(scenario), initial_state(scenario)
+
+
+def test_a_continued_trajectory_copies_the_contacts_of_its_frames(tmp_path):
+    """A run continued from a checkpoint copies the first frames of its trajectory: their
+    contacts are the same rows, and the contacts of later frames are left behind."""
+    model, state = _touching_pair()
     source = _writer(tmp_path / "a.h5", state, model, "", "forward")
     for step in range(3):
         state.particles.f[0, 0] = step  # frames that differ
@@ -76,10 +81,7 @@ def test_a_contact_list_shorter_than_its_counts_is_damage(tmp_path):
     from revdem_cli.errors import InputError
     from revdem_cli.io.h5md import open_trajectory
 
-    sphere = {"material": "sphere", "radius": 0.005}
-    touching = [{**sphere, "position": [0, 0, 0]}, {**sphere, "position": [0.0099, 0, 0]}]
-    scenario = two_spheres(output={"contacts": True}, particles=touching)
-    model, state = Model.of(scenario), initial_state(scenario)
+    model, state = _touching_pair()
     writer = _writer(tmp_path / "t.h5", state, model, "", "forward")
     for step in range(2):
         writer.frame(
