@@ -133,12 +133,12 @@ class Result:
             return read_observable(f, name)
 
     def observables(self, run: str = "forward") -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Every observable of a run by name, as `observable` gives it."""
-        from revdem_cli.io.h5md import open_trajectory
+        """Every observable of a run by name, as `observable` gives it, read from the
+        trajectory opened (and checked) once."""
+        from revdem_cli.io.h5md import open_trajectory, read_observable
 
         with open_trajectory(self.trajectory(run)) as f:
-            names = [name for name in f["observables"] if name != "events"]
-        return {name: self.observable(name, run) for name in names}
+            return {name: read_observable(f, name) for name in f["observables"] if name != "events"}
 
     def frames(self, field: str = "position", run: str = "forward") -> tuple[np.ndarray, ...]:
         """(steps, times in s, values [F, N, 3]) of a per-sphere field at every frame:
