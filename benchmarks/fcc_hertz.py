@@ -133,7 +133,7 @@ def loop_seconds(state, model, steps: int) -> float:
     stepping = model.stepping(1.0e-6, 0, steps, steps)
     bundles = stepping_bundles(state, model, model.dynamics)
     started = time.perf_counter()
-    status, _, _, _ = advance(*bundles, empty_events(), stepping, 0, steps, obs, obs_steps)
+    status, _, _, _ = advance(*bundles, empty_events(), stepping, 0, steps, steps, obs, obs_steps)
     seconds = time.perf_counter() - started
     if status != OK:
         raise RuntimeError(f"the stepping loop stopped with status {status}")

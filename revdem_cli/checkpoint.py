@@ -1,10 +1,14 @@
 """Checkpoints: when a run saves one, where, and what SIGINT and SIGTERM do.
 
 A checkpoint is taken at an output frame once `output.checkpoint_interval` seconds of wall
-time have passed since the last (or at once after SIGINT or SIGTERM): the trajectory is
-flushed, then the state is written to `<name>.checkpoint.h5` beside it, to a temporary
-name renamed over the old one. A finished run removes it. `revdem run --resume DIR`
-continues from it, and the continued trajectory is the one an uninterrupted run writes.
+time have passed since the last: the trajectory is flushed, then the state is written to
+`<name>.checkpoint.h5` beside it, to a temporary name renamed over the old one. A finished
+run removes it. `revdem run --resume DIR` continues from it, and the continued trajectory
+is the one an uninterrupted run writes.
+
+SIGINT and SIGTERM stop a run at the next whole step, wherever it falls between frames,
+with a checkpoint there: the compiled stage loop runs in a worker thread (`threads.Stepper`)
+while the main thread takes the signal and sets the flag the loop reads at every step.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from pathlib import Path
 
 from revdem_cli.errors import InputError
 from revdem_cli.io.restart import Restart, write_restart
+from revdem_cli.threads import Stepper
 
 SUFFIX = ".checkpoint.h5"
 
@@ -39,13 +44,15 @@ class Interrupted(Exception):
 
 
 class Checkpoints:
-    """The checkpoint policy of one run: its file, its interval, and the signal it was sent."""
+    """The checkpoint policy of one run: its file, its interval, the signal it was sent, and
+    the `Stepper` that signal stops."""
 
     def __init__(self, path: Path, interval: float):
         self.path = Path(path)
         self.interval = interval
         self.signal = 0  # the signal that asked for a checkpoint and a stop
         self.saved = time.monotonic()
+        self.stepper = Stepper()
 
     def due(self) -> bool:
         return self.signal != 0 or time.monotonic() - self.saved >= self.interval
@@ -62,8 +69,8 @@ class Checkpoints:
 
     @contextmanager
     def on_signals(self) -> Iterator[None]:
-        """While inside: SIGINT and SIGTERM ask for a checkpoint at the next frame and a stop
-        (a second one stops at once). Only the main thread can take signals."""
+        """While inside: SIGINT and SIGTERM ask for a checkpoint at the next whole step and a
+        stop (a second one stops at once). Only the main thread can take signals."""
         if threading.current_thread() is not threading.main_thread():
             yield
             return
@@ -72,13 +79,15 @@ class Checkpoints:
 
         def ask(signum, frame):
             self.signal = signum
+            self.stepper.halt[0] = 1
             for kind in kinds:
                 signal.signal(kind, before[kind])
 
         for kind in kinds:
             signal.signal(kind, ask)
         try:
-            yield
+            with self.stepper.in_worker():
+                yield
         finally:
             for kind in kinds:
                 signal.signal(kind, before[kind])

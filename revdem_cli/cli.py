@@ -96,6 +96,28 @@ def _root(
     """revdem: reversible DEM experiments and critical time steps."""
 
 
+Threads = Annotated[
+    int | None,
+    typer.Option(
+        "--threads",
+        min=1,
+        help="Threads of the parallel loops (default: the cores this process may use).",
+    ),
+]
+
+
+def _use_threads(threads: int | None, quiet: bool) -> None:
+    """Compute with `threads` threads; unless quiet, say how many and on which layer."""
+    from revdem_cli import threads as pool
+
+    try:
+        count = pool.use(threads)
+    except ValueError as exc:
+        raise InputError(f"--threads {threads}: {exc}") from None
+    if not quiet:
+        typer.echo(f"computing with {count} thread{'s' * (count > 1)} ({pool.layer()})", err=True)
+
+
 def _progress_of(unit: str):
     from revdem_cli.report.progress import RunProgress
 
@@ -132,13 +154,15 @@ def run(
             help="Continue the run whose checkpoint is in this directory, instead of a scenario.",
         ),
     ] = None,
+    threads: Threads = None,
 ) -> None:
     """Run a scenario forward; if a stage is marked reverse, run it backwards and compare.
 
     A file with kind = "critical_time_step" is a time-step study: its figures go to --out.
     Outputs already in --out are kept: the run refuses to start unless --force. A run
-    stopped by Ctrl-C (exit 130), SIGTERM (143) or a crash continues with --resume DIR from
-    its newest checkpoint, into the same trajectory an uninterrupted run writes.
+    stopped by Ctrl-C (exit 130) or SIGTERM (143) writes a checkpoint at the step it was
+    at; it, or one that crashed, continues with --resume DIR from its newest checkpoint,
+    into the same trajectory an uninterrupted run writes.
 
     Example: revdem run configs/collision.toml --out out
     """
@@ -148,6 +172,7 @@ def run(
     if resume is not None:
         if scenario is not None or overrides:
             raise InputError("--resume DIR continues a run as it was: give no scenario or --set")
+        _use_threads(threads, quiet)
         print_summary(_interruptible(api.resume, resume, not quiet).outputs)
         return
     if scenario is None:
@@ -165,6 +190,7 @@ def run(
         return
 
     experiment = api.load(scenario, overrides=overrides or [])
+    _use_threads(threads, quiet)
     result = _interruptible(
         api.run, experiment, out, not no_reverse, force, allow_unstable_dt, not quiet
     )
@@ -199,6 +225,7 @@ def reverse(
     force: Annotated[
         bool, typer.Option("--force", help="Overwrite the outputs of an earlier reversal.")
     ] = False,
+    threads: Threads = None,
 ) -> None:
     """Run the stage that ended at RESTART backwards and compare with its forward trajectory.
 
@@ -210,6 +237,7 @@ def reverse(
     from revdem_cli import api
     from revdem_cli.report.summary import print_summary
 
+    _use_threads(threads, quiet)
     outputs = _interruptible(api.reverse, restart, out, steps, force, not quiet).outputs
     print_summary(outputs)
 
@@ -283,18 +311,35 @@ def schema() -> None:
 
 @app.command()
 def info(
-    file: Annotated[Path, typer.Argument(help="A revdem trajectory or restart file (.h5).")],
+    file: Annotated[
+        Path | None, typer.Argument(help="A revdem trajectory or restart file (.h5).")
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+    system: Annotated[
+        bool,
+        typer.Option(
+            "--system", help="Describe this machine as revdem computes on it, instead of a file."
+        ),
+    ] = False,
 ) -> None:
-    """Summarise a revdem trajectory or restart file.
+    """Summarise a revdem trajectory or restart file, or (--system) this machine.
 
     Kind, direction, scenario, stages, particles, frames and steps, dt, and the reversal
-    verdict when the run's NAME.compare.json lies beside the trajectory.
+    verdict when the run's NAME.compare.json lies beside the trajectory. --system: the
+    threading layer numba loaded, the threads and cores, numba's version and kernel cache.
 
     Example: revdem info out/collision.forward.h5
     """
     import json
 
+    if system == (file is not None):
+        raise InputError("give a trajectory or restart file, or --system")
+    if system:
+        from revdem_cli.report.info import system_lines, system_summary
+
+        summary = system_summary()
+        typer.echo(json.dumps(summary, indent=2) if as_json else "\n".join(system_lines(summary)))
+        return
     from revdem_cli.report.info import describe, info_lines
 
     summary = describe(file)
@@ -379,6 +424,15 @@ def sweep(
         int, typer.Option("--workers", min=1, help="Worker processes of the local cluster.")
     ] = 2,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
+    threads: Annotated[
+        int | None,
+        typer.Option(
+            "--threads",
+            min=1,
+            help="Threads of each variant's parallel loops (default: the cores this process "
+            "may use over --workers, at least 1).",
+        ),
+    ] = None,
 ) -> None:
     """Run every combination of --set values, forward and reversed, in parallel (dask).
 
@@ -393,7 +447,7 @@ def sweep(
     from contextlib import nullcontext
 
     with nullcontext() if quiet else _progress_of("variants") as shown:
-        rows, tables = run_sweep(plan, out, scheduler, workers, shown)
+        rows, tables = run_sweep(plan, out, scheduler, workers, shown, threads)
     failed = [row for row in rows if row["error"]]
     for path in tables:
         typer.echo(f"wrote {path}")

@@ -207,7 +207,10 @@ def _forward(
             def checkpoint(state, clock, events, place=place):
                 run.checkpoint(state, clock, events, writer, paths["forward"], place)
 
-            run_stage(state, run.model, clock, +1, writer, progress, None, checkpoint, events)
+            run_stage(
+                state, run.model, clock, +1, writer, progress, None, checkpoint, events,
+                run.checkpoints.stepper,
+            )  # fmt: skip
             time = float(clock.time(state.step))
     write_restart(paths["restart"], run.restart(state, clock, paths["forward"]))
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
@@ -310,7 +313,10 @@ def _reverse(
         run.checkpoint(state, clock, events, writer, start.trajectory, place)
 
     with writer:
-        run_stage(start.state, run.model, clock, -1, writer, progress, stop, checkpoint, events)
+        run_stage(
+            start.state, run.model, clock, -1, writer, progress, stop, checkpoint, events,
+            run.checkpoints.stepper,
+        )  # fmt: skip
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(start.trajectory)
     if forward.exists():

@@ -19,7 +19,14 @@ from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
 from revdem_cli.kernels.contact import STATIC
 from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, onto_grid
 from revdem_cli.kernels.forces import compute_forces
-from revdem_cli.kernels.integrate import BLOWN_UP, CELL_TOO_SMALL, FIXED_OVERFLOW, OK, advance
+from revdem_cli.kernels.integrate import (
+    BLOWN_UP,
+    CELL_TOO_SMALL,
+    FIXED_OVERFLOW,
+    HALTED,
+    OK,
+    advance,
+)
 from revdem_cli.kernels.observables import Layout, observe
 from revdem_cli.kernels.stress import particle_stress
 from revdem_cli.state import (
@@ -33,6 +40,7 @@ from revdem_cli.state import (
     empty_events,
     moduli,
 )
+from revdem_cli.threads import Stepper
 
 Progress = Callable[[str, int, int, int], None]
 """Called as progress(label, steps done, steps in total, particles) once per output frame."""
@@ -58,11 +66,15 @@ class Model:
             default_skin(scenario),
         )
 
-    def stepping(self, dt: float, first_step: int, last_step: int, every: int) -> Stepping:
+    def stepping(
+        self, dt: float, first_step: int, last_step: int, every: int, halt: np.ndarray | None = None
+    ) -> Stepping:
         """How the compiled loop steps a stage of time step dt from first_step to last_step,
-        observables every `every` steps."""
+        observables every `every` steps; it stops at a whole step once `halt` (int64 [1],
+        `threads.Stepper`) is set."""
         limit = self.scenario.integrator.overlap_limit
-        return Stepping(dt, self.skin, int(first_step), int(last_step), int(every), limit)
+        halt = np.zeros(1, dtype=np.int64) if halt is None else halt
+        return Stepping(dt, self.skin, int(first_step), int(last_step), int(every), limit, halt)
 
     def stage_dynamics(self, stage: Stage) -> Dynamics:
         """Gravity and the damping of a stage: its own, else the scenario's."""
@@ -173,7 +185,8 @@ def stage_time_step(model: Model, stage: Stage, state: State) -> float:
 
 
 Checkpoint = Callable[[State, StageClock, np.ndarray], None]
-"""Called as checkpoint(state, clock, events) after every frame but a stage's last."""
+"""Called as checkpoint(state, clock, events) after every frame but a stage's last, and where
+a signal stopped the stage loop (it then writes the checkpoint and raises)."""
 
 
 def run_stage(
@@ -186,11 +199,13 @@ def run_stage(
     stop_step: int | None = None,
     checkpoint: Checkpoint | None = None,
     events: np.ndarray | None = None,
+    stepper: Stepper | None = None,
 ) -> None:
     """Advance `state` through one stage (direction +1) or back through it (direction -1).
 
-    With `events`, the stage's log so far, the state is part-way through the stage at a
-    frame of a checkpoint, and the stage carries on from there."""
+    With `events`, the stage's log so far, the state is part-way through the stage at the
+    step of a checkpoint, and the stage carries on from there. `stepper` calls the compiled
+    loop, and its flag stops it (default: called here, never stopped)."""
     frames = clock.frame_steps()
     if direction < 0:
         frames = frames[::-1]
@@ -213,7 +228,8 @@ def run_stage(
         )
     every = clock.stage.observable_interval
     buffer, buffer_steps = model.buffers(clock.stage.output_every // every + 2)
-    stepping = model.stepping(clock.dt, clock.first_step, clock.last_step, every)
+    stepper = stepper or Stepper()
+    stepping = model.stepping(clock.dt, clock.first_step, clock.last_step, every, stepper.halt)
     if events is None:
         events = empty_events()
         _record_now(state, model, dyn, clock, writer, events)
@@ -226,11 +242,14 @@ def run_stage(
     frame_steps = set(frames)
     for target in [s for s in pauses if (s - state.step) * direction > 0]:
         while state.step != target:
-            status, state.step, rows, finding = advance(
-                *stepping_bundles(state, model, dyn), events, stepping, state.step, target,
-                buffer, buffer_steps,
+            status, state.step, rows, finding = stepper.advance(
+                advance, stepping_bundles(state, model, dyn), events, stepping, state.step,
+                target, buffer, buffer_steps,
             )  # fmt: skip
             _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows])
+            if status == HALTED:  # a signal: the checkpoint is written, and raises Interrupted
+                checkpoint(state, clock, events)
+                raise RuntimeError(f"the stage loop was halted at step {state.step} for nothing")
             if status == CELL_TOO_SMALL:
                 raise CellTooSmall(state.step, state.cell.length)
             if status == FIXED_OVERFLOW:

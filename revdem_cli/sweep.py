@@ -146,10 +146,13 @@ def run_variant(scenario_json: str, text: str, suffix: str, out_dir: Path) -> di
 
 
 @contextmanager
-def _client(scheduler: str | None, workers: int):
+def _client(scheduler: str | None, workers: int, threads: int | None):
     """A client of the scheduler at `scheduler`, or of a new local cluster of processes with
-    one single-threaded worker a process (closed afterwards)."""
+    one single-threaded worker a process, each variant's loops on `threads` threads (default:
+    the cores this process may use over the workers) (closed afterwards)."""
     from distributed import Client, LocalCluster
+
+    from revdem_cli.threads import available
 
     if scheduler:
         with Client(scheduler) as client:
@@ -161,7 +164,7 @@ def _client(scheduler: str | None, workers: int):
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
-            env={"NUMBA_NUM_THREADS": "1"},
+            env={"NUMBA_NUM_THREADS": str(threads or max(1, available() // workers))},
         ) as cluster,
         Client(cluster) as client,
     ):
@@ -189,6 +192,7 @@ def run_sweep(
     scheduler: str | None = None,
     workers: int = 2,
     progress: Callable[[str, int, int], None] | None = None,
+    threads: int | None = None,
 ) -> tuple[list[dict], list[Path]]:
     """Run every variant; returns the table's rows and the table files written."""
     from distributed import as_completed
@@ -204,7 +208,7 @@ def run_sweep(
     ]
     suffix = sweep.scenario.suffix.lower()
     results: dict[int, dict] = {}
-    with _client(scheduler, workers) as client:
+    with _client(scheduler, workers, threads) as client:
         futures = {
             client.submit(
                 run_variant,

@@ -111,8 +111,8 @@ def stepped(scenario: Scenario, steps: int, every: int):
     while state.step < steps:
         target = min(state.step + every, steps)
         status, state.step, _, _ = advance(
-            *stepping_bundles(state, model, dyn), events, stepping, state.step, target, obs,
-            obs_steps,
+            *stepping_bundles(state, model, dyn), events, stepping, state.step, target, target,
+            obs, obs_steps,
         )  # fmt: skip
         if status == PAIR_OVERFLOW:
             state.grow_pairs()

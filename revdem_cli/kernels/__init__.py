@@ -37,15 +37,31 @@ def _cache_dir() -> str:
 
 numba.config.CACHE_DIR = _cache_dir()
 
-jit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy")
-"""Serial compiled function."""
+LAYERS = ("omp", "workqueue", "tbb")
+"""numba's threading layers in the order revdem takes the first that loads. numba's own order
+puts TBB first, which starts its scheduler at every parallel region: slower than the loop
+itself at DEM sizes. OpenMP is threadsafe (Dask threads may step runs side by side);
+numba's workqueue is always there. An environment that names a layer or an order
+(NUMBA_THREADING_LAYER, NUMBA_THREADING_LAYER_PRIORITY) is the user's choice, and kept."""
+
+if os.environ.get("NUMBA_THREADING_LAYER", "default").lower() == "default" and not os.environ.get(
+    "NUMBA_THREADING_LAYER_PRIORITY"
+):
+    numba.config.THREADING_LAYER_PRIORITY = list(LAYERS)
+numba.get_num_threads()  # loads the layer now: compiled code (`threads_here`) links to it
+
+jit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", nogil=True)
+"""Serial compiled function. It runs without the GIL, so that the stage loop can run in a
+worker thread while the main thread takes signals (`checkpoint.Stepper`)."""
 
 inline = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", forceinline=True)
 """Serial compiled helper over scalars and tuples, always inlined into its callers (LLVM's
 alwaysinline): a loop over a block of pairs that calls it stays one loop body, which LLVM
 can vectorise."""
 
-pjit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", parallel=True)
+pjit = partial(
+    numba.njit, cache=True, fastmath=False, error_model="numpy", parallel=True, nogil=True
+)
 """Compiled function with `numba.prange` loops; each iteration writes only its own slot."""
 
 
@@ -75,14 +91,15 @@ SERIAL = PARALLEL = FROM = None  # the globals `_by_size` sees as constants in e
 
 
 def _by_size(n, *args):
-    if n >= FROM:
+    if n >= FROM and threads_here() > 1:
         return PARALLEL(*args)
     return SERIAL(*args)
 
 
 def by_size(loop, threshold=PARALLEL_FROM):
     """One compiled entry to a `prange` loop, called as f(n, *args): its parallel build for
-    n >= threshold items, its serial build below. The one place the choice is made."""
+    n >= threshold items when the calling thread computes with more than one thread
+    (`revdem_cli.threads`), its serial build otherwise. The one place the choice is made."""
     name = loop.__name__.lstrip("_")
     serial = jit(renamed(loop, name + "_serial"))
     parallel = pjit(renamed(loop, name + "_parallel"))
@@ -137,6 +154,23 @@ def _pointer(context, builder, array_type, array, indices):
         wraparound=False,
         boundscheck=False,
     )
+
+
+@intrinsic
+def threads_here(typingctx):
+    """The thread count of the calling thread (`numba.set_num_threads`), read from the
+    threading layer's own `get_num_threads`, linked by name as numba's parallel loops link
+    it; `numba.get_num_threads()` in compiled code holds a ctypes pointer, which numba
+    cannot cache."""
+
+    def codegen(context, builder, signature, args):
+        i32 = ir.IntType(32)
+        get = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(i32, []), "get_num_threads"
+        )
+        return builder.sext(builder.call(get, []), context.get_value_type(numba.types.intp))
+
+    return numba.types.intp(), codegen
 
 
 @intrinsic

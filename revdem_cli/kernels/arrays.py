@@ -150,6 +150,8 @@ Stepping = namedtuple(
         "last_step",  # the stage's last step (int)
         "every",  # observables every this many steps from the first (int)
         "overlap_limit",  # deepest overlap allowed / the smaller radius of a contact
+        "halt",  # int64 [1]: nonzero asks the loop to stop at the next whole step
     ],
 )
-"""How the compiled stage loop steps a stage (`integrate.advance`); steps are integers."""
+"""How the compiled stage loop steps a stage (`integrate.advance`); steps are integers. `halt`
+is read at every step: a signal handler sets it while the loop runs in another thread."""

@@ -25,6 +25,7 @@ PAIR_OVERFLOW = 1
 CELL_TOO_SMALL = 2
 FIXED_OVERFLOW = 3
 BLOWN_UP = 4
+HALTED = 5
 
 
 def _kick(v, f, inv_m, h):
@@ -254,10 +255,12 @@ def needs_rebuild(p, pairs, cell, dt, skin, direction):
 
 @jit
 def advance(
-    p, pairs, walls, cell, fixed, law, moduli, dyn, events, stepping, step, stop, obs, obs_steps
-):
-    """Run whole steps from `step` to `stop` (forward if stop > step, else reversed), with the
-    settings `stepping` (arrays.Stepping).
+    p, pairs, walls, cell, fixed, law, moduli, dyn, events, stepping, step, stop, until, obs,
+    obs_steps,
+):  # fmt: skip
+    """Run whole steps from `step` towards `stop` (forward if stop > step, else reversed),
+    returning at `until` (`stop`, or a step before it: the caller's pause, which changes
+    nothing of the stepping), with the settings `stepping` (arrays.Stepping).
 
     Observables are recorded into the rows of `obs` (their steps into `obs_steps`, int64)
     at every step where (step - first step)
@@ -268,14 +271,17 @@ def advance(
     cell has shrunk too far (the state is then at a whole step), FIXED_OVERFLOW that a
     value left its fixed-point grid in the step just taken (fixed.overflow says which),
     BLOWN_UP that the state at the step reached is not physical (the finding says why; the
-    rows recorded are of the steps before).
+    rows recorded are of the steps before), HALTED that `stepping.halt` asked for a stop
+    (the state is at the whole step reached).
     """
     dt, skin, limit = stepping.dt, stepping.skin, stepping.overlap_limit
     first, last, every = stepping.first_step, stepping.last_step, stepping.every
     direction = 1 if stop > step else -1
     rows = 0
     finding = Finding(HEALTHY, -1, -1, 0.0)
-    while step != stop:
+    while step != until:
+        if stepping.halt[0] != 0:
+            return HALTED, step, rows, finding
         if needs_rebuild(p, pairs, cell, dt, skin, direction):
             finding = examine(p, pairs, walls, cell, limit)
             if finding.what != HEALTHY:  # not worth a search

@@ -143,3 +143,31 @@ def info_lines(info: dict) -> list[str]:
             f"{verdict['max_position_error_rel']:.3g}{exact})"
         )
     return lines
+
+
+def system_summary() -> dict:
+    """This machine as revdem computes on it (`revdem info --system`)."""
+    import numba
+
+    from revdem_cli import __version__, threads
+    from revdem_cli.kernels import PARALLEL_FROM
+
+    return {
+        "revdem": __version__,
+        "numba": numba.__version__,
+        **threads.summary(),
+        "parallel_from_particles": PARALLEL_FROM,
+        "kernel_cache": numba.config.CACHE_DIR,
+    }
+
+
+def system_lines(summary: dict) -> list[str]:
+    return [
+        f"revdem:          {summary['revdem']} (numba {summary['numba']})",
+        f"threading layer: {summary['threading_layer']} "
+        f"(order tried: {', '.join(summary['layer_priority'])})",
+        f"threads:         {summary['threads']} of a pool of {summary['thread_pool']}; "
+        f"{summary['cores_available']} cores available",
+        f"parallel loops:  from {summary['parallel_from_particles']} particles (serial below)",
+        f"kernel cache:    {summary['kernel_cache']}",
+    ]

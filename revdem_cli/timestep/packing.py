@@ -326,8 +326,8 @@ def _advance(state: State, model: Model, dyn: Dynamics, dt: float, steps: int) -
     events, stop = empty_events(), state.step + steps
     while state.step != stop:
         status, state.step, _, _ = advance(
-            *stepping_bundles(state, model, dyn), events, stepping, state.step, stop, buffer,
-            buffer_steps,
+            *stepping_bundles(state, model, dyn), events, stepping, state.step, stop, stop,
+            buffer, buffer_steps,
         )  # fmt: skip
         if status == BLOWN_UP:
             return False

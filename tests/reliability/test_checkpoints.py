@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 
 from revdem_cli.cli import app
 from revdem_cli.engine import _writer
+from revdem_cli.errors import InputError
 from revdem_cli.io import h5md
 from revdem_cli.io.h5md import open_trajectory
 from revdem_cli.io.restart import read_restart
@@ -256,15 +257,54 @@ def test_a_run_killed_at_random_moments_resumes_to_the_uninterrupted_files(
     assert done == wanted, f"only {done} of {wanted} runs were still running when killed"
 
 
+EVERY = 200000
+SPARSE = ["stages.0.steps=600000", f"stages.0.output_every={EVERY}"]
+"""The smoke collision with frames far apart: a signal lands between two of them."""
+
+
+def _sparse_command(out: Path) -> list[str]:
+    scenario, _ = CASES["collision"]
+    overrides = [arg for value in SPARSE for arg in ("--set", value)]
+    return [sys.executable, "-m", "revdem_cli.cli", "run", str(scenario), "--out", str(out)] + [
+        "-q",
+        *overrides,
+    ]
+
+
+def _stepping(process: subprocess.Popen, out: Path) -> bool:
+    """Wait for the forward trajectory's first frame; False if the run ended first."""
+    while True:
+        try:
+            with open_trajectory(out / "collision_smoke.forward.h5") as f:
+                if f["particles/all/position/step"].shape[0] > 0:
+                    return True
+        except (InputError, KeyError):  # not yet there, or not yet whole
+            pass
+        if process.poll() is not None:
+            return False
+        time.sleep(0.01)
+
+
+@pytest.fixture(scope="module")
+def sparse_whole(tmp_path_factory) -> tuple[Path, float]:
+    """The sparse collision run whole, and its seconds of stepping."""
+    out = tmp_path_factory.mktemp("whole_sparse")
+    process = subprocess.Popen(_sparse_command(out), stderr=subprocess.PIPE)
+    assert _stepping(process, out), process.communicate()[1]
+    started = time.monotonic()
+    assert process.wait() == 0, process.communicate()[1]
+    return out, time.monotonic() - started
+
+
 @pytest.mark.parametrize(("signum", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_a_signal_writes_a_checkpoint_and_stops_with_its_status(
-    signum, status, uninterrupted, tmp_path, kills
+def test_a_signal_stops_at_a_whole_step_with_a_checkpoint_from_which_the_run_resumes(
+    signum, status, sparse_whole, tmp_path, kills
 ):
-    whole, seconds = uninterrupted["collision"]
+    whole, seconds = sparse_whole
     process = subprocess.Popen(
-        _command("collision", tmp_path), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL
+        _sparse_command(tmp_path), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL
     )
-    assert _started(process, tmp_path)
+    assert _stepping(process, tmp_path)
     time.sleep(0.3 * seconds)
     process.send_signal(signum)
     _, stderr = process.communicate()
@@ -273,6 +313,10 @@ def test_a_signal_writes_a_checkpoint_and_stops_with_its_status(
     assert len(lines) == 1 and "Traceback" not in lines[0]
     assert signal.Signals(signum).name in lines[0]
     assert f"revdem run --resume {tmp_path}" in lines[0]
+    (checkpoint,) = tmp_path.glob("*.checkpoint.h5")
+    stopped = read_restart(checkpoint, checkpoint=True).state.step
+    assert stopped % EVERY != 0, f"stopped at step {stopped}, a frame's, not between frames"
+    assert f"at step {stopped}:" in lines[0]
     resumed = _resume(tmp_path)
     assert resumed.returncode == 0, resumed.stderr
     assert_same_files(whole, tmp_path)

@@ -127,7 +127,7 @@ def test_the_list_holds_every_contact_while_spheres_fly_through_many_rebuilds():
     while step < 1500:
         bundles = stepping_bundles(state, model, model.dynamics)
         status, step, _, _ = advance(
-            *bundles, empty_events(), stepping, step, step + 5, obs, obs_steps
+            *bundles, empty_events(), stepping, step, step + 5, step + 5, obs, obs_steps
         )
         if status == PAIR_OVERFLOW:
             state.grow_pairs()

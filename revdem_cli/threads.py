@@ -1,0 +1,184 @@
+"""The threads a run computes with, and the driver of the compiled stage loop (`Stepper`).
+
+How many threads the parallel loops may use (`use`, `--threads`), and the threading layer
+numba loaded (in the order `kernels.LAYERS` gives), for the run's header and
+`revdem info --system`. Whatever the layer, loops too small to pay for a parallel region run
+serially (`kernels.by_size`), and with one thread every loop does.
+
+Results do not depend on the thread count (every sum is in a fixed order), so the `Stepper`
+may change it between any two steps: it steps in pauses of about `PAUSE` seconds, times each,
+and computes on the count that steps fastest on this machine as it is now. On busy cores a
+parallel region waits at its barrier for a thread the system has descheduled, and one thread
+is then faster than two; on a quiet machine the other way round.
+
+The thread count is per thread in numba: `use` sets it in the calling thread, and the
+`Stepper` sets the count it chose before each stretch, in whichever thread steps.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+
+import numba
+import numpy as np
+
+import revdem_cli.kernels  # noqa: F401  (its threading-layer order, before any layer loads)
+
+_count: int | None = None  # the most threads `use` allows, for the `Stepper`
+
+
+def available() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0))
+
+
+def most() -> int:
+    """The most threads a parallel loop can use: numba's pool (NUMBA_NUM_THREADS)."""
+    return numba.config.NUMBA_NUM_THREADS
+
+
+def use(threads: int | None = None) -> int:
+    """Compute with at most `threads` threads (default: the cores this process may use, at
+    most the pool) from here on, in this thread and in the stage loops `Stepper` drives."""
+    global _count
+    count = min(available(), most()) if threads is None else threads
+    if not 1 <= count <= most():
+        raise ValueError(f"{count} threads: between 1 and {most()} (NUMBA_NUM_THREADS)")
+    numba.set_num_threads(count)
+    _count = count
+    return count
+
+
+def layer() -> str:
+    """The threading layer numba loaded (loading it if no parallel loop has run yet)."""
+    numba.get_num_threads()  # launches the layer
+    return numba.threading_layer()
+
+
+def summary() -> dict:
+    """What the parallel loops run on: the layer, threads in use, the pool, the cores."""
+    return {
+        "threading_layer": layer(),
+        "threads": numba.get_num_threads(),
+        "thread_pool": most(),
+        "cores_available": available(),
+        "layer_priority": list(numba.config.THREADING_LAYER_PRIORITY),
+    }
+
+
+PAUSE = 0.25
+"""Seconds of stepping between two returns of the compiled loop to the `Stepper`."""
+
+PROBE_EVERY = 5.0
+"""Seconds of stepping before the thread count not in use is timed again; doubled each time
+it loses, up to `PROBE_EVERY_MOST`."""
+
+PROBE_EVERY_MOST = 320.0
+
+PROBE = 0.02
+"""A trial of the thread count not in use lasts this many seconds at the current rate."""
+
+
+class Stepper:
+    """Drives the compiled stage loop (`kernels.integrate.advance`) from a step to a pause.
+
+    It returns to Python about every `PAUSE` seconds, and there chooses the thread count of
+    the next stretch: the one of the fastest recent stepping, with a short trial of the other
+    now and then. While signals are taken (`checkpoint.Checkpoints.on_signals`), the loop
+    runs in one worker thread, kept for the whole run so that the threading layer keeps its
+    team, and the main thread waits for it: a signal's handler then runs at once and sets
+    `halt`, which the loop reads at every step (`integrate.HALTED`)."""
+
+    def __init__(self):
+        self.halt = np.zeros(1, dtype=np.int64)
+        self.steps_with: dict[int, int] = {}  # steps stepped on each thread count
+        self._worker: ThreadPoolExecutor | None = None
+        self._rate: dict[int, float] = {}  # steps a second, the latest stretch on each count
+        self._stretch: dict[int, int] = {}  # steps of the next stretch on each count
+        self._count = 0
+        self._stepped = 0.0  # seconds of stepping
+        self._probe_at = PROBE_EVERY
+        self._probe_every = PROBE_EVERY
+
+    def advance(self, loop, bundles, events, stepping, step, stop, obs, obs_steps) -> tuple:
+        """`loop(*bundles, events, stepping, step, stop, until, rows, steps)` from `step` to
+        `stop` in stretches; returns as it does, its rows recorded in `obs`, `obs_steps`."""
+        counts = self._counts(len(bundles[0].x))
+        direction = 1 if stop > step else -1
+        rows = 0
+        while True:
+            count, length = self._next(counts)
+            until = step + direction * min(length, abs(stop - step))
+            started = time.perf_counter()
+            status, reached, recorded, finding = self._call(
+                count, loop, *bundles, events, stepping, step, stop, until, obs[rows:],
+                obs_steps[rows:],
+            )  # fmt: skip
+            self._learn(count, abs(reached - step), time.perf_counter() - started)
+            step, rows = reached, rows + recorded
+            if status != 0 or step == stop:
+                return status, step, rows, finding
+
+    @staticmethod
+    def _counts(particles: int) -> tuple[int, ...]:
+        """The thread counts worth timing: one, and the count in use where loops of this
+        many particles run in parallel at all."""
+        from revdem_cli.kernels import PARALLEL_FROM
+
+        most_now = _count or numba.get_num_threads()
+        return (1, most_now) if most_now > 1 and particles >= PARALLEL_FROM else (most_now,)
+
+    def _next(self, counts: tuple[int, ...]) -> tuple[int, int]:
+        """The thread count and the length in steps of the next stretch."""
+        untimed = [count for count in counts if count not in self._rate]
+        if untimed:
+            return untimed[0], self._stretch.get(untimed[0], 1)
+        best = max(counts, key=lambda count: self._rate[count])
+        if len(counts) > 1 and self._stepped >= self._probe_at:
+            other = next(count for count in counts if count != best)
+            self._probe_at = self._stepped + self._probe_every
+            return other, max(1, int(self._rate[best] * PROBE))
+        return best, self._stretch[best]
+
+    def _learn(self, count: int, steps: int, seconds: float) -> None:
+        """What a stretch took: the count's rate, its next length (at most four times the
+        last, so that a first stretch slowed by compilation is not taken for its rate), and
+        the trials' schedule."""
+        self.steps_with[count] = self.steps_with.get(count, 0) + steps
+        self._stepped += seconds
+        if steps == 0:
+            return
+        rate = steps / max(seconds, 1e-9)
+        was_best = max(self._rate, key=self._rate.get) if self._rate else count
+        self._rate[count] = rate
+        self._stretch[count] = max(1, min(int(rate * PAUSE), 4 * self._stretch.get(count, 1)))
+        if count != was_best:  # a trial: it won, or it waits twice as long for the next
+            won = rate > self._rate[was_best]
+            self._probe_every = PROBE_EVERY if won else min(2 * self._probe_every, PROBE_EVERY_MOST)
+
+    def _call(self, count: int, loop, *args):
+        def stepped():
+            numba.set_num_threads(count)
+            return loop(*args)
+
+        if self._worker is None:
+            before = numba.get_num_threads()
+            try:
+                return stepped()
+            finally:
+                numba.set_num_threads(before)
+        return self._worker.submit(stepped).result()
+
+    @contextmanager
+    def in_worker(self) -> Iterator[None]:
+        """While inside: the loop runs in a worker thread of its own."""
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="revdem-steps")
+        try:
+            yield
+        finally:
+            self._worker.shutdown()
+            self._worker = None

@@ -1,0 +1,105 @@
+"""The stage loop's driver (`threads.Stepper`): stretches that end where asked with every
+observables row kept, the thread count that steps fastest on the machine as it is, and
+trajectories that do not depend on where the count changes."""
+
+import time
+from types import SimpleNamespace
+
+import h5py
+import numba
+import numpy as np
+import pytest
+
+from revdem_cli import threads
+from revdem_cli.engine import run_scenario
+from revdem_cli.kernels import PARALLEL_FROM
+from revdem_cli.threads import Stepper
+from tests.physics.test_determinism import lattice
+
+pytestmark = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
+
+EVERY = 10
+
+
+def fake_loop(cost: dict[int, float]):
+    """A stage loop whose step costs cost[thread count] seconds (busy, as a loop is), with
+    an observables row every EVERY steps, stopping at `until`."""
+
+    def loop(particles, events, stepping, step, stop, until, obs, obs_steps):
+        seconds = cost[numba.get_num_threads()]
+        rows = 0
+        while step != until:
+            deadline = time.perf_counter() + seconds
+            while time.perf_counter() < deadline:
+                pass
+            step += 1 if until > step else -1
+            if step % EVERY == 0:
+                obs_steps[rows] = step
+                obs[rows, 0] = step
+                rows += 1
+        return 0, step, rows, None
+
+    return loop
+
+
+@pytest.fixture
+def quick(monkeypatch):
+    """Stretches and trials short enough for a test."""
+    monkeypatch.setattr(threads, "PAUSE", 0.005)
+    monkeypatch.setattr(threads, "PROBE_EVERY", 0.05)
+    monkeypatch.setattr(threads, "PROBE", 0.01)
+    monkeypatch.setattr(threads, "_count", 2)
+
+
+def step_with(
+    cost: dict[int, float], stop: int, start: int = 0
+) -> tuple[Stepper, tuple, np.ndarray]:
+    stepper = Stepper()
+    particles = SimpleNamespace(x=np.zeros((PARALLEL_FROM, 3)))
+    rows = abs(stop - start) // EVERY + 2
+    obs, obs_steps = np.zeros((rows, 1)), np.zeros(rows, dtype=np.int64)
+    done = stepper.advance(fake_loop(cost), (particles,), None, None, start, stop, obs, obs_steps)
+    return stepper, done, obs_steps[: done[2]]
+
+
+@pytest.mark.parametrize(("start", "stop"), [(0, 3000), (3000, 0)])
+def test_a_stage_is_stepped_to_its_stop_in_stretches_keeping_every_row(quick, start, stop):
+    stepper, (status, reached, rows, _), steps = step_with({1: 2e-5, 2: 2e-5}, stop, start)
+    assert status == 0 and reached == stop
+    direction = 1 if stop > start else -1
+    assert np.array_equal(
+        steps, np.arange(start + direction * EVERY, stop + direction, direction * EVERY)
+    )
+    assert sum(stepper.steps_with.values()) == 3000
+    assert set(stepper.steps_with) == {1, 2}  # both counts were timed
+
+
+@pytest.mark.parametrize(("slow", "fast"), [(2, 1), (1, 2)])
+def test_the_stepper_computes_on_the_thread_count_that_steps_faster(quick, slow, fast):
+    """Two threads five times slower (busy cores: a barrier waits for a descheduled
+    thread), or five times faster: most steps go to the faster count, a few to trials."""
+    stepper, (_, reached, _, _), _ = step_with({slow: 1e-4, fast: 2e-5}, 40000)
+    assert reached == 40000
+    assert stepper.steps_with[fast] > 0.9 * 40000, stepper.steps_with
+
+
+def test_a_run_is_bitwise_the_same_wherever_the_thread_count_changes(tmp_path, monkeypatch):
+    """The fcc lattice (parallel loops, frictional contacts, a servo) stepped on 2 threads
+    throughout, then with the count changed every 7 steps."""
+    scenario = lattice()
+    assert len(scenario.spheres) >= PARALLEL_FROM
+    monkeypatch.setattr(threads, "_count", 2)
+    monkeypatch.setattr(Stepper, "_next", lambda self, counts: (2, 10**9))
+    run_scenario(scenario, "", ".toml", tmp_path / "steady", reverse=False)
+    turns = iter(range(10**9))
+    monkeypatch.setattr(Stepper, "_next", lambda self, counts: (1 + next(turns) % 2, 7))
+    run_scenario(scenario, "", ".toml", tmp_path / "switching", reverse=False)
+    with (
+        h5py.File(tmp_path / "steady" / "lattice.forward.h5") as a,
+        h5py.File(tmp_path / "switching" / "lattice.forward.h5") as b,
+    ):
+        for name in ("position", "velocity", "angular_velocity"):
+            first, second = a[f"particles/all/{name}/value"][:], b[f"particles/all/{name}/value"][:]
+            assert np.abs(first[-1] - first[0]).max() > 0  # it moved
+            assert np.array_equal(first, second), name
+        assert np.array_equal(a["observables/stress/value"][:], b["observables/stress/value"][:])
