@@ -106,16 +106,14 @@ Threads = Annotated[
 ]
 
 
-def _use_threads(threads: int | None, quiet: bool) -> None:
-    """Compute with `threads` threads; unless quiet, say how many and on which layer."""
+def _use_threads(threads: int | None) -> None:
+    """Compute with at most `threads` threads (the progress display's first line says so)."""
     from revdem_cli import threads as pool
 
     try:
-        count = pool.use(threads)
+        pool.use(threads)
     except ValueError as exc:
         raise InputError(f"--threads {threads}: {exc}") from None
-    if not quiet:
-        typer.echo(f"computing with {count} thread{'s' * (count > 1)} ({pool.layer()})", err=True)
 
 
 def _progress_of(unit: str):
@@ -172,7 +170,7 @@ def run(
     if resume is not None:
         if scenario is not None or overrides:
             raise InputError("--resume DIR continues a run as it was: give no scenario or --set")
-        _use_threads(threads, quiet)
+        _use_threads(threads)
         print_summary(_interruptible(api.resume, resume, not quiet).outputs)
         return
     if scenario is None:
@@ -190,7 +188,7 @@ def run(
         return
 
     experiment = api.load(scenario, overrides=overrides or [])
-    _use_threads(threads, quiet)
+    _use_threads(threads)
     result = _interruptible(
         api.run, experiment, out, not no_reverse, force, allow_unstable_dt, not quiet
     )
@@ -237,7 +235,7 @@ def reverse(
     from revdem_cli import api
     from revdem_cli.report.summary import print_summary
 
-    _use_threads(threads, quiet)
+    _use_threads(threads)
     outputs = _interruptible(api.reverse, restart, out, steps, force, not quiet).outputs
     print_summary(outputs)
 

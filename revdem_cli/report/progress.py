@@ -34,6 +34,8 @@ class RunProgress:
         self.bar.__exit__(*exc)
 
     def __call__(self, label: str, done: int, total: int, particles: int = 0) -> None:
+        if particles and not self.tasks:  # the first frame of a run: what it computes on
+            self.console.print(threads_line())
         if label not in self.tasks:
             self.tasks[label] = self.bar.add_task(label, total=total, rate="")
             self.started[label] = time.perf_counter()
@@ -44,3 +46,15 @@ class RunProgress:
             else ""
         )
         self.bar.update(self.tasks[label], completed=done, rate=rate)
+
+
+def threads_line() -> str:
+    """`2 threads at most (omp), 2 cores`: what a run computes on."""
+    from revdem_cli import threads
+
+    info = threads.summary()
+    count = info["threads"]
+    return (
+        f"computing on {count} thread{'s' * (count > 1)} at most ({info['threading_layer']} "
+        f"layer; {info['cores_available']} cores available)"
+    )

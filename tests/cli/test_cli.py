@@ -152,3 +152,31 @@ def test_every_shipped_file_validates(path):
     result = invoke("validate", path)
     assert result.exit_code == 0, result.output
     assert result.output.startswith(f"{path}: valid")
+
+
+def test_info_system_names_the_threading_layer_loaded_and_the_threads():
+    from revdem_cli.kernels import LAYERS
+
+    result = CliRunner().invoke(app, ["info", "--system", "--json"])
+    assert result.exit_code == 0, result.output
+    system = json.loads(result.output)
+    assert system["threading_layer"] in LAYERS
+    assert 1 <= system["threads"] <= system["thread_pool"]
+    assert system["cores_available"] >= 1
+    assert_one_line_error(CliRunner().invoke(app, ["info"]), "or --system")
+
+
+def test_more_threads_than_the_pool_is_refused_naming_the_option(tmp_path):
+    result = CliRunner().invoke(
+        app,
+        [
+            "run",
+            str(CONFIGS / "smoke" / "collision.yaml"),
+            "--out",
+            str(tmp_path),
+            "--threads",
+            "999",
+        ],
+    )
+    assert_one_line_error(result, "--threads 999", "NUMBA_NUM_THREADS")
+    assert not list(tmp_path.iterdir())
