@@ -7,7 +7,8 @@ Compiled code is cached on disk. numba invalidates a cached function only when i
 changes, yet a caller's cache holds the compiled code of the functions it calls from other
 files; so the cache directory is keyed by a hash of every kernel source file, every contact
 law (revdem_cli/laws) and every wall shape (revdem_cli/wall_shapes), and any change to any
-of them starts a fresh cache.
+of them starts a fresh cache. Inside it, code lies by module (`_PackageLocator`), not by
+the sources' absolute path: a fresh clone of the same sources compiles nothing.
 """
 
 import hashlib
@@ -20,6 +21,7 @@ from pathlib import Path
 import numba
 from llvmlite import ir
 from numba.core import cgutils
+from numba.core.caching import CacheImpl, UserProvidedCacheLocator
 from numba.extending import intrinsic
 
 
@@ -36,6 +38,29 @@ def _cache_dir() -> str:
 
 
 numba.config.CACHE_DIR = _cache_dir()
+
+_PACKAGE = Path(__file__).resolve().parents[1]
+
+
+class _PackageLocator(UserProvidedCacheLocator):
+    """Where numba caches revdem's compiled functions: under CACHE_DIR by the module's place
+    in the package, not (as numba does) by the absolute path of its folder, so that every
+    copy of the same sources (a clone, a reinstall, a CI checkout) finds the code compiled
+    for them; numba still checks each file's content against the cache index."""
+
+    def __init__(self, py_func, py_file):
+        super().__init__(py_func, py_file)
+        place = Path(py_file).resolve().relative_to(_PACKAGE).parent
+        self._cache_path = os.path.join(numba.config.CACHE_DIR, *place.parts)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if not Path(py_file).resolve().is_relative_to(_PACKAGE):
+            return None
+        return super().from_function(py_func, py_file)
+
+
+CacheImpl._locator_classes.insert(0, _PackageLocator)
 
 LAYERS = ("omp", "workqueue", "tbb")
 """numba's threading layers in the order revdem takes the first that loads. numba's own order

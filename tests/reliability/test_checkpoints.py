@@ -27,7 +27,7 @@ from revdem_cli.stage import Model
 from revdem_cli.state import empty_events, initial_state
 from tests.conftest import CONFIGS, assert_one_line_error, two_spheres
 
-KILLS = 24
+KILLS = 12
 """SIGKILLs sent at random moments, each followed by a resume, over the cases below."""
 
 CASES = {
@@ -257,8 +257,8 @@ def test_a_run_killed_at_random_moments_resumes_to_the_uninterrupted_files(
     assert done == wanted, f"only {done} of {wanted} runs were still running when killed"
 
 
-EVERY = 200000
-SPARSE = ["stages.0.steps=600000", f"stages.0.output_every={EVERY}"]
+EVERY = 100000
+SPARSE = ["stages.0.steps=300000", f"stages.0.output_every={EVERY}"]
 """The smoke collision with frames far apart: a signal lands between two of them."""
 
 
