@@ -2,15 +2,20 @@
 damped DEM run forward and reversed: the study Hanley 2020 §5.2 leaves for future work.
 
 Each case (a damped two-sphere collision, the drop with viscous damping, the oedometer's
-settle stage under local damping) runs forward and reversed with integrator.scheme =
-'verlet' and 'trvp' of orders 1 to 4, in floating-point and in fixed-point arithmetic (the
-control: its kicks and drifts reverse exactly, so what error remains is the scheme's, the
-damping forces of the two directions that differ). Written to scenarios/kolafa2011/:
-`study.csv` (a row a run: the first divergence step and the reversed time it comes at,
-the largest errors, the energy dissipated forward and returned in reverse, seconds),
+settle stage under local damping, and under viscous contact damping instead) runs forward
+and reversed with integrator.scheme = 'verlet' and 'trvp' of orders 1 to 4, in floating
+point and in fixed-point arithmetic (the control: its kicks and drifts reverse exactly, so
+what error remains is the scheme's, the damping forces of the two directions that differ).
+Written to scenarios/kolafa2011/: `study.csv` (a row a run: the first divergence step and
+the reversed time it comes at, the largest errors, the energy dissipated forward and
+returned in reverse, seconds),
 `errors.csv` (the error of every compared frame against reversed time) and `study.png`.
+Then the forward accuracy, `restitution.csv` (a viscous contact's coefficient of restitution
+against exp(-pi beta / sqrt(1 - beta^2))) and `rebounds.csv` (the drop's apex heights), and
+`critical_dt.csv` (the critical time step with the predictor, formula and engine).
 
     NUMBA_NUM_THREADS=1 python -m benchmarks.trvp_study [--cases collision,drop,oedometer]
+                                                       [--accuracy]
 """
 
 from __future__ import annotations
@@ -23,20 +28,26 @@ from pathlib import Path
 import numpy as np
 
 from revdem_cli import api as revdem
+from revdem_cli.io.restart import read_restart
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = {
-    "collision": ROOT / "configs/trvp/collision_damped.toml",
-    "drop": ROOT / "configs/trvp/drop_viscous.toml",
-    "oedometer": ROOT / "configs/trvp/oedometer_settle.toml",
+    "collision": (ROOT / "configs/trvp/collision_damped.toml", {}),
+    "drop": (ROOT / "configs/trvp/drop_viscous.toml", {}),
+    "oedometer": (ROOT / "configs/trvp/oedometer_settle.toml", {}),
+    "oedometer_viscous": (  # the settle stage damped at the contacts instead
+        ROOT / "configs/trvp/oedometer_settle.toml",
+        {"contact.normal_damping": 0.1, "stages.2.damping.local": 0.0},
+    ),
 }
+"""Each case: its scenario file and the fields changed in it."""
 SCHEMES = [("verlet", 0), ("trvp", 1), ("trvp", 2), ("trvp", 3), ("trvp", 4)]
 ARITHMETIC = ("float", "fixed")
 STUDY = ROOT / "scenarios/kolafa2011"
 COLUMNS = (
     "case", "scheme", "order", "arithmetic", "reversed_steps", "first_divergence_step",
     "divergence_reversed_time", "max_position_error_rel", "max_velocity_error",
-    "error_at_end", "dissipated", "returned", "seconds",
+    "error_at_end", "dissipated", "returned", "blown_up_reversed_time", "seconds",
 )  # fmt: skip
 
 
@@ -44,7 +55,8 @@ def variant(case: str, scheme: str, order: int, arithmetic: str) -> revdem.Exper
     changes = {"integrator.scheme": scheme, "integrator.arithmetic": arithmetic}
     if order:
         changes["integrator.trvp_order"] = order
-    return revdem.load(CASES[case]).changed(changes)
+    path, fields = CASES[case]
+    return revdem.load(path).changed(fields | changes)
 
 
 def measured(result: revdem.Result) -> tuple[dict, np.ndarray]:
@@ -59,19 +71,21 @@ def measured(result: revdem.Result) -> tuple[dict, np.ndarray]:
     errors = np.column_stack(
         [reversed_time, frames["velocity_error"], frames["position_error_rel"]]
     )
+    restart = read_restart(result.outputs.restart)
     forward_time, forward = result.observable("total_energy")
-    back_time, back = result.observable("total_energy", run="reverse")
-    start = forward[np.argmin(np.abs(forward_time - back_time[-1]))]  # where the stage began
+    _, back = result.observable("total_energy", run="reverse")
+    began = np.argmin(np.abs(forward_time - restart.stage_first_time))  # the reversed stage's
+    start = forward[began]
     divergence = comparison["first_divergence_step"]
     row = {
-        "reversed_steps": int(steps[0] - steps[-1]),
+        "reversed_steps": restart.state.step - restart.stage_first_step,
         "first_divergence_step": "" if divergence is None else divergence,
         "divergence_reversed_time": "" if divergence is None else end - at[divergence],
         "max_position_error_rel": comparison["max_position_error_rel"],
         "max_velocity_error": comparison["max_velocity_error"],
         "error_at_end": float(frames["velocity_error"][-1]),
         "dissipated": float(start - back[0]),  # J, forward through the stage
-        "returned": float(back[-1] - back[0]),  # J, by the reversed run
+        "returned": float(back[-1] - back[0]),  # J, by the reversed run (until a blow-up)
     }
     return row, errors
 
@@ -84,19 +98,64 @@ def run_study(cases: list[str], out: Path) -> None:
             for arithmetic in ARITHMETIC:
                 name = f"{case}-{scheme}{order or ''}-{arithmetic}"
                 started = time.perf_counter()
-                result = revdem.run(
-                    variant(case, scheme, order, arithmetic), out / name, force=True
-                )
+                result, blown = _run(variant(case, scheme, order, arithmetic), out / name)
                 row, errors = measured(result)
+                row["blown_up_reversed_time"] = blown
                 seconds = time.perf_counter() - started
                 keys = {"case": case, "scheme": scheme, "order": order, "arithmetic": arithmetic}
                 rows.append({**keys, **row, "seconds": round(seconds, 1)})
                 curves += [{**keys, "reversed_time": e[0], "velocity_error": e[1],
                             "position_error_rel": e[2]} for e in errors]  # fmt: skip
                 print(name, {k: rows[-1][k] for k in COLUMNS[5:]}, flush=True)
+    rows = _merged(STUDY / "study.csv", rows, cases)
+    curves = _merged(STUDY / "errors.csv", curves, cases)
     _write(STUDY / "study.csv", COLUMNS, rows)
     _write(STUDY / "errors.csv", tuple(curves[0]), curves)
     figure(rows, curves, STUDY / "study.png")
+
+
+def _run(experiment: revdem.Experiment, out: Path) -> tuple[revdem.Result, float | str]:
+    """The run forward and reversed, and the reversed time at which the reversal blew up
+    ('' if it did not): a reversed run that blows up is compared up to its last frame."""
+    from revdem_cli.compare import compare_trajectories
+    from revdem_cli.engine import output_paths
+    from revdem_cli.state import BlownUp
+
+    try:
+        return revdem.run(experiment, out, force=True), ""
+    except BlownUp as failure:
+        paths = output_paths(out, experiment.scenario.name)
+        verdict = compare_trajectories(paths["forward"], paths["reverse"])
+        outputs = revdem.Outputs(
+            forward=paths["forward"], reverse=paths["reverse"], restart=paths["restart"]
+        )
+        outputs.verdict = verdict
+        result = revdem.Result(outputs)
+        steps, times, _ = result.frames("position", run="reverse")
+        dt = (times[0] - times[1]) / (steps[0] - steps[1])
+        return result, float((steps[0] - failure.step) * dt)
+
+
+def _merged(path: Path, rows: list[dict], cases: list[str]) -> list[dict]:
+    """`rows` after those of the other cases already in the table at `path`, in the order of
+    CASES; numbers read back as numbers."""
+
+    def number(text: str):
+        try:
+            return int(text) if text.lstrip("-").isdigit() else float(text)
+        except ValueError:
+            return text
+
+    kept = []
+    if path.exists():
+        with path.open() as f:
+            kept = [
+                {key: number(value) for key, value in row.items()}
+                for row in csv.DictReader(f)
+                if row["case"] not in cases
+            ]
+    order = list(CASES)
+    return sorted(kept + rows, key=lambda row: order.index(row["case"]))
 
 
 def _write(path: Path, columns: tuple, rows: list[dict]) -> None:
@@ -140,9 +199,106 @@ def figure(rows: list[dict], curves: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+def restitution(out: Path) -> list[dict]:
+    """Forward accuracy: the coefficient of restitution of the linear spring-dashpot of
+    configs/trvp/collision_damped.toml, head on (A at 0.9 m/s, B at rest), against
+    exp(-pi beta / sqrt(1 - beta^2)) (the damped oscillator's half period), for each scheme
+    at omega dt = 0.01 and 0.1, omega = sqrt(k_n / m*)."""
+    base = revdem.load(CASES["collision"][0])
+    mass = 1000.0 * 4.0 / 3.0 * np.pi * 0.005**3
+    omega = np.sqrt(1000.0 / (0.5 * mass))  # k_n = 1000 N/m, m* = m / 2
+    rows = []
+    for beta in (0.1, 0.3, 0.5):
+        exact = float(np.exp(-np.pi * beta / np.sqrt(1.0 - beta**2)))
+        for omega_dt in (0.01, 0.1):
+            dt = omega_dt / omega
+            for scheme, order in SCHEMES:
+                changes = {
+                    "contact.normal_damping": beta,
+                    "particles.0.velocity": [0.9, 0.0, 0.0],
+                    "particles.1.velocity": [0.0, 0.0, 0.0],
+                    "integrator.dt": dt,
+                    "integrator.scheme": scheme,
+                    "stages.0.steps": int(np.ceil(3e-3 / dt)),
+                    "stages.0.output_every": int(np.ceil(3e-3 / dt)),
+                }
+                if order:
+                    changes["integrator.trvp_order"] = order
+                name = f"restitution-{beta}-{omega_dt}-{scheme}{order or ''}"
+                result = revdem.run(base.changed(changes), out / name, force=True, reverse=False)
+                _, _, v = result.frames("velocity")
+                e = float((v[-1, 1, 0] - v[-1, 0, 0]) / 0.9)
+                rows.append({
+                    "beta": beta, "omega_dt": omega_dt, "scheme": scheme, "order": order,
+                    "restitution": e, "exact": exact, "relative_error": e / exact - 1.0,
+                })  # fmt: skip
+                print(rows[-1], flush=True)
+    _write(STUDY / "restitution.csv", tuple(rows[0]), rows)
+    return rows
+
+
+def rebounds(out: Path) -> list[dict]:
+    """Forward accuracy: the apex heights of the drop's rebounds (the gap under the sphere
+    at each maximum of its potential energy after the first impact) in the study's forward
+    runs, floating point, for each scheme."""
+    rows = []
+    for scheme, order in SCHEMES:
+        name = f"drop-{scheme}{order or ''}-float"
+        path = out / name / "drop_viscous.forward.h5"
+        result = revdem.Result(revdem.Outputs(forward=path))
+        time, potential = result.observable("potential_energy")
+        mass = 1000.0 * 4.0 / 3.0 * np.pi * 0.005**3
+        gap = potential / (mass * 9.81) - 0.005  # m above the plane
+        peaks = [
+            i for i in range(1, len(gap) - 1)
+            if gap[i] > gap[i - 1] and gap[i] >= gap[i + 1] and gap[i] > 1e-7
+        ]  # fmt: skip
+        for bounce, i in enumerate(peaks, start=1):
+            rows.append({"scheme": scheme, "order": order, "bounce": bounce,
+                         "time": float(time[i]), "height": float(gap[i])})  # fmt: skip
+    _write(STUDY / "rebounds.csv", tuple(rows[0]), rows)
+    return rows
+
+
+def critical_time_steps() -> list[dict]:
+    """The critical time step of a damped linear contact with the velocity predictor: the
+    root of the scheme's characteristic polynomial (`criteria.dt_velocity_predictor`) and
+    the engine's own limit on the resting sphere pair (`engine_pair.engine_limit`), two
+    spheres of radius 10 mm and 2500 kg/m^3, k_n = 1e6 N/m, frictionless, for damping of
+    0.1 and 0.5 of critical; in units of 2/omega, omega = sqrt(k_n A_n)."""
+    from revdem_cli.timestep import criteria, engine_pair, shapes
+
+    kn, sphere = 1e6, shapes.sphere(0.01, 2500.0)
+    inverse_mass = 2.0 / sphere.mass
+    unit = 2.0 / np.sqrt(kn * inverse_mass)
+    rows = []
+    for beta in (0.1, 0.5):
+        c = beta * 2.0 * np.sqrt(kn / inverse_mass)
+        for scheme, order in SCHEMES:
+            contact = criteria.Contact(kn=kn, ks=0.0, cn=c)
+            formula = criteria.dt_velocity_predictor(kn, c, inverse_mass, order)
+            engine = engine_pair.engine_limit(sphere, sphere, contact, order)
+            rows.append({
+                "beta": beta, "scheme": scheme, "order": order, "formula": formula / unit,
+                "engine": engine / unit, "engine_over_formula": engine / formula,
+            })  # fmt: skip
+            print(rows[-1], flush=True)
+    _write(STUDY / "critical_dt.csv", tuple(rows[0]), rows)
+    return rows
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", default=",".join(CASES))
     parser.add_argument("--out", type=Path, default=ROOT / "out/kolafa2011")
+    parser.add_argument(
+        "--accuracy", action="store_true",
+        help="only the forward accuracy (restitution, the rebounds of the drop's runs) and the "
+        "critical time steps",
+    )  # fmt: skip
     arguments = parser.parse_args()
-    run_study(arguments.cases.split(","), arguments.out)
+    if not arguments.accuracy:
+        run_study(arguments.cases.split(","), arguments.out)
+    restitution(arguments.out)
+    rebounds(arguments.out)
+    critical_time_steps()
