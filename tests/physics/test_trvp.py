@@ -106,3 +106,18 @@ def test_trvp_settings_that_do_not_fit_are_refused():
         _resting({"trvp_order": 2})
     with pytest.raises(InputError, match=r"damping.drag: drag .* needs integrator.scheme"):
         revdem.load("configs/drop_A.toml").changed({"integrator.scheme": "trvp"})
+
+
+def test_the_time_step_guard_takes_the_predictors_limit(tmp_path):
+    """With damping read from the predictor the two-body limit is the root of its
+    characteristic polynomial: 0.646 of velocity Verlet's for the collision's beta = 0.3."""
+    from revdem_cli.timestep.guard import critical_time_step
+
+    collision = revdem.load("configs/trvp/collision_damped.toml")
+    verlet, _ = critical_time_step(collision.scenario)
+    trvp = collision.changed({"integrator.scheme": "trvp", "integrator.trvp_order": 2})
+    limit, reason = critical_time_step(trvp.scenario)
+    assert limit == pytest.approx(0.646 * verlet, rel=1e-3)
+    assert "velocity predictor of order 2" in reason
+    with pytest.raises(InputError, match="times the critical time step"):
+        revdem.run(trvp.changed({"integrator.dt": 0.8 * verlet}), tmp_path)
