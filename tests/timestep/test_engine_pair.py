@@ -83,3 +83,24 @@ def test_engine_limit_with_the_velocity_predictor():
     expected = criteria.dt_velocity_predictor(KN, c, inverse_mass, 2)
     assert limit == pytest.approx(expected, rel=3e-3)
     assert expected < 0.6 * criteria.dt_velocity_verlet(KN, c, inverse_mass)
+
+
+def test_dt_recommends_the_predictors_limit_when_damping_reads_it():
+    damped = assess(SPHERE, SPHERE, KN, KN, damping_number=0.5)
+    predicted = assess(SPHERE, SPHERE, KN, KN, damping_number=0.5, trvp_order=2)
+    limits = {e.key: e.dt for e in predicted.criteria}
+    assert predicted.recommended == limits["velocity_predictor"]
+    assert predicted.recommended < 0.7 * damped.recommended  # 0.685 at N = 0.5, shear mode
+    assert "velocity_predictor" not in {e.key for e in damped.criteria}
+
+
+def test_dt_refuses_an_order_out_of_range():
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+
+    result = CliRunner().invoke(
+        app, ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "2500", "--kn", "1e6",
+              "--trvp-order", "5"],
+    )  # fmt: skip
+    assert result.exit_code == 2 and "--trvp-order must be 0" in result.output
