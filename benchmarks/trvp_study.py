@@ -287,6 +287,41 @@ def critical_time_steps() -> list[dict]:
     return rows
 
 
+def markdown_table() -> str:
+    """study.csv as the README's table: a row a case and scheme, floating point beside fixed
+    point: the reversed time to the first divergence (steps), the largest velocity error, and
+    the energy returned over the energy dissipated."""
+    with (STUDY / "study.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    runs = {(r["case"], r["scheme"], r["order"], r["arithmetic"]): r for r in rows}
+    lines = [
+        "| case | scheme | first divergence, float (fixed) | largest velocity error, m/s, "
+        "float (fixed) | returned ÷ dissipated, float |",
+        "|---|---|---|---|---|",
+    ]
+
+    def divergence(r: dict) -> str:
+        if not r["first_divergence_step"]:
+            return "none"
+        steps = r["reversed_steps"]
+        at = float(r["divergence_reversed_time"]) * 1e3
+        blown = ""
+        if r["blown_up_reversed_time"]:
+            blown = f", blew up at {float(r['blown_up_reversed_time']) * 1e3:.2f} ms"
+        return f"{at:.3g} ms of {steps} steps{blown}"
+
+    for case, scheme, order, _ in [k for k in runs if k[3] == "float"]:
+        a, b = runs[case, scheme, order, "float"], runs[case, scheme, order, "fixed"]
+        name = "verlet" if scheme == "verlet" else f"trvp k = {order}"
+        ratio = float(a["returned"]) / float(a["dissipated"])
+        lines.append(
+            f"| {case} | {name} | {divergence(a)} ({divergence(b)}) | "
+            f"{float(a['max_velocity_error']):.2g} ({float(b['max_velocity_error']):.2g}) | "
+            f"{ratio:.9f} |"
+        )
+    return "\n".join(lines)
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", default=",".join(CASES))
@@ -296,7 +331,11 @@ if __name__ == "__main__":
         help="only the forward accuracy (restitution, the rebounds of the drop's runs) and the "
         "critical time steps",
     )  # fmt: skip
+    parser.add_argument("--table", action="store_true", help="print study.csv as Markdown")
     arguments = parser.parse_args()
+    if arguments.table:
+        print(markdown_table())
+        raise SystemExit(0)
     if not arguments.accuracy:
         run_study(arguments.cases.split(","), arguments.out)
     restitution(arguments.out)

@@ -121,3 +121,33 @@ def test_the_time_step_guard_takes_the_predictors_limit(tmp_path):
     assert "velocity predictor of order 2" in reason
     with pytest.raises(InputError, match="times the critical time step"):
         revdem.run(trvp.changed({"integrator.dt": 0.8 * verlet}), tmp_path)
+
+
+@pytest.mark.parametrize("frames", [6, 16], ids=["forward", "reversed"])
+def test_a_trvp_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path, frames):
+    """The predictor's history travels in the checkpoint: a run stopped part-way through its
+    forward or its reversed phase resumes to the uninterrupted run's frames, bit for bit."""
+    from revdem_cli.engine import output_paths, run_scenario
+
+    experiment = _resting({"scheme": "trvp", "trvp_order": 3}).changed(
+        {"output.checkpoint_interval": 0.0, "stages.1.steps": 1000}
+    )
+    whole = revdem.run(experiment, tmp_path / "whole")
+    shown = []
+
+    def stop(label, done, total, particles):  # a crash after `frames` frames
+        shown.append(label)
+        if len(shown) == frames:
+            raise RuntimeError("stopped")
+
+    with pytest.raises(RuntimeError, match="stopped"):
+        scenario, text, suffix = experiment.scenario, experiment.text, experiment.suffix
+        run_scenario(scenario, text, suffix, tmp_path / "cut", progress=stop)
+    assert ("reversed" in shown[-1]) == (frames == 16)
+    resumed = revdem.resume(tmp_path / "cut")
+    cut = output_paths(tmp_path / "cut", "resting")
+    for run in ("forward", "reverse"):
+        a, b = _arrays(getattr(whole.outputs, run)), _arrays(cut[run])
+        for name in a:
+            assert np.array_equal(a[name], b[name]), (run, name)
+    assert resumed.comparison["reversible"]
