@@ -12,7 +12,8 @@ returned in reverse, seconds),
 `errors.csv` (the error of every compared frame against reversed time) and `study.png`.
 Then the forward accuracy, `restitution.csv` (a viscous contact's coefficient of restitution
 against exp(-pi beta / sqrt(1 - beta^2))) and `rebounds.csv` (the drop's apex heights), and
-`critical_dt.csv` (the critical time step with the predictor, formula and engine).
+`collision_dt.csv` (the collision's reversal error against dt) and `critical_dt.csv` (the
+critical time step with the predictor, formula and engine).
 
     NUMBA_NUM_THREADS=1 python -m benchmarks.trvp_study [--cases collision,drop,oedometer]
                                                        [--accuracy]
@@ -174,9 +175,11 @@ def figure(rows: list[dict], curves: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     cases = list(dict.fromkeys(r["case"] for r in rows))
-    fig, axes = plt.subplots(1, len(cases), figsize=(5 * len(cases), 4), squeeze=False)
+    columns = min(2, len(cases))
+    lines = -(-len(cases) // columns)
+    fig, axes = plt.subplots(lines, columns, figsize=(6 * columns, 4 * lines), squeeze=False)
     colours = dict(zip(SCHEMES, ("k", "C0", "C1", "C2", "C3"), strict=True))
-    for ax, case in zip(axes[0], cases, strict=True):
+    for ax, case in zip(axes.flat, cases, strict=False):
         for (scheme, order), colour in colours.items():
             for arithmetic, style in (("float", "-"), ("fixed", "--")):
                 picked = [
@@ -234,6 +237,34 @@ def restitution(out: Path) -> list[dict]:
                 })  # fmt: skip
                 print(rows[-1], flush=True)
     _write(STUDY / "restitution.csv", tuple(rows[0]), rows)
+    return rows
+
+
+def collision_convergence(out: Path) -> list[dict]:
+    """The damped collision's reversal error against dt (2, 1 and 0.5 us, the same 3 ms):
+    first order in dt for velocity Verlet; for the predictor, the order of what its
+    extrapolation across the kinks of a linear dashpot (contact onset, separation) leaves."""
+    rows = []
+    for dt, steps in ((2e-6, 1500), (1e-6, 3000), (5e-7, 6000)):
+        for scheme, order in SCHEMES[:3]:
+            changes = {
+                "integrator.dt": dt,
+                "integrator.scheme": scheme,
+                "stages.0.steps": steps,
+                "stages.0.output_every": steps // 150,
+            }
+            if order:
+                changes["integrator.trvp_order"] = order
+            experiment = revdem.load(CASES["collision"][0]).changed(changes)
+            name = f"convergence-{dt}-{scheme}{order or ''}"
+            verdict = revdem.run(experiment, out / name, force=True).comparison
+            rows.append({
+                "dt": dt, "scheme": scheme, "order": order,
+                "max_velocity_error": verdict["max_velocity_error"],
+                "max_position_error_rel": verdict["max_position_error_rel"],
+            })  # fmt: skip
+            print(rows[-1], flush=True)
+    _write(STUDY / "collision_dt.csv", tuple(rows[0]), rows)
     return rows
 
 
@@ -340,4 +371,5 @@ if __name__ == "__main__":
         run_study(arguments.cases.split(","), arguments.out)
     restitution(arguments.out)
     rebounds(arguments.out)
+    collision_convergence(arguments.out)
     critical_time_steps()
