@@ -18,7 +18,15 @@ from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
 from revdem_cli.kernels.events import COLUMNS, KINDS
-from revdem_cli.stage import Model, Progress, StageClock, run_stage, stage_dt, stage_time_step
+from revdem_cli.stage import (
+    Model,
+    Progress,
+    StageClock,
+    reversal_history,
+    run_stage,
+    stage_dt,
+    stage_time_step,
+)
 from revdem_cli.state import State, initial_state
 
 
@@ -212,6 +220,7 @@ def _forward(
                 run.checkpoints.stepper,
             )  # fmt: skip
             time = float(clock.time(state.step))
+    reversal_history(state, run.model, clock)  # a velocity predictor's, for the reversal
     write_restart(paths["restart"], run.restart(state, clock, paths["forward"]))
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
     if reverse:

@@ -5,6 +5,7 @@ and writes the frames, at the same step numbers in both directions."""
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
@@ -13,6 +14,7 @@ import numpy as np
 
 from revdem_cli.config import Scenario, Stage
 from revdem_cli.contacts import contact_list
+from revdem_cli.errors import RunFailed
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli, Stepping
 from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
@@ -25,6 +27,7 @@ from revdem_cli.kernels.integrate import (
     FIXED_OVERFLOW,
     HALTED,
     OK,
+    PAIR_OVERFLOW,
     advance,
 )
 from revdem_cli.kernels.observables import Layout, observe
@@ -274,6 +277,38 @@ def run_stage(
             return
         if checkpoint is not None and target in frame_steps and target != frames[-1]:
             checkpoint(state, clock, events)
+
+
+def reversal_history(state: State, model: Model, clock: StageClock) -> None:
+    """Give a velocity predictor's history the half-step velocities its reversal predicts
+    from: those of the k steps after the state, in the order the reversed run would have
+    met them (nearest first). They come from a copy of the state stepped k steps on in the
+    stage that ended there, so the reversed run starts with the history a run reversed from
+    later would have, and its first step is the forward step with dt -> -dt like every
+    other. Velocity Verlet (k = 0) has no history."""
+    k = state.particles.v_past.shape[0]
+    if k == 0:
+        return
+    ahead = copy.deepcopy(state)
+    dyn = model.stage_dynamics(clock.stage)
+    end = ahead.step + k
+    stepping = model.stepping(clock.dt, clock.first_step, end, k)
+    buffer, buffer_steps = model.buffers(k + 2)
+    events = empty_events()
+    while ahead.step != end:
+        status, ahead.step, _, finding = advance(
+            *stepping_bundles(ahead, model, dyn), events, stepping, ahead.step, end, end,
+            buffer, buffer_steps,
+        )  # fmt: skip
+        if status not in (OK, PAIR_OVERFLOW):
+            raise RunFailed(
+                f"step {ahead.step}: the {k} steps after the restart that the velocity "
+                f"predictor's reversal history needs failed (status {status})"
+            )
+        if status == PAIR_OVERFLOW:
+            ahead.grow_pairs()
+    state.particles.v_past[...] = ahead.particles.v_past[::-1]
+    state.particles.omega_past[...] = ahead.particles.omega_past[::-1]
 
 
 def _likely_cause(scenario: Scenario, dt: float) -> str:

@@ -113,11 +113,14 @@ def particles(scenario: Scenario) -> Particles:
     inertia = 0.4 * mass * radius**2  # solid sphere, I = 2/5 m r^2 (Hanley 2020 §2)
     x = spheres.position.copy()
     in_cell = scenario.cell is not None and cell_deforms(scenario)
+    v = spheres.velocity.copy()
+    omega = spheres.angular_velocity.copy()
+    k = scenario.integrator.predictor_order
     return Particles(
         x=x,
         s=x / np.array(scenario.cell.size) if in_cell else np.zeros((0, 3)),
-        v=spheres.velocity.copy(),
-        omega=spheres.angular_velocity.copy(),
+        v=v,
+        omega=omega,
         f=np.zeros((n, 3)),
         torque=np.zeros((n, 3)),
         radius=radius,
@@ -127,6 +130,12 @@ def particles(scenario: Scenario) -> Particles:
         inv_inertia=1.0 / inertia,
         material=spheres.material.copy(),
         v_drift=np.full((n if uses_drag(scenario) else 0, 3), np.nan),
+        # the predictor's start: the k half steps before the first taken at the starting
+        # velocities, as if the spheres had moved at them until then (v_P(0) = v(0))
+        v_past=np.repeat(v[None, :, :], k, axis=0),
+        omega_past=np.repeat(omega[None, :, :], k, axis=0),
+        v_pred=v.copy() if k else np.zeros((0, 3)),
+        omega_pred=omega.copy() if k else np.zeros((0, 3)),
     )
 
 

@@ -64,6 +64,26 @@ def check_consistency(scenario) -> None:
     check_cell(scenario)
     check_step_total(scenario)
     check_automatic_dt(scenario)
+    check_scheme(scenario)
+
+
+def check_scheme(scenario) -> None:
+    """trvp_order only with the predictor; drag, which Eq 25 applies as a factor on the
+    half-step velocity rather than as a force, only with velocity Verlet."""
+    integrator = scenario.integrator
+    if integrator.scheme == "verlet":
+        if integrator.trvp_order is not None:
+            raise FieldError("integrator.trvp_order", "needs integrator.scheme = 'trvp'")
+        return
+    dampings = [("damping.drag", scenario.damping)]
+    dampings += [(f"stages[{i}].damping.drag", s.damping) for i, s in enumerate(scenario.stages)]
+    for path, damping in dampings:
+        if damping is not None and damping.drag != 1.0:
+            raise FieldError(
+                path,
+                "drag (Eq 25, a factor on the half-step velocity) needs integrator.scheme = "
+                "'verlet'; with 'trvp' use viscous contact damping or local damping",
+            )
 
 
 def check_automatic_dt(scenario) -> None:

@@ -344,7 +344,8 @@ class ParticlesFrom(_Model):
 
 
 class Integrator(_Model):
-    """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12)."""
+    """Velocity-Verlet time integration (Hanley 2020 Eq 1-3, 11-12), optionally with a
+    time-reversible velocity predictor for the damping forces (Kolafa & Lisal 2011)."""
 
     dt: TimeStep = Field(description="time step, s, or 'auto' (see dt_safety)")
     dt_safety: Float = Field(
@@ -369,6 +370,29 @@ class Integrator(_Model):
         "contact; checked with non-finite values at every observables row, a deeper one "
         "stops the run as blown up",
     )
+    scheme: Literal["verlet", "trvp"] = Field(
+        default="verlet",
+        description="how velocity-dependent forces (local damping Eq 21, viscous contact "
+        "damping) read the velocity at a full step: 'verlet', the half-step velocity "
+        "v(t - dt/2) as Hanley 2020 does; 'trvp', the time-reversible velocity predictor of "
+        "Kolafa & Lisal 2011, sum_j b_j v(t - (j + 1/2) dt) over the last trvp_order + 1 "
+        "half-step velocities",
+    )
+    trvp_order: int | None = Field(
+        default=None,
+        ge=1,
+        le=4,
+        description="order k of the time-reversible velocity predictor (k + 1 half-step "
+        "velocities, error of the forward-reversed asymmetry O(dt^(2k+1))), -; with "
+        "scheme = 'trvp' only, default 2",
+    )
+
+    @property
+    def predictor_order(self) -> int:
+        """k of the velocity predictor; 0 for velocity Verlet (the half-step velocity)."""
+        if self.scheme == "verlet":
+            return 0
+        return 2 if self.trvp_order is None else self.trvp_order
 
 
 class Neighbours(_Model):

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-SCHEMA_VERSION = 6
-"""Version of revdem's layout inside H5MD trajectories and restart files."""
+SCHEMA_VERSION = 7
+"""Version of revdem's layout inside H5MD trajectories and restart files (7: restarts keep
+the velocity predictor's history, particles/v_past, omega_past, v_pred, omega_pred)."""
 
 FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
 """Per-particle time series of a trajectory, under /particles/all."""
@@ -205,7 +206,9 @@ def _check_restart(f, path) -> None:
             f"{path}: particles/x: {n} spheres, but the stored scenario has {scenario.sphere_count}"
         )
     for name, dataset in f["particles"].items():
-        optional = name in ("s", "v_drift")  # arrays a run may not need: then empty
+        if name in ("v_past", "omega_past"):  # the velocity predictor's half steps: k x n
+            continue  # their shapes are checked with the scenario's order on reading
+        optional = name in ("s", "v_drift", "v_pred", "omega_pred")  # empty where not needed
         if dataset.shape[:1] != (n,) and not (optional and dataset.shape[:1] == (0,)):
             raise InputError(f"{path}: damaged revdem restart (particles/{name} is not {n} long)")
     for name in ("length", "rate", "stress"):

@@ -283,6 +283,14 @@ def _check_state(path, scenario, particles, pairs, walls, step, stage_first_step
         bad = np.flatnonzero(~np.isfinite(getattr(particles, name)).all(axis=1))
         if len(bad):
             refuse(f"particles/{name} of particle {bad[0]} is not finite")
+    order = scenario.integrator.predictor_order  # the velocity predictor's arrays
+    shapes = {"v_past": (order, n, 3), "v_pred": (n if order else 0, 3)}
+    for name in ("v_past", "omega_past", "v_pred", "omega_pred"):
+        values, shape = getattr(particles, name), shapes[name.replace("omega", "v")]
+        if values.shape != shape:
+            refuse(f"particles/{name} has shape {values.shape}, not {shape}")
+        if not np.isfinite(values).all():
+            refuse(f"particles/{name} is not finite")
     for name in ("radius", "mass", "inertia"):
         bad = np.flatnonzero(
             ~(getattr(particles, name) > 0.0) | ~np.isfinite(getattr(particles, name))

@@ -25,8 +25,16 @@ Particles = namedtuple(
         "inv_inertia",  # 1/(kg m^2), (N,)
         "material",  # material index, (N,) int64
         "v_drift",  # velocity of the last drift under drag, m/s, (N, 3) or (0, 3)
+        "v_past",  # the velocity predictor's k last half-step velocities, newest first, m/s,
+        # (k, N, 3); k = 0 (velocity Verlet): (0, N, 3)
+        "omega_past",  # the same of the angular velocities, rad/s, (k, N, 3)
+        "v_pred",  # predicted velocity at the current full step, m/s, (N, 3) or (0, 3)
+        "omega_pred",  # predicted angular velocity, rad/s, (N, 3) or (0, 3)
     ],
 )
+"""The velocity predictor (kernels/predictor.py, integrator.scheme = 'trvp') keeps the
+half-step velocities of the k steps before, in the order of stepping: going forward those
+of the earlier steps, reversed those of the later ones."""
 
 Pairs = namedtuple(
     "Pairs",

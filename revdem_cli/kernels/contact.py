@@ -161,7 +161,7 @@ def tangential(a, n):
 @inline
 def normal_force(law, overlap, rstar, mstar, estar, vrel, n):
     """(normal force magnitude, compression positive, with viscous damping; k_n) of one
-    contact in overlap > 0, j moving at vrel relative to i."""
+    contact in overlap > 0, j moving at vrel relative to i (the velocity the damping reads)."""
     elastic, stiffness, _ = normal_law(law, overlap, rstar, estar)
     normal = elastic
     if law.beta_n > 0.0:
@@ -171,8 +171,9 @@ def normal_force(law, overlap, rstar, mstar, estar, vrel, n):
 
 @inline
 def contact_force(
-    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, spin, history, n_new, small=False
-):
+    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, vdamp, spin, history, n_new,
+    small=False,
+):  # fmt: skip
     """Force on i at one contact in overlap > 0, and the new shear history.
 
     FORWARD: remap the history onto the new contact plane (Eq 7-8), correct for spin (Eq 9),
@@ -182,9 +183,10 @@ def contact_force(
     onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
     the history as is. Returns (force on i, history, amount the Coulomb cap removed, normal
     force magnitude, which `rolling_moment` limits by). `small`: |spin dt| < SMALL_ANGLE
-    (see `cos_sin`).
+    (see `cos_sin`). The shear increment reads the relative velocity `vrel`, the viscous
+    damping `vdamp` (the same, or from the velocity predictor's velocities).
     """
-    normal, _ = normal_force(law, overlap, rstar, mstar, estar, vrel, n)
+    normal, _ = normal_force(law, overlap, rstar, mstar, estar, vdamp, n)
     force = scaled(-normal, n)
     if law.tangential == NO_SHEAR:
         return force, history, 0.0, normal
@@ -193,7 +195,8 @@ def contact_force(
     shear = spring(mode, history, n, n_new, spin, dt, ks, vt, small)
     shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
     if law.beta_t > 0.0:
-        shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), vt, shear)  # viscous
+        damped = tangential(vdamp, n)
+        shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), damped, shear)  # viscous
         return axpy(1.0, shear_total, force), shear, slip, normal
     return axpy(1.0, shear, force), shear, slip, normal
 

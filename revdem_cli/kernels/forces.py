@@ -28,9 +28,17 @@ from revdem_cli.kernels.wall_contacts import wall_loop
 def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, events, step):
     """Forces at the current positions (Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed),
     the half kick h that follows them, and the stress a servo needs; the shear force and
-    rolling moment the step destroyed go into the event log at `step`."""
+    rolling moment the step destroyed go into the event log at `step`. Damping (local,
+    viscous) reads the velocities p.v, p.omega, or with a velocity predictor its predicted
+    ones (Kolafa & Lisal 2011); the shear spring's increment always reads p.v, p.omega."""
     deforming = deforms(cell)
-    particle_args = (p.x, p.v, p.omega, p.radius, p.mass, p.material, moduli.estar, moduli.gstar)
+    predicted = p.v_pred.shape[0] > 0  # damping reads the velocity predictor's velocities
+    v_damp = p.v_pred if predicted else p.v
+    w_damp = p.omega_pred if predicted else p.omega
+    particle_args = (
+        p.x, p.v, p.omega, v_damp, w_damp, predicted, p.radius, p.mass, p.material,
+        moduli.estar, moduli.gstar,
+    )  # fmt: skip
     pair_args = (
         cell.rate,
         cell.length,
@@ -55,6 +63,9 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         p.x,
         p.v,
         p.omega,
+        v_damp,
+        w_damp,
+        predicted,
         p.radius,
         p.mass,
         p.material,
@@ -85,6 +96,8 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         p.radius,
         p.v,
         p.omega,
+        v_damp,
+        w_damp,
         dyn.gravity,
         dyn.local_damping,
         pairs.first,

@@ -23,6 +23,8 @@ def _gather_loop(
     radius,
     v,
     w,
+    v_damp,
+    w_damp,
     gravity,
     local,
     first,
@@ -42,7 +44,8 @@ def _gather_loop(
     grid,
 ):
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
-    (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21);
+    (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21;
+    v from `v_damp`, `w_damp`: the half-step velocities or the predictor's);
     then the half kick v += h f / m, w += h t / I (Eq 11-12; h = 0: none). Without a
     tangential law (no `moment`) every moment is zero; with a rolling law (`rolling`, the
     rolling moment on the pair's first particle) each pair adds its rolling moment, on i,
@@ -134,10 +137,10 @@ def _gather_loop(
             f = (f_int[0] * f_step, f_int[1] * f_step, f_int[2] * f_step)
             t = (t_int[0] * t_step, t_int[1] * t_step, t_int[2] * t_step)
         for d in range(3):
-            f_out[q, d] = f[d] - local * abs(f[d]) * sign(v[q, d])  # Hanley 2020 Eq 21
+            f_out[q, d] = f[d] - local * abs(f[d]) * sign(v_damp[q, d])  # Hanley 2020 Eq 21
         if torques:  # else the moments stay zero
             for d in range(3):
-                t_out[q, d] = t[d] - local * abs(t[d]) * sign(w[q, d])
+                t_out[q, d] = t[d] - local * abs(t[d]) * sign(w_damp[q, d])
         kicked = True
         spun = True
         if on_grid:

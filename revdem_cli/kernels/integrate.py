@@ -17,6 +17,7 @@ from revdem_cli.kernels.neighbours import (
     largest_reach,
 )
 from revdem_cli.kernels.observables import observe
+from revdem_cli.kernels.predictor import predict
 from revdem_cli.kernels.unwind import unwind_shear_history
 from revdem_cli.kernels.walls import place_walls
 
@@ -166,7 +167,9 @@ def drift(p, cell, fixed, h, events, step):
 @jit
 def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed):
     """One forward step from `step` (Hanley 2020 Eq 1-12, with drag Eq 25-26); `elapsed`
-    is the stage's time at its end."""
+    is the stage's time at its end. The damping forces at the new positions read the
+    half-step velocity (velocity Verlet) or, with a velocity predictor, its prediction of
+    the velocity there (`predictor.predict`)."""
     h = 0.5 * dt
     kick_particles(p, fixed, law, h)
     kick_cell(cell, fixed, h)
@@ -176,6 +179,7 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     move_cell(cell, fixed, dt, elapsed)
     drift(p, cell, fixed, dt, events, step + 1)
     place_walls(walls, elapsed)
+    predict(p)  # v_P(t + dt) from v(t + dt/2) and the k before (Kolafa & Lisal 2011)
     compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, FORWARD, dt, h, events, step + 1)
     note_damping(events, step + 1, law, dyn)
     kick_cell(cell, fixed, h)
@@ -189,7 +193,9 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     correction at the later positions (inverse of Eq 10, 9); move the cell and drift back
     with the velocities the forward step moved with (Eq 18); undo drag (Eq 28); forces at
     the earlier positions, the shear history mapped back onto their contact planes (Eq 19,
-    inverse of Eq 7-8), and the kick back (Eq 20). Mechanisms that destroy information
+    inverse of Eq 7-8), and the kick back (Eq 20); a velocity predictor predicts from the
+    half-step velocities of the later steps, as going forward from the earlier ones, so
+    the reversed step is the forward one with dt -> -dt. Mechanisms that destroy information
     (Coulomb cap, local and viscous damping, shear force lost at separation) run mirrored
     and are logged.
     """
@@ -203,6 +209,7 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)
         drag(p, fixed, 1.0 / dyn.drag)
+    predict(p)  # the same predictor on the reversed run's own history: dt -> -dt
     compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, REVERSE, dt, h, events, step - 1)
     note_damping(events, step - 1, law, dyn)
     kick_cell(cell, fixed, h)

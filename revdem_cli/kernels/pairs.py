@@ -103,7 +103,10 @@ SLIPPED = 33  # shear force removed by the Coulomb cap
 ROLLING = 34  # rolling laws: the rolling history: 3 rows
 NEW_ROLLING = 37  # the new rolling history: 3 rows
 ROLLED = 40  # rolling moment removed by its limit
-ROWS = 41
+DAMP_VELOCITY = 41  # with a velocity predictor, damped laws: the predicted v_j - v_i: 3 rows
+DAMP_OMEGA_I = 44  # the predicted spins: 3 rows
+DAMP_OMEGA_J = 47  # 3 rows
+ROWS = 50
 
 
 def empty_blocks(chunks: int) -> np.ndarray:
@@ -135,8 +138,8 @@ def enter3(block, r, k, vector):
 
 @inline
 def gather_pairs(
-    block, first, size, x, v, w, radius, mass, material, estar, gstar, image, pi, pj, history,
-    rolling, normal_new, law,
+    block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material, estar, gstar,
+    image, pi, pj, history, rolling, normal_new, law,
 ):  # fmt: skip
     """Columns 0 to size - 1 of the block: what the contact stage needs of pairs first to
     first + size - 1, from their particles and their history."""
@@ -160,6 +163,10 @@ def gather_pairs(
             enter3(block, VELOCITY, k, axpy(-1.0, row(v, i), row(v, j)))
             enter3(block, OMEGA_I, k, row(w, i))
             enter3(block, OMEGA_J, k, row(w, j))
+        if damped and predicted:
+            enter3(block, DAMP_VELOCITY, k, axpy(-1.0, row(v_damp, i), row(v_damp, j)))
+            enter3(block, DAMP_OMEGA_I, k, row(w_damp, i))
+            enter3(block, DAMP_OMEGA_J, k, row(w_damp, j))
         if shear_law:
             enter3(block, SHEAR, k, row(history, p))
         if law.rolling != NO_ROLLING:
@@ -169,14 +176,15 @@ def gather_pairs(
 
 
 @inline
-def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
+def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, predicted):
     """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
     with a tangential law, the new history, n x force, the overlap and the shear force the
     Coulomb cap removed, with a rolling law the rolling moment and what its limit removed,
     column by column, reading and writing the block only: one loop
     body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
     The rows read are left as they were, so that a block can be done again. `small`: the
-    spin corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`).
+    spin corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`);
+    `predicted`: viscous damping reads the relative velocity of the predicted velocities.
     Returns how many angles were not."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0
@@ -190,6 +198,7 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
         overlap, dist = pair_overlap(d, reach)
         n = scaled(1.0 / dist, d)
         vrel = ZERO
+        vdamp = ZERO
         spin = 0.0
         w_i = w_j = ZERO
         if moving:
@@ -198,6 +207,13 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
             v_ij = entries(block, VELOCITY, k)
             vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
             large += abs(spin * dt) >= SMALL_ANGLE  # the angle of contact_force's Eq 9
+            vdamp = vrel
+            if damped and predicted:
+                vdamp = pair_velocity(
+                    d, n, overlap, r_i, r_j, entries(block, DAMP_VELOCITY, k),
+                    entries(block, DAMP_OMEGA_I, k), entries(block, DAMP_OMEGA_J, k), strain,
+                    deforming,
+                )[0]  # fmt: skip
         f, shear, slipped, normal = contact_force(
             law,
             mode,
@@ -209,6 +225,7 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small):
             entry(block, E_STAR, k),
             entry(block, G_STAR, k),
             vrel,
+            vdamp,
             spin,
             entries(block, SHEAR, k) if shear_law else ZERO,
             entries(block, NORMAL_NEW, k) if unwound else ZERO,
@@ -241,7 +258,7 @@ def undamped(law, tangential):
 
 
 @inline
-def contact_stage(block, size, law, mode, dt, strain, deforming, unwound):
+def contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predicted):
     """`contacts`, compiled apart for the common cases (stepping forward without viscous
     damping or rolling resistance, with and without shear), where the law's constants
     remove the branches those cases never take from the vectorised loop: an elementwise
@@ -251,13 +268,14 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, unwound):
     if mode == FORWARD and law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING:
         if law.tangential == NO_SHEAR:
             frictionless = undamped(law, NO_SHEAR)
-            contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True)
+            contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True, False)
         else:
             forward = undamped(law, law.tangential)
-            if contacts(block, size, forward, FORWARD, dt, strain, deforming, False, True) > 0:
-                contacts(block, size, forward, FORWARD, dt, strain, deforming, False, False)
+            args = (block, size, forward, FORWARD, dt, strain, deforming, False)
+            if contacts(*args, True, False) > 0:
+                contacts(*args, False, False)
     else:
-        contacts(block, size, law, mode, dt, strain, deforming, unwound, False)
+        contacts(block, size, law, mode, dt, strain, deforming, unwound, False, predicted)
 
 
 STREAMING = False
@@ -332,6 +350,9 @@ def _pair_loop(
     x,
     v,
     w,
+    v_damp,
+    w_damp,
+    predicted,
     radius,
     mass,
     material,
@@ -358,7 +379,8 @@ def _pair_loop(
     blocks,
 ):
     """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
-    law, n x force, the overlap and the shear force destroyed: by the Coulomb cap, or at
+    law, n x force, the overlap and the shear force destroyed (viscous damping reading
+    `v_damp`, `w_damp` where `predicted`, else v, w): by the Coulomb cap, or at
     separation, where the history is zeroed; with a rolling law the rolling moment on i and
     what its limit or a separation destroyed. The list is cut into as many chunks as there
     are `blocks`, each done block by block in its own: gather, contact stage, scatter.
@@ -381,10 +403,10 @@ def _pair_loop(
         for first in range(c * n_pairs // chunks, end, BLOCK):
             size = min(BLOCK, end - first)
             gather_pairs(
-                block, first, size, x, v, w, radius, mass, material, estar, gstar, image, pi,
-                pj, history, rolling, normal_new, law,
+                block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material,
+                estar, gstar, image, pi, pj, history, rolling, normal_new, law,
             )  # fmt: skip
-            contact_stage(block, size, law, mode, dt, strain, deforming, unwound)
+            contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predicted)
             results = (force, history, moment, overlaps, destroyed, rolling, rolled, law, mode)
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)

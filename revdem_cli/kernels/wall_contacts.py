@@ -33,6 +33,9 @@ def _wall_loop(
     x,
     v,
     w,
+    v_damp,
+    w_damp,
+    predicted,
     radius,
     mass,
     material,
@@ -57,7 +60,8 @@ def _wall_loop(
     dt,
 ):
     """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r; the
-    wall does not turn), the moment with the rolling moment of a rolling law. Returns the
+    wall does not turn), the moment with the rolling moment of a rolling law; viscous
+    damping reads `v_damp`, `w_damp` where `predicted` (a velocity predictor's). Returns the
     counts of `events.note_destroyed`, contacts numbered q W + b."""
     shear_law = law.tangential != NO_SHEAR
     rolling_law = law.rolling != NO_ROLLING
@@ -79,6 +83,11 @@ def _wall_loop(
             shear = cell_of(history, q, b)
             if overlap > 0.0:
                 m = wall_material[b]
+                vdamp = vrel
+                if predicted:  # the viscous damping reads the predicted velocities
+                    vdamp = relative_velocity(
+                        n, arm, 0.0, row(v_damp, q), row(w_damp, q), row(wall_velocity, b), ZERO
+                    )
                 n_new = cell_of(normal_new, q, b) if normal_new.shape[0] > 0 else ZERO
                 f, shear, slipped, normal = contact_force(
                     law,
@@ -91,6 +100,7 @@ def _wall_loop(
                     estar[material[q], m],
                     gstar[material[q], m],
                     vrel,
+                    vdamp,
                     spin,
                     shear,
                     n_new,

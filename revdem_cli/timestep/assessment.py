@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass
 
 from revdem_cli.timestep import criteria, rigid_pair, verify
 from revdem_cli.timestep.criteria import Contact
+from revdem_cli.timestep.engine_pair import engine_limit
 from revdem_cli.timestep.shapes import Body
 
 AGREEMENT_RTOL = 1e-3  # the integration resolves a stability limit to a few 1e-4
@@ -78,7 +79,7 @@ def _translation(formula, contact: Contact, inverse_mass: float) -> float | None
     return criteria.smallest(formula(k, c, inverse_mass) for k, c in contact.directions)
 
 
-def _criteria(body1, body2, contact, inverse_mass, omega_max) -> tuple[Estimate, ...]:
+def _criteria(body1, body2, contact, inverse_mass, omega_max, order=0) -> tuple[Estimate, ...]:
     damped = contact.cn > 0.0 or contact.cs > 0.0
     items = (
         Estimate(
@@ -106,6 +107,19 @@ def _criteria(body1, body2, contact, inverse_mass, omega_max) -> tuple[Estimate,
             _translation(criteria.dt_velocity_verlet, contact, inverse_mass),
         ),
     )
+    if order:
+
+        def limit(k: float, c: float, a: float) -> float:
+            return criteria.dt_velocity_predictor(k, c, a, order)
+
+        items += (
+            Estimate(
+                "velocity_predictor",
+                f"velocity-Verlet limit, trvp k = {order}",
+                "Eq 30, velocity Verlet, Kolafa & Lisal 2011",
+                _translation(limit, contact, inverse_mass),
+            ),
+        )
     if omega_max is None:
         return items
     rotation = criteria.dt_rotation(omega_max, criteria.b_max(body1), criteria.b_max(body2))
@@ -114,9 +128,10 @@ def _criteria(body1, body2, contact, inverse_mass, omega_max) -> tuple[Estimate,
     )
 
 
-def _integrated(body1, body2, contact) -> tuple[Estimate, ...]:
-    """The limits the engine's verifiers find, leaving out those that do not apply."""
-    found = (
+def _integrated(body1, body2, contact, order=0) -> tuple[Estimate, ...]:
+    """The limits the engine's verifiers find, leaving out those that do not apply; with a
+    velocity predictor of `order`, the engine's limit with it too."""
+    found = [
         Estimate(
             f"{key}_integrated",
             f"{label} limit, integrated",
@@ -124,7 +139,11 @@ def _integrated(body1, body2, contact) -> tuple[Estimate, ...]:
             verifier(body1, body2, contact),
         )
         for key, (label, source, verifier) in verify.ENGINE_VERIFIERS.items()
-    )
+    ]
+    if order:
+        label = f"revdem engine, spheres, trvp k = {order}"
+        limit = engine_limit(body1, body2, contact, order)
+        found.append(Estimate("engine_predictor_integrated", label, "kernels.integrate", limit))
     return tuple(e for e in found if e.dt is not None)
 
 
@@ -241,21 +260,25 @@ def assess(
     damping_number: float = 0.0,
     omega_max: float | None = None,
     check: bool = False,
+    trvp_order: int = 0,
 ) -> Assessment:
     """Every criterion for the pair; with `check`, the integrators' own limits beside them.
 
     Damping follows the paper's number N: c_n = c_s = N √(k_n / A_max). The recommended Δt
     is the smallest of the velocity-Verlet limit, the integrated limits (with `check`) and
-    the rotation-dominant Δt (with omega_max).
+    the rotation-dominant Δt (with omega_max). With `trvp_order` > 0 the damping reads the
+    velocity predictor of that order (integrator.scheme = 'trvp'): its limit replaces the
+    velocity-Verlet formula's in the recommendation, and the checks add the engine's with it.
     """
     inverse_mass = criteria.a_max(body1, body2)
     damping = criteria.damping_from_number(damping_number, kn, inverse_mass)
     contact = Contact(kn=kn, ks=ks, cn=damping, cs=damping)
-    items = _criteria(body1, body2, contact, inverse_mass, omega_max)
+    items = _criteria(body1, body2, contact, inverse_mass, omega_max, trvp_order)
     rigid, lost = _rigid(body1, body2, contact) if check else ((), ())
-    integrated = _integrated(body1, body2, contact) + rigid if check else ()
+    integrated = _integrated(body1, body2, contact, trvp_order) + rigid if check else ()
     checks = integrated + _euler(body1, body2, contact) if check else ()
-    formula = next(e for e in items if e.key == "velocity_verlet")
+    scheme = "velocity_predictor" if trvp_order else "velocity_verlet"
+    formula = next(e for e in items if e.key == scheme)
     reference = min(integrated, key=lambda e: e.dt) if integrated else formula
     limits = [formula, *integrated, *(e for e in items if e.key == "rotation")]
     return Assessment(

@@ -104,6 +104,7 @@ class _Case:
     ks: float | None
     damping: float
     omega_max: float | None
+    trvp_order: int = 0
 
     def with_value(self, name: str, value: float) -> _Case:
         """This case with one sweepable option set to `value`."""
@@ -122,8 +123,14 @@ class _Case:
             raise InputError(f"--damping must be zero or positive, got {self.damping:g}")
         if self.omega_max is not None:
             _positive("--omega-max", self.omega_max)
+        if not 0 <= self.trvp_order <= 4:
+            raise InputError(
+                f"--trvp-order must be 0 (velocity Verlet) to 4, got {self.trvp_order}"
+            )
         try:
-            return assess(first, other, kn, ks, self.damping, self.omega_max, check)
+            return assess(
+                first, other, kn, ks, self.damping, self.omega_max, check, self.trvp_order
+            )
         except ArithmeticError:  # a square or a quotient left float64 on the way
             raise InputError(
                 "the particles' sizes, densities and --kn, --ks give numbers outside float64's "
@@ -356,6 +363,13 @@ def dt(
     omega_max: Annotated[
         float | None, typer.Option(help="Largest angular speed (rad/s), for the rotation Δt.")
     ] = None,
+    trvp_order: Annotated[
+        int,
+        typer.Option(
+            help="Damping read from the velocity predictor of this order (integrator.scheme = "
+            "'trvp', 1 to 4): its limit, and with --verify the engine's with it; 0: none."
+        ),
+    ] = 0,
     verify: Annotated[
         bool, typer.Option("--verify", help="Find the integrators' own stability limits.")
     ] = False,
@@ -432,6 +446,7 @@ def dt(
         ks=ks,
         damping=damping,
         omega_max=omega_max,
+        trvp_order=trvp_order,
     )
     if out is not None and sweep is None:
         raise InputError("--out names the CSV file of a --sweep; give --sweep too")

@@ -58,8 +58,9 @@ def _contact_law(contact: Contact, inverse_mass: float) -> dict:
     }
 
 
-def resting_pair(body1: Body, body2: Body, contact: Contact):
-    """The engine's scenario: a light sphere (radius of body1) on a heavy one (radius of body2).
+def resting_pair(body1: Body, body2: Body, contact: Contact, order: int = 0):
+    """The engine's scenario: a light sphere (radius of body1) on a heavy one (radius of body2),
+    stepped by velocity Verlet (order 0) or with the velocity predictor of that order.
 
     Masses: M = HEAVY/A_n and 1/m_light = A_n - 1/M, so the pair's A_n is that of body1 and
     body2. Both rest at their equilibrium overlaps under gravity along -z on the plane z = 0.
@@ -107,7 +108,8 @@ def resting_pair(body1: Body, body2: Body, contact: Contact):
                 }
             ],
             "gravity": (0.0, 0.0, -gravity),
-            "integrator": {"dt": 1.0},  # each trial sets its own
+            "integrator": {"dt": 1.0}  # each trial sets its own
+            | ({"scheme": "trvp", "trvp_order": order} if order else {}),
             "stages": [{"name": "rest", "steps": STEPS}],
         }
     )
@@ -136,14 +138,15 @@ def engine_is_stable(scenario, dt: float) -> bool:
     return status == OK and bool(np.all(kinetic <= GROWTH * start))
 
 
-def engine_limit(body1: Body, body2: Body, contact: Contact) -> float | None:
+def engine_limit(body1: Body, body2: Body, contact: Contact, order: int = 0) -> float | None:
     """Largest Δt at which the revdem engine keeps a sphere contact bounded; None unless
-    both bodies are spheres. `contact.ks == 0` is a frictionless contact (no shear springs)."""
+    both bodies are spheres. `contact.ks == 0` is a frictionless contact (no shear springs);
+    `order`: that of the velocity predictor the damping reads (0: velocity Verlet)."""
     from revdem_cli.timestep.verify import largest_stable_dt
 
     if body1.shape != "sphere" or body2.shape != "sphere":
         return None
-    scenario = resting_pair(body1, body2, contact)
+    scenario = resting_pair(body1, body2, contact, order)
     inverse_mass = 1.0 / body1.mass + 1.0 / body2.mass
     guess = 1.0 / math.sqrt(max(contact.kn, contact.ks) * inverse_mass)
     return largest_stable_dt(lambda dt: engine_is_stable(scenario, dt), guess)

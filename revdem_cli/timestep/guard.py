@@ -30,7 +30,7 @@ import numpy as np
 from revdem_cli import laws
 from revdem_cli.config import Material, Scenario
 from revdem_cli.state import pair_moduli
-from revdem_cli.timestep.criteria import dt_velocity_verlet
+from revdem_cli.timestep.criteria import dt_velocity_predictor, dt_velocity_verlet
 
 SHEAR_LEVER = 3.5  # A_t / A_n of a sphere contact: 1 + r²/(2/5 r²) (Peng 2020 Eq 26)
 
@@ -172,11 +172,16 @@ def impact_stiffness(scenario: Scenario, kind: Kind) -> tuple[float, float]:
     return kn, laws.evaluate(contact, "tangential", "stiffness", overlap, kind.rstar, kind.gstar)
 
 
-def _limit(stiffness: float, beta: float, inverse_mass: float, reduced_mass: float) -> float:
-    """Velocity-Verlet limit of one direction; damping β × 2√(m* k) as the engine applies it."""
+def _limit(
+    stiffness: float, beta: float, inverse_mass: float, reduced_mass: float, order: int = 0
+) -> float:
+    """Velocity-Verlet limit of one direction; damping β × 2√(m* k) as the engine applies it,
+    read from the half-step velocity or (order > 0) from the velocity predictor's."""
     if stiffness == 0.0:
         return math.inf
     damping = 2.0 * beta * math.sqrt(reduced_mass * stiffness)
+    if order and damping > 0.0:  # Peng 2020 Eq 30 with the predictor (Kolafa & Lisal 2011)
+        return dt_velocity_predictor(stiffness, damping, inverse_mass, order)
     return dt_velocity_verlet(stiffness, damping, inverse_mass)  # Peng 2020 Eq 30, 47
 
 
@@ -185,9 +190,10 @@ def contact_dt(scenario: Scenario, kind: Kind) -> float:
     directions and, with a rolling law, its rolling spring on the bodies' rotations."""
     kn, ks = impact_stiffness(scenario, kind)
     law, reduced = scenario.contact, 1.0 / kind.inverse_mass
+    order = scenario.integrator.predictor_order
     limits = [
-        _limit(kn, law.normal_damping, kind.inverse_mass, reduced),
-        _limit(ks, law.tangential_damping, SHEAR_LEVER * kind.inverse_mass, reduced),
+        _limit(kn, law.normal_damping, kind.inverse_mass, reduced, order),
+        _limit(ks, law.tangential_damping, SHEAR_LEVER * kind.inverse_mass, reduced, order),
     ]
     if laws.chosen(law, "rolling") is not None:
         kr = laws.evaluate(law, "rolling", "stiffness", 0.0, kind.rstar)
@@ -202,6 +208,9 @@ def critical_time_step(scenario: Scenario) -> tuple[float, str]:
         return math.inf, "one particle and no walls: no contact, no stability limit"
     name, (contact, kind) = min(estimates.items(), key=lambda item: item[1][0])
     shear = "" if scenario.contact.tangential == "none" else " with shear springs"
+    order = scenario.integrator.predictor_order
+    if order:
+        shear += f" (damping read from the velocity predictor of order {order})"
     normal = laws.chosen(scenario.contact, "normal")
     if not normal.FROM_MATERIALS:
         return contact, (

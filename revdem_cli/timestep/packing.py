@@ -300,8 +300,8 @@ def _at_rest_copy(state: State, model: Model) -> State:
     )
     pairs = pairs._replace(normal_new=np.zeros((0, 3)))  # a forward step needs no unwinding
     walls = walls._replace(normal_new=np.zeros((0,) + walls.normal_new.shape[1:]))
-    p.v[:] = 0.0
-    p.omega[:] = 0.0
+    for at_rest in (p.v, p.omega, p.v_past, p.omega_past, p.v_pred, p.omega_pred):
+        at_rest[...] = 0.0  # with a velocity predictor's history
     walls.velocity[:] = 0.0
     walls.origin[:] = walls.point
     cell.control[:] = FIXED

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from revdem_cli.state import initial_state
-from revdem_cli.timestep import engine_pair, shapes
+from revdem_cli.timestep import criteria, engine_pair, shapes
 from revdem_cli.timestep.assessment import assess
 from revdem_cli.timestep.criteria import Contact
 
@@ -58,3 +58,49 @@ def test_dt_verify_sets_the_engine_beside_the_formula():
     ellipsoid = shapes.ellipsoid(3, 2, 1, 1000.0)
     keys = {e.key for e in assess(ellipsoid, SPHERE, KN, KN, check=True).checks}
     assert "engine_integrated" not in keys and "velocity_verlet_integrated" in keys
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.1, 0.5])
+def test_the_velocity_predictor_limit_reduces_to_verlet_and_to_2_over_omega(beta):
+    inverse_mass = 2.0 / SPHERE.mass
+    c = beta * 2.0 * math.sqrt(KN / inverse_mass)
+    verlet = criteria.dt_velocity_verlet(KN, c, inverse_mass)
+    assert criteria.dt_velocity_predictor(KN, c, inverse_mass, 0) == pytest.approx(verlet)
+    predicted = [criteria.dt_velocity_predictor(KN, c, inverse_mass, k) for k in (1, 2, 4)]
+    if beta == 0.0:  # nothing reads the prediction: 2/omega for every order
+        assert predicted == pytest.approx([2.0 / math.sqrt(KN * inverse_mass)] * 3)
+    else:  # damping read from an extrapolation shrinks the stable range with the order
+        assert verlet > predicted[0] > predicted[1] > predicted[2]
+
+
+def test_engine_limit_with_the_velocity_predictor():
+    """The engine with trvp_order = 2 on a contact damped at half of critical is stable up to
+    the root of the scheme's characteristic polynomial (`criteria.predictor_is_stable`), a
+    limit 0.54 of velocity Verlet's, to the engine's resolution (its 4000-step trials)."""
+    inverse_mass = 2.0 / SPHERE.mass
+    c = 0.5 * 2.0 * math.sqrt(KN / inverse_mass)
+    limit = engine_pair.engine_limit(SPHERE, SPHERE, Contact(kn=KN, ks=0.0, cn=c), order=2)
+    expected = criteria.dt_velocity_predictor(KN, c, inverse_mass, 2)
+    assert limit == pytest.approx(expected, rel=3e-3)
+    assert expected < 0.6 * criteria.dt_velocity_verlet(KN, c, inverse_mass)
+
+
+def test_dt_recommends_the_predictors_limit_when_damping_reads_it():
+    damped = assess(SPHERE, SPHERE, KN, KN, damping_number=0.5)
+    predicted = assess(SPHERE, SPHERE, KN, KN, damping_number=0.5, trvp_order=2)
+    limits = {e.key: e.dt for e in predicted.criteria}
+    assert predicted.recommended == limits["velocity_predictor"]
+    assert predicted.recommended < 0.7 * damped.recommended  # 0.685 at N = 0.5, shear mode
+    assert "velocity_predictor" not in {e.key for e in damped.criteria}
+
+
+def test_dt_refuses_an_order_out_of_range():
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+
+    result = CliRunner().invoke(
+        app, ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "2500", "--kn", "1e6",
+              "--trvp-order", "5"],
+    )  # fmt: skip
+    assert result.exit_code == 2 and "--trvp-order must be 0" in result.output

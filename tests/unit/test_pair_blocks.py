@@ -39,8 +39,8 @@ def pair_by_pair(x, v, w, radius, estar, gstar, image, pi, pj, history, law, for
             )
             rstar = radius[i] * radius[j] / (radius[i] + radius[j])
             f, s, _, _ = contact_force(
-                law, FORWARD, DT, overlap, n, rstar, 0.0, estar[0, 0], gstar[0, 0], vrel, spin,
-                row(history, k), ZERO,
+                law, FORWARD, DT, overlap, n, rstar, 0.0, estar[0, 0], gstar[0, 0], vrel, vrel,
+                spin, row(history, k), ZERO,
             )  # fmt: skip
             put(force, k, f)
             put(shear, k, s)
