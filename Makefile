@@ -21,6 +21,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/fcc_hertz.py --scaling
+	$(BIN)/python benchmarks/crossover.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check revdem_cli tests benchmarks
