@@ -319,15 +319,15 @@ amplitude grows at most 1/√(1 - (ωΔt/2)²) times (10 at 0.5 % below), above 
 def _advance(state: State, model: Model, dyn: Dynamics, dt: float, steps: int) -> bool:
     """Step `state` `steps` steps at dt; False if it blew up."""
     compute_forces(
-        *stepping_bundles(state, model, dyn), STATIC, dt, 0.0, empty_events(), state.step
+        *stepping_bundles(state, model, dyn, model.law), STATIC, dt, 0.0, empty_events(), state.step
     )
     stepping = model.stepping(dt, state.step, state.step + steps, steps)
     buffer, buffer_steps = model.buffers(2)
     events, stop = empty_events(), state.step + steps
     while state.step != stop:
         status, state.step, _, _ = advance(
-            *stepping_bundles(state, model, dyn), events, stepping, state.step, stop, buffer,
-            buffer_steps,
+            *stepping_bundles(state, model, dyn, model.law), events, stepping, state.step, stop,
+            buffer, buffer_steps,
         )  # fmt: skip
         if status == BLOWN_UP:
             return False
