@@ -175,3 +175,41 @@ def test_smoke_frictionless_undamped_shearing_reverses_bit_for_bit(tmp_path):
     back = result.observable("void_ratio", run="reverse")[1]
     assert back[-1] == forward["e"][0]
     assert abs(forward["e"][-1] - forward["e"][0]) > 1e-4  # it did move
+
+
+def test_a_run_stopped_inside_a_stage_of_its_own_friction_resumes_to_the_same_bits(tmp_path):
+    """The shear collision (Mindlin, mu = inf in [contact]) with mu = 0.3 for its one stage,
+    stopped by SIGINT while the spheres slide (after frame 4 of 30, step 2 000), resumed from its
+    checkpoint: the files, reversal included, are those of the run left alone, and in both
+    the shear force was capped at 0.3 |f_n| (Hanley 2020 §4-5.1), not left free."""
+    import os
+    import signal
+
+    from revdem_cli.checkpoint import Interrupted
+    from revdem_cli.engine import run_scenario
+    from tests.conftest import CONFIGS
+    from tests.reliability.test_checkpoints import assert_same_files
+
+    changes = {"stages.0.contact": {"friction": 0.3}, "stages.0.output_every": 500}
+    changes |= {"output.figures": []}
+    experiment = revdem.load(CONFIGS / "collision_shear.toml", changes)
+    experiment = experiment.changed({"output.checkpoint_interval": 0.0})  # at every frame
+    whole = revdem.run(experiment, tmp_path / "whole")
+    frames = []
+
+    def interrupt_at_frame_4(label, done, total, particles):
+        frames.append(done)
+        if len(frames) == 4:
+            os.kill(os.getpid(), signal.SIGINT)  # a checkpoint at the next frame, then a stop
+
+    with pytest.raises(Interrupted):
+        run_scenario(experiment.scenario, experiment.text, experiment.suffix, tmp_path / "cut",
+                     True, interrupt_at_frame_4)  # fmt: skip
+    revdem.resume(tmp_path / "cut")
+    assert_same_files(tmp_path / "whole", tmp_path / "cut")
+    shear = whole.observable("max_shear_force")[1]
+    normal = whole.observable("max_normal_force")[1]
+    touching = normal > 0.0
+    ratio = shear[touching] / normal[touching]
+    assert ratio.max() == pytest.approx(0.3, rel=1e-9)
+    assert not whole.comparison["reversible"]  # the cap destroyed information
