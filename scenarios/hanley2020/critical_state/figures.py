@@ -85,8 +85,13 @@ def start(data: dict[str, np.ndarray]) -> dict[str, float]:
 
 def figure7(runs: dict, path: Path) -> None:
     """Hanley 2020 Figure 7 from the mu = 0.5 runs: void ratio against axial strain and
-    against the mean stress."""
+    against the mean stress; the pair from another packing dashed, where it was run."""
     fig, (left, right) = plt.subplots(1, 2, figsize=(9, 3.6))
+    for sample in SAMPLES if "seed23" in runs else ():  # another packing, thin and dashed
+        data = runs["seed23"][sample]
+        style = {"color": COLOURS[sample], "ls": "--", "lw": 0.8, "label": f"{sample}, seed 23"}
+        left.plot(100 * data["strain"], data["void_ratio"], **style)
+        right.plot(data["mean_stress"] / 1e3, data["void_ratio"], **style)
     for sample in SAMPLES:
         data = runs["friction"][sample]
         style = {"color": COLOURS[sample], "label": sample}
@@ -98,7 +103,7 @@ def figure7(runs: dict, path: Path) -> None:
     right.xaxis.set_major_formatter(ScalarFormatter())
     right.xaxis.set_minor_formatter(NullFormatter())
     right.set_xticks([10, 12, 14, 16, 18])
-    left.legend()
+    left.legend(fontsize=8)
     fig.suptitle("Dense and loose samples sheared to one critical state (mu = 0.5)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
