@@ -4,6 +4,7 @@ and a stage's own friction and viscous damping (`stages[].contact`)."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -213,3 +214,32 @@ def test_a_run_stopped_inside_a_stage_of_its_own_friction_resumes_to_the_same_bi
     ratio = shear[touching] / normal[touching]
     assert ratio.max() == pytest.approx(0.3, rel=1e-9)
     assert not whole.comparison["reversible"]  # the cap destroyed information
+
+
+def _overlap(a: dict, b: dict) -> bool:
+    """Whether two final values' ranges over the last 5 % of strain overlap."""
+    return a["min"] <= b["max"] and b["min"] <= a["max"]
+
+
+def test_the_committed_critical_state_runs_say_what_their_report_says():
+    """scenarios/hanley2020/critical_state/results.json, from the full runs: with mu = 0.5
+    the dense sample dilates and the loose one contracts to q/p, Z_m and fabric within each
+    other's ranges over the last 5 % of strain; frictionless and undamped they stay apart in
+    void ratio and each reverses bit for bit to its own; frictionless with viscous normal
+    damping their void ratios meet."""
+    folder = Path(__file__).resolve().parents[2] / "scenarios" / "hanley2020" / "critical_state"
+    results = json.loads((folder / "results.json").read_text())
+    dense, loose = results["friction"]["dense"], results["friction"]["loose"]
+    assert dense["start"]["void_ratio"] < loose["start"]["void_ratio"] - 0.2
+    assert dense["final"]["void_ratio"]["mean"] > dense["start"]["void_ratio"] + 0.1
+    assert loose["final"]["void_ratio"]["mean"] < loose["start"]["void_ratio"] - 0.1
+    for key in ("stress_ratio", "mechanical_coordination_number", "fabric_deviator"):
+        assert _overlap(dense["final"][key], loose["final"][key]), key
+    for sample in ("dense", "loose"):
+        run = results["elastic"][sample]
+        assert run["reversal"]["bitwise_identical"]
+        assert run["reversal"]["void_ratio_back"] == run["start"]["void_ratio"]
+    dense, loose = (results["elastic"][s]["final"]["void_ratio"] for s in ("dense", "loose"))
+    assert loose["mean"] - dense["mean"] > 10 * max(dense["std"], loose["std"])
+    dense, loose = (results["viscous"][s]["final"]["void_ratio"] for s in ("dense", "loose"))
+    assert _overlap(dense, loose)
