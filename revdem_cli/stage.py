@@ -6,7 +6,7 @@ and writes the frames, at the same step numbers in both directions."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -84,6 +84,11 @@ class Model:
             if value is not None
         }
         return self.law._replace(**given)
+
+    def during(self, stage: Stage) -> Model:
+        """This model with the stage's contact record as its law (`stage_law`): for what
+        reads the law from the model, the critical time step of a packing at that stage."""
+        return replace(self, law=self.stage_law(stage))
 
     def stage_wall_velocities(self, stage: Stage) -> np.ndarray:
         """Velocity of each wall during a stage, m/s, (W, 3)."""
@@ -198,13 +203,13 @@ def stage_dt(scenario: Scenario, stage: Stage) -> float | str:
 
 def stage_time_step(model: Model, stage: Stage, state: State) -> float:
     """The time step of a stage starting from `state`: as given, or for 'auto' chosen from
-    the state (`timestep.packing.automatic_dt`)."""
+    the state (`timestep.packing.automatic_dt`, with the stage's viscous damping)."""
     dt = stage_dt(model.scenario, stage)
     if dt != "auto":
         return dt
     from revdem_cli.timestep.packing import automatic_dt
 
-    return automatic_dt(state, model)
+    return automatic_dt(state, model.during(stage))
 
 
 Checkpoint = Callable[[State, StageClock, np.ndarray], None]
