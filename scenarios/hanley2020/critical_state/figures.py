@@ -5,10 +5,10 @@ Hanley 2020 Figure 7 from real runs, and what reversal says about it.
 
 reads OUT/<case>/critical_state_{dense,loose}.{forward,reverse,restart}.h5 for the cases
 friction (mu = 0.5), elastic (mu = 0, undamped), viscous (mu = 0, viscous normal damping),
-tangential (mu = 0, viscous tangential damping) and seed23 (mu = 0.5 from another random
-packing), and writes into DIR (default: this folder) the figures and results.json: for
-each run the values at the start of shearing, and their mean, standard deviation, least and
-largest over the last 5 % of axial strain.
+tangential (mu = 0, viscous tangential damping), seed23 (mu = 0.5 from another random
+packing) and long (mu = 0.5 to 40 %), and writes into DIR (default: this folder) the
+figures and results.json: for each run the values at the start of shearing, and their mean,
+standard deviation, least and largest over the last 5 % of axial strain.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ CASES = {
     "viscous": "mu = 0, viscous normal damping 0.3",
     "tangential": "mu = 0, viscous tangential damping 0.3",
     "seed23": "mu = 0.5, undamped, another packing (seed 23)",
+    "long": "mu = 0.5, undamped, to 40 % axial strain at 0.1 1/s",
 }
 SAMPLES = ("dense", "loose")
 COLOURS = {"dense": "black", "loose": "tab:grey"}
