@@ -131,7 +131,7 @@ def loop_seconds(state, model, steps: int) -> float:
 
     obs, obs_steps = model.buffers(2)
     stepping = model.stepping(1.0e-6, 0, steps, steps)
-    bundles = stepping_bundles(state, model, model.dynamics)
+    bundles = stepping_bundles(state, model, model.dynamics, model.law)
     started = time.perf_counter()
     status, _, _, _ = advance(*bundles, empty_events(), stepping, 0, steps, steps, obs, obs_steps)
     seconds = time.perf_counter() - started

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -83,6 +83,28 @@ class Model:
         """Gravity and the damping of a stage: its own, else the scenario's."""
         return self.dynamics if stage.damping is None else dynamics(self.scenario, stage.damping)
 
+    def stage_law(self, stage: Stage) -> ContactLaw:
+        """The contact record of a stage: the scenario's, with the stage's own friction and
+        viscous damping where it gives them (`stages[].contact`)."""
+        own = stage.contact
+        if own is None:
+            return self.law
+        given = {
+            field: float(value)
+            for field, value in (
+                ("mu", own.friction),
+                ("beta_n", own.normal_damping),
+                ("beta_t", own.tangential_damping),
+            )
+            if value is not None
+        }
+        return self.law._replace(**given)
+
+    def during(self, stage: Stage) -> Model:
+        """This model with the stage's contact record as its law (`stage_law`): for what
+        reads the law from the model, the critical time step of a packing at that stage."""
+        return replace(self, law=self.stage_law(stage))
+
     def stage_wall_velocities(self, stage: Stage) -> np.ndarray:
         """Velocity of each wall during a stage, m/s, (W, 3)."""
         return np.array(
@@ -125,16 +147,26 @@ class Model:
         return np.zeros((rows, self.layout.width)), np.zeros(rows, dtype=np.int64)
 
     def complete(self, rows: np.ndarray) -> np.ndarray:
-        """Fill the derived columns of observables rows from the others: the principal
-        stresses (eigenvalues of the stress's symmetric part, largest first), and the solid
-        fraction, spheres' volume / (pi R^2 x distance between the planes along the
-        cylinder axis)."""
+        """Fill the derived columns of observables rows from the others: the deviatoric
+        invariant of the contacts' fabric; in a periodic cell the principal stresses
+        (eigenvalues of the stress's symmetric part, largest first), the void ratio, the mean
+        stress p and the deviator q; and the solid fraction, spheres' volume / (pi R^2 x
+        distance between the planes along the cylinder axis)."""
+        at = self.layout.column("fabric")
+        fabric = rows[:, at : at + 9].reshape(-1, 3, 3)
+        rows[:, self.layout.column("fabric_deviator")] = _deviatoric_invariant(fabric)
         if self.scenario.cell is not None:
             at = self.layout.column("stress")
             sigma = rows[:, at : at + 9].reshape(-1, 3, 3)
-            principal = np.linalg.eigvalsh(0.5 * (sigma + sigma.transpose(0, 2, 1)))[:, ::-1]
+            sigma = 0.5 * (sigma + sigma.transpose(0, 2, 1))
+            principal = np.linalg.eigvalsh(sigma)[:, ::-1]
             at = self.layout.column("principal_stress")
             rows[:, at : at + 3] = principal
+            at = self.layout.column("cell_length")
+            volume = rows[:, at : at + 3].prod(axis=1)
+            rows[:, self.layout.column("void_ratio")] = volume / self.solid_volume - 1.0
+            rows[:, self.layout.column("mean_stress")] = np.trace(sigma, axis1=1, axis2=2) / 3.0
+            rows[:, self.layout.column("deviator_stress")] = _deviatoric_invariant(sigma)
         container = self.scenario.solid_fraction
         if container is None:
             return rows
@@ -146,6 +178,14 @@ class Model:
         area = np.pi * cylinder.radius**2
         rows[:, self.layout.column("solid_fraction")] = self.solid_volume / (area * height)
         return rows
+
+
+def _deviatoric_invariant(tensor: np.ndarray) -> np.ndarray:
+    """sqrt(3/2 t':t') of each symmetric (3, 3) tensor t, t' its deviator: q of a stress
+    (Schofield & Wroth 1968, q = sqrt(3 J_2)), sigma_1 - sigma_3 under axial symmetry."""
+    mean = np.trace(tensor, axis1=1, axis2=2) / 3.0
+    deviator = tensor - mean[:, None, None] * np.eye(3)
+    return np.sqrt(1.5 * (deviator * deviator).sum(axis=(1, 2)))
 
 
 @dataclass(frozen=True)
@@ -178,13 +218,13 @@ def stage_dt(scenario: Scenario, stage: Stage) -> float | str:
 
 def stage_time_step(model: Model, stage: Stage, state: State) -> float:
     """The time step of a stage starting from `state`: as given, or for 'auto' chosen from
-    the state (`timestep.packing.automatic_dt`)."""
+    the state (`timestep.packing.automatic_dt`, with the stage's viscous damping)."""
     dt = stage_dt(model.scenario, stage)
     if dt != "auto":
         return dt
     from revdem_cli.timestep.packing import automatic_dt
 
-    return automatic_dt(state, model)
+    return automatic_dt(state, model.during(stage))
 
 
 Checkpoint = Callable[[State, StageClock, np.ndarray], None]
@@ -223,11 +263,17 @@ def run_stage(
         )
     state.walls.velocity[:] = model.stage_wall_velocities(clock.stage)
     dyn = model.stage_dynamics(clock.stage)
+    law = model.stage_law(clock.stage)
     set_cell_motion(state.cell, state.fixed, clock.stage, forward=direction > 0 and not resuming)
     if direction > 0 and not resuming:
         state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
         compute_forces(  # under the stage's settings
-            *stepping_bundles(state, model, dyn), STATIC, clock.dt, 0.0, empty_events(), state.step
+            *stepping_bundles(state, model, dyn, law),
+            STATIC,
+            clock.dt,
+            0.0,
+            empty_events(),
+            state.step,
         )
     every = clock.stage.observable_interval
     buffer, buffer_steps = model.buffers(clock.stage.output_every // every + 2)
@@ -246,7 +292,7 @@ def run_stage(
     for target in [s for s in pauses if (s - state.step) * direction > 0]:
         while state.step != target:
             status, state.step, rows, finding = stepper.advance(
-                advance, stepping_bundles(state, model, dyn), events, stepping, state.step,
+                advance, stepping_bundles(state, model, dyn, law), events, stepping, state.step,
                 target, buffer, buffer_steps,
             )  # fmt: skip
             _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows])
@@ -297,8 +343,8 @@ def reversal_history(state: State, model: Model, clock: StageClock) -> None:
     events = empty_events()
     while ahead.step != end:
         status, ahead.step, _, finding = advance(
-            *stepping_bundles(ahead, model, dyn), events, stepping, ahead.step, end, end,
-            buffer, buffer_steps,
+            *stepping_bundles(ahead, model, dyn, model.stage_law(clock.stage)), events,
+            stepping, ahead.step, end, end, buffer, buffer_steps,
         )  # fmt: skip
         if status not in (OK, PAIR_OVERFLOW):
             raise RunFailed(
@@ -350,16 +396,16 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
     return float(np.linalg.norm(travel)) > stop.wall_travel_above.distance
 
 
-def stepping_bundles(state: State, model: Model, dyn: Dynamics) -> tuple:
+def stepping_bundles(state: State, model: Model, dyn: Dynamics, law: ContactLaw) -> tuple:
     """The bundles the kernels step: particles, pairs, walls, cell, the fixed-point state,
-    contact law, moduli, dynamics."""
+    contact law (a stage's, `Model.stage_law`), moduli, dynamics."""
     return (
         state.particles,
         state.pairs,
         state.walls,
         state.cell,
         state.fixed,
-        model.law,
+        law,
         model.moduli,
         dyn,
     )

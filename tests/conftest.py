@@ -96,7 +96,7 @@ def collision_run(tmp_path_factory):
 
 def stepped(scenario: Scenario, steps: int, every: int):
     """The state of a scenario's first stage after every `every` of `steps` steps, as the
-    compiled stage loop leaves it (forward, the stage's dt and damping)."""
+    compiled stage loop leaves it (forward, the stage's dt, damping and contact)."""
 
     from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, advance
     from revdem_cli.stage import Model, stage_dt, stepping_bundles
@@ -111,8 +111,8 @@ def stepped(scenario: Scenario, steps: int, every: int):
     while state.step < steps:
         target = min(state.step + every, steps)
         status, state.step, _, _ = advance(
-            *stepping_bundles(state, model, dyn), events, stepping, state.step, target, target,
-            obs, obs_steps,
+            *stepping_bundles(state, model, dyn, model.stage_law(stage)), events, stepping,
+            state.step, target, target, obs, obs_steps,
         )  # fmt: skip
         if status == PAIR_OVERFLOW:
             state.grow_pairs()

@@ -41,6 +41,13 @@ def check_consistency(scenario) -> None:
                 f"stages[{i}].stop_when.solid_fraction_above",
                 "needs a [solid_fraction] table saying which walls close the container",
             )
+        if stage.contact and stage.contact.friction is not None:
+            if scenario.contact.tangential == "none":
+                raise FieldError(
+                    f"stages[{i}].contact.friction",
+                    "needs a tangential law in [contact] (frictionless spheres have no shear "
+                    "force to cap)",
+                )
         for name in stage.wall_velocities:
             if name not in wall_names:
                 raise FieldError(

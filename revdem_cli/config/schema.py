@@ -523,6 +523,33 @@ class CellMotion(_Model):
         )
 
 
+class StageContact(_Model):
+    """The Coulomb and viscous coefficients of [contact] during one stage; a field not given
+    keeps its [contact] value. The laws and their moduli stay those of [contact]."""
+
+    friction: FloatOrInf | None = Field(
+        default=None,
+        ge=0,
+        description="Coulomb friction coefficient mu during this stage, -; inf for no sliding",
+    )
+    normal_damping: Float | None = Field(
+        default=None,
+        ge=0,
+        description="viscous normal damping during this stage, fraction of critical, -",
+    )
+    tangential_damping: Float | None = Field(
+        default=None,
+        ge=0,
+        description="viscous tangential damping during this stage, fraction of critical, -",
+    )
+
+    @model_validator(mode="after")
+    def _friction_number(self) -> StageContact:
+        if self.friction is not None and math.isnan(self.friction):
+            raise ValueError("friction must be a number or inf")
+        return self
+
+
 class Stage(_Model):
     """A named stretch of the run with its own step count and output intervals."""
 
@@ -558,6 +585,11 @@ class Stage(_Model):
     )
     cell: CellMotion | None = Field(
         default=None, description="motion of the periodic cell's edges; default: all fixed"
+    )
+    contact: StageContact | None = Field(
+        default=None,
+        description="friction and viscous damping of the contacts during this stage; "
+        "default: those of [contact]",
     )
 
     @property

@@ -46,7 +46,7 @@ Pairs = namedtuple(
         "history",  # elastic shear force on i, N, (P, 3): the contact history
         "moment",  # n x force: the moment about i's centre over its lever arm, N, (P, 3)
         "overlap",  # overlap at the current step (< 0: apart), m, (P,)
-        "destroyed",  # shear force destroyed this step: Coulomb cap or separation, N, (P,)
+        "destroyed",  # shear force destroyed this step (0: none): Coulomb cap, separation; N (P,)
         "rolling",  # rolling moment on i: the rolling history, N m, (P, 3)
         "rolled",  # rolling moment destroyed this step: its limit or separation, N m, (P,)
         "normal_new",  # reversed step: the contact normal the unwound history lies across

@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 
 import numba
+import numpy as np
 
 from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import images
@@ -29,6 +30,20 @@ SCALARS = (
 )
 """The first columns of an observables row (`Layout`)."""
 
+CONTACT_FABRIC = (
+    ("fabric", (3, 3)),  # <n (x) n> over the sphere contacts, -
+    ("mechanical_coordination_number", ()),  # rattlers excluded (Thornton 2000)
+    ("sliding_fraction", ()),  # contacts at the Coulomb cap in the last step, -
+)
+"""Columns `observe` writes after the cell's (`contact_fabric`)."""
+
+CELL_STATE = (
+    ("void_ratio", ()),  # cell volume / spheres' volume - 1, -
+    ("mean_stress", ()),  # p, Pa (compression positive)
+    ("deviator_stress", ()),  # q, Pa
+)
+"""Columns the engine derives in a periodic cell (`stage.Model.complete`)."""
+
 WALL_FORCES = len(SCALARS)
 """Column of an observables row where the first wall's force begins; the wall positions
 follow the forces of all walls."""
@@ -39,9 +54,11 @@ class Layout:
     """The columns of an observables row, the one layout `observe` writes, the engine
     completes and stops on, the trajectory stores and the figures read: SCALARS, the force
     on each wall (N, 3 columns) and its reference point (m, 3); in a periodic cell the
-    average stress (Pa, 9, row by row) and the edge lengths (m, 3); then the observables
-    derived from those by the engine: the solid fraction of a [solid_fraction] container,
-    and in a periodic cell the principal stresses (Pa, 3, largest first)."""
+    average stress (Pa, 9, row by row) and the edge lengths (m, 3); the fabric of the
+    sphere contacts, the mechanical coordination number and the sliding fraction
+    (CONTACT_FABRIC); then the observables derived from those by the engine: the solid
+    fraction of a [solid_fraction] container, in a periodic cell the principal stresses
+    (Pa, 3, largest first) and CELL_STATE, and the fabric's deviatoric invariant."""
 
     walls: tuple[str, ...]
     periodic: bool
@@ -54,8 +71,11 @@ class Layout:
             + [(f"wall_force/{name}", (3,)) for name in self.walls]
             + [(f"wall_position/{name}", (3,)) for name in self.walls]
             + ([("stress", (3, 3)), ("cell_length", (3,))] if self.periodic else [])
+            + list(CONTACT_FABRIC)
             + ([("solid_fraction", ())] if self.container else [])
             + ([("principal_stress", (3,))] if self.periodic else [])
+            + (list(CELL_STATE) if self.periodic else [])
+            + [("fabric_deviator", ())]
         )
 
     @property
@@ -138,6 +158,52 @@ def _pair_energies(
         partials[b, 3] = contacts
 
 
+@jit
+def contact_fabric(x, radius, image, pi, pj, count, destroyed, shear_law, out):
+    """Of the sphere contacts, in pair-list order: out[0:9] the fabric tensor of their unit
+    normals, Phi = <n (x) n> (Satake 1982), 0 without contacts; out[9] the mechanical
+    coordination number, rattlers excluded, Z_m = (2C - N_1) / (N - N_0 - N_1) with N_0 and
+    N_1 the spheres of no and of one contact (Thornton 2000), 0 where every sphere is one;
+    out[10] the fraction of the contacts whose shear force the Coulomb cap cut in the last
+    step (Hanley 2020 §5.1), 0 without a shear law. A pair is in contact where the pair loop
+    takes it to be."""
+    n = x.shape[0]
+    touches = np.zeros(n, dtype=np.int64)
+    phi = np.zeros(9)
+    contacts = 0
+    sliding = 0
+    for k in range(count):
+        i, j = pi[k], pj[k]
+        d = separation(x, i, j, image)
+        overlap, dist = pair_overlap(d, radius[i] + radius[j])
+        if overlap <= 0.0:
+            continue
+        contacts += 1
+        touches[i] += 1
+        touches[j] += 1
+        nk = (d[0] / dist, d[1] / dist, d[2] / dist)
+        for a in range(3):
+            for b in range(3):
+                phi[3 * a + b] += nk[a] * nk[b]
+        if shear_law and destroyed[k] > 0.0:
+            sliding += 1
+    none = 0
+    one = 0
+    for q in range(n):
+        if touches[q] == 0:
+            none += 1
+        elif touches[q] == 1:
+            one += 1
+    for c in range(11):
+        out[c] = 0.0
+    if contacts > 0:
+        for c in range(9):
+            out[c] = phi[c] / contacts
+        out[10] = sliding / contacts
+    if n - none - one > 0:
+        out[9] = (2.0 * contacts - one) / (n - none - one)
+
+
 particle_energies = by_blocks(_particle_energies)
 pair_energies = by_blocks(_pair_energies)
 
@@ -199,10 +265,13 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
     row_out[4] = max_normal
     row_out[5] = max_shear
     row_out[6] = 2.0 * contacts / p.x.shape[0]
+    at = WALL_FORCES + 6 * nwalls
     if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
         stress_of(p, pairs, cell)
-        at = WALL_FORCES + 6 * nwalls
         for a in range(3):
             for c in range(3):
                 row_out[at + 3 * a + c] = cell.stress[a, c]
             row_out[at + 9 + a] = cell.length[a]
+        at += 12
+    fabric_args = (p.x, p.radius, images(cell), pairs.i, pairs.j, pairs.count[0], pairs.destroyed)
+    contact_fabric(*fabric_args, law.tangential != NO_SHEAR, row_out[at : at + 11])

@@ -318,8 +318,8 @@ def _scatter_pairs(
                 put(moment, u, entries(block, MOMENT, k))
                 overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
-            if slipped > 0.0:  # `destroyed` is read only where something was
-                destroyed[p] = slipped
+            destroyed[p] = slipped  # this step's, 0 where nothing was: the sliding flag
+            if slipped > 0.0:
                 slips += 1
                 last_slip = p
             if lost > 0.0:

@@ -132,7 +132,7 @@ def engine_is_stable(scenario, dt: float) -> bool:
     start = _kinetic_energy(state.particles)
     obs, steps = model.buffers(STEPS)
     stepping = model.stepping(dt, 0, STEPS, 1)._replace(overlap_limit=np.inf)  # by energy alone
-    bundles = stepping_bundles(state, model, model.dynamics)
+    bundles = stepping_bundles(state, model, model.dynamics, model.law)
     status, _, rows, _ = advance(*bundles, empty_events(), stepping, 0, STEPS, STEPS, obs, steps)
     kinetic = obs[:rows, model.layout.column("kinetic_energy")]
     return status == OK and bool(np.all(kinetic <= GROWTH * start))

@@ -185,15 +185,30 @@ def _limit(
     return dt_velocity_verlet(stiffness, damping, inverse_mass)  # Peng 2020 Eq 30, 47
 
 
+def largest_damping(scenario: Scenario) -> tuple[float, float]:
+    """The largest viscous normal and tangential damping of any stage, its own
+    (`stages[].contact`) or [contact]'s: the damped limit falls as the damping rises, so these
+    bound every stage."""
+    law = scenario.contact
+    own = [stage.contact for stage in scenario.stages if stage.contact is not None]
+    normal = [law.normal_damping] + [c.normal_damping for c in own if c.normal_damping is not None]
+    tangential = [law.tangential_damping] + [
+        c.tangential_damping for c in own if c.tangential_damping is not None
+    ]
+    return max(normal), max(tangential)
+
+
 def contact_dt(scenario: Scenario, kind: Kind) -> float:
     """Two-body limit of one kind of contact: the smallest of its normal and shear
-    directions and, with a rolling law, its rolling spring on the bodies' rotations."""
+    directions, at the largest viscous damping of any stage, and, with a rolling law, its
+    rolling spring on the bodies' rotations."""
     kn, ks = impact_stiffness(scenario, kind)
     law, reduced = scenario.contact, 1.0 / kind.inverse_mass
     order = scenario.integrator.predictor_order
+    normal_damping, tangential_damping = largest_damping(scenario)
     limits = [
-        _limit(kn, law.normal_damping, kind.inverse_mass, reduced, order),
-        _limit(ks, law.tangential_damping, SHEAR_LEVER * kind.inverse_mass, reduced, order),
+        _limit(kn, normal_damping, kind.inverse_mass, reduced, order),
+        _limit(ks, tangential_damping, SHEAR_LEVER * kind.inverse_mass, reduced, order),
     ]
     if laws.chosen(law, "rolling") is not None:
         kr = laws.evaluate(law, "rolling", "stiffness", 0.0, kind.rstar)

@@ -29,7 +29,7 @@ geometric stiffness of the contact forces as the normals turn (f_n/d beside k_n,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -282,10 +282,12 @@ def automatic_dt(state: State, model: Model) -> float:
 
 def float_model(model: Model) -> Model:
     """`model` in floating-point arithmetic, whatever the scenario's (its time step may then
-    change: fixed-point grids are made for one)."""
+    change: fixed-point grids are made for one), with the contact record it has (a stage's,
+    `Model.during`)."""
     scenario = model.scenario
     integrator = scenario.integrator.model_copy(update={"arithmetic": "float"})
-    return Model.of(scenario.model_copy(update={"integrator": integrator}))
+    floating = Model.of(scenario.model_copy(update={"integrator": integrator}))
+    return replace(floating, law=model.law)
 
 
 def _at_rest_copy(state: State, model: Model) -> State:
@@ -319,14 +321,15 @@ amplitude grows at most 1/√(1 - (ωΔt/2)²) times (10 at 0.5 % below), above 
 def _advance(state: State, model: Model, dyn: Dynamics, dt: float, steps: int) -> bool:
     """Step `state` `steps` steps at dt; False if it blew up."""
     compute_forces(
-        *stepping_bundles(state, model, dyn), STATIC, dt, 0.0, empty_events(), state.step
+        *stepping_bundles(state, model, dyn, model.law), STATIC, dt, 0.0, empty_events(), state.step
     )
     stepping = model.stepping(dt, state.step, state.step + steps, steps)
     buffer, buffer_steps = model.buffers(2)
     events, stop = empty_events(), state.step + steps
     while state.step != stop:
         status, state.step, _, _ = advance(
-            *stepping_bundles(state, model, dyn), events, stepping, state.step, stop, stop,
+            *stepping_bundles(state, model, dyn, model.law), events, stepping, state.step, stop,
+            stop,
             buffer, buffer_steps,
         )  # fmt: skip
         if status == BLOWN_UP:
@@ -359,7 +362,8 @@ def engine_bracket(
 ) -> EngineCheck:
     """Bisect the engine's stability limit from `state`: a copy at rest and one kicked along
     the top mode, each stepped `steps` steps at a trial Δt by the real stepping loop (viscous
-    contact damping as the scenario's; local damping and drag off, walls and cell held);
+    contact damping as the model's law has it; local damping and drag off, walls and cell
+    held);
     Δt is unstable where their difference grows GROWTH times. The bracket starts at 3 % either
     side of the damped assembly limit and narrows to a relative `width`."""
     model = float_model(model)
@@ -422,11 +426,11 @@ def assess_restart(path, verify: bool) -> dict:
 
     restart = read_restart(path, checkpoint=None)
     scenario = Scenario.model_validate_json(restart.scenario_json)
-    model, state = Model.of(scenario), restart.state
+    stage = next(s for s in scenario.stages if s.name == restart.stage)
+    model, state = Model.of(scenario).during(stage), restart.state  # its damping, its mu
     limit = packing_limit(state, model)
     single = single_contact_limits(limit.contacts, state)
     guard, why = critical_time_step(scenario)
-    stage = next(s for s in scenario.stages if s.name == restart.stage)
     estimates = {
         "single_contact_normal": (
             "stiffest normal contact of this state, alone (Peng 2020 Eq 47)",

@@ -144,7 +144,7 @@ def test_an_overflow_names_the_quantity_that_left_its_grid():
     scenario = two_spheres(gravity=(9.81, 0.0, 0.0), integrator={"dt": 1e-7, "arithmetic": "fixed"})
     model, state = Model.of(scenario), initial_state(scenario)
     state.fixed.v[1, 0] = fixed.RANGE  # the weight's kick takes it past the end
-    bundles = stepping_bundles(state, model, model.dynamics)
+    bundles = stepping_bundles(state, model, model.dynamics, model.law)
     compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1)
     assert list(state.fixed.overflow) == [1 + fixed.OF_VELOCITY, 1]
     assert "the velocity of particle 1 left the range" in str(OffGrid(1, state.fixed))

@@ -92,3 +92,15 @@ def test_damping_lowers_the_linear_limit_as_velocity_verlet_does():
     critical, _ = guard.critical_time_step(case)
     undamped = math.sqrt(2.0) * math.sqrt(SPHERE_MASS / 1e5)
     assert critical == pytest.approx(undamped * (math.sqrt(1 + 0.25) - 0.5), rel=1e-12)
+
+
+def test_a_stage_of_its_own_damping_bounds_the_limit_by_the_largest():
+    """[contact] damped 0.1 and a stage damped 0.5 of critical: the guard holds every stage
+    to the limit at 0.5, sqrt(2) sqrt(m / k_n) (sqrt(1 + 0.25) - 0.5) (Peng 2020 Eq 30)."""
+    sets = ["contact.model=linear", "contact.kn=1e5", "contact.normal_damping=0.1"]
+    alone = guard.critical_time_step(scenario("collision", *sets))[0]
+    staged = scenario("collision", *sets, "stages.0.contact.normal_damping=0.5")
+    critical, _ = guard.critical_time_step(staged)
+    undamped = math.sqrt(2.0) * math.sqrt(SPHERE_MASS / 1e5)
+    assert critical == pytest.approx(undamped * (math.sqrt(1 + 0.25) - 0.5), rel=1e-12)
+    assert critical < alone

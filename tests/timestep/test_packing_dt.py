@@ -237,3 +237,20 @@ def test_a_time_step_that_is_neither_a_number_nor_auto_is_refused():
         ValueError, match="a valid number of seconds or 'auto', not the text 'fast'"
     ):
         Scenario.model_validate(lattice(3, {"model": "hertz"}, integrator={"dt": "fast"}))
+
+
+def test_auto_dt_takes_the_viscous_damping_of_its_own_stage(tmp_path):
+    """The linear lattice, then a stage with its own viscous normal damping beta = 0.2: C is
+    then 2 beta sqrt(m*/k) K, so the top mode (omega = sqrt(8 k / m), m* = m / 2) is damped at
+    zeta = 2 beta, and its velocity-Verlet limit shrinks by sqrt(1 + zeta^2) - zeta (Peng 2020
+    Eq 30)."""
+    data = lattice(3, {"model": "linear", "kn": 1.0e4}, integrator={"dt": "auto"})
+    data["stages"] = [
+        {"name": "plain", "steps": 10},
+        {"name": "damped", "steps": 10, "contact": {"normal_damping": 0.2}},
+    ]
+    chosen = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path).chosen_dt
+    zeta = 2 * 0.2
+    assert chosen["damped"] / chosen["plain"] == pytest.approx(
+        math.sqrt(1 + zeta**2) - zeta, rel=1e-9
+    )

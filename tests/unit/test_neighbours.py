@@ -125,7 +125,7 @@ def test_the_list_holds_every_contact_while_spheres_fly_through_many_rebuilds():
     step, rebuilds, contacts = 0, 0, 0
     built = state.pairs.x_built.copy()
     while step < 1500:
-        bundles = stepping_bundles(state, model, model.dynamics)
+        bundles = stepping_bundles(state, model, model.dynamics, model.law)
         status, step, _, _ = advance(
             *bundles, empty_events(), stepping, step, step + 5, step + 5, obs, obs_steps
         )

@@ -1,0 +1,180 @@
+"""Figures and tables of the critical-state runs (run.sh writes them into OUT):
+Hanley 2020 Figure 7 from real runs, and what reversal says about it.
+
+    python scenarios/hanley2020/critical_state/figures.py OUT [--into DIR]
+
+reads OUT/<case>/critical_state_{dense,loose}.{forward,reverse,restart}.h5 for the cases
+friction (mu = 0.5), elastic (mu = 0, undamped), viscous (mu = 0, viscous normal damping),
+tangential (mu = 0, viscous tangential damping), seed23 (mu = 0.5 from another random
+packing) and long (mu = 0.5 to 40 %), and writes into DIR (default: this folder) the
+figures and results.json: for each run the values at the start of shearing, and their mean,
+standard deviation, least and largest over the last 5 % of axial strain.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.ticker import NullFormatter, ScalarFormatter  # noqa: E402
+
+from revdem_cli.io.h5md import open_trajectory, read_observable  # noqa: E402
+from revdem_cli.io.restart import read_restart  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+CASES = {
+    "friction": "mu = 0.5, undamped",
+    "elastic": "mu = 0, undamped (energy-conserving)",
+    "viscous": "mu = 0, viscous normal damping 0.3",
+    "tangential": "mu = 0, viscous tangential damping 0.3",
+    "seed23": "mu = 0.5, undamped, another packing (seed 23)",
+    "long": "mu = 0.5, undamped, to 40 % axial strain at 0.1 1/s",
+}
+SAMPLES = ("dense", "loose")
+COLOURS = {"dense": "black", "loose": "tab:grey"}
+SERIES = ("void_ratio", "mean_stress", "deviator_stress", "mechanical_coordination_number")
+SERIES += ("fabric_deviator", "sliding_fraction", "kinetic_energy", "cell_length")
+LAST = 0.05
+"""The spread of a final value is taken over this last axial strain."""
+
+
+def shearing(folder: Path, sample: str, run: str = "forward") -> dict[str, np.ndarray]:
+    """The observables of the shear stage of a run against its axial strain, 1 - L_z / L_z0
+    (compression positive), L_z0 the z edge where shearing began."""
+    name = f"critical_state_{sample}"
+    first = read_restart(folder / f"{name}.restart.h5").stage_first_step
+    with open_trajectory(folder / f"{name}.{run}.h5") as f:
+        steps = f["observables/void_ratio/step"][:]
+        data = {key: read_observable(f, key)[1] for key in SERIES}
+    keep = steps >= first
+    data = {key: value[keep] for key, value in data.items()}
+    data["step"] = steps[keep]
+    order = np.argsort(data["step"])  # a reversed run is stored from the end back
+    data = {key: value[order] for key, value in data.items()}
+    lz = data["cell_length"][:, 2]
+    data["strain"] = 1.0 - lz / lz[0]
+    data["stress_ratio"] = data["deviator_stress"] / data["mean_stress"]
+    return data
+
+
+def final(data: dict[str, np.ndarray]) -> dict[str, dict[str, float]]:
+    """Mean and standard deviation of each quantity over the last LAST of axial strain."""
+    tail = data["strain"] >= data["strain"][-1] - LAST
+    keys = ("void_ratio", "stress_ratio", "mechanical_coordination_number", "fabric_deviator")
+    keys += ("mean_stress", "sliding_fraction", "kinetic_energy")
+    return {
+        key: {
+            "mean": float(data[key][tail].mean()),
+            "std": float(data[key][tail].std()),
+            "min": float(data[key][tail].min()),
+            "max": float(data[key][tail].max()),
+        }
+        for key in keys
+    }
+
+
+def start(data: dict[str, np.ndarray]) -> dict[str, float]:
+    keys = ("void_ratio", "stress_ratio", "mechanical_coordination_number", "fabric_deviator")
+    return {key: float(data[key][0]) for key in keys}
+
+
+def figure7(runs: dict, path: Path) -> None:
+    """Hanley 2020 Figure 7 from the mu = 0.5 runs: void ratio against axial strain and
+    against the mean stress; the pair from another packing dashed, where it was run."""
+    fig, (left, right) = plt.subplots(1, 2, figsize=(9, 3.6))
+    for sample in SAMPLES if "seed23" in runs else ():  # another packing, thin and dashed
+        data = runs["seed23"][sample]
+        style = {"color": COLOURS[sample], "ls": "--", "lw": 0.8, "label": f"{sample}, seed 23"}
+        left.plot(100 * data["strain"], data["void_ratio"], **style)
+        right.plot(data["mean_stress"] / 1e3, data["void_ratio"], **style)
+    for sample in SAMPLES:
+        data = runs["friction"][sample]
+        style = {"color": COLOURS[sample], "label": sample}
+        left.plot(100 * data["strain"], data["void_ratio"], **style)
+        right.plot(data["mean_stress"] / 1e3, data["void_ratio"], **style)
+        right.plot(data["mean_stress"][0] / 1e3, data["void_ratio"][0], "o", color=style["color"])
+    left.set(xlabel="axial strain (%)", ylabel="void ratio e")
+    right.set(xlabel="mean stress p (kPa), log scale", ylabel="void ratio e", xscale="log")
+    right.xaxis.set_major_formatter(ScalarFormatter())
+    right.xaxis.set_minor_formatter(NullFormatter())
+    right.set_xticks([10, 12, 14, 16, 18])
+    left.legend(fontsize=8)
+    fig.suptitle("Dense and loose samples sheared to one critical state (mu = 0.5)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+PANELS = (
+    ("void_ratio", "void ratio e"),
+    ("stress_ratio", "q / p"),
+    ("mechanical_coordination_number", "mechanical coordination Z_m"),
+    ("fabric_deviator", "deviatoric fabric"),
+)
+
+
+def panels(runs: dict, case: str, path: Path, reverse: dict | None = None) -> None:
+    """e, q/p, Z_m and the deviatoric fabric against axial strain for dense and loose; with
+    `reverse`, the reversed runs dashed over them."""
+    fig, axes = plt.subplots(2, 2, figsize=(9, 6), sharex=True)
+    for sample in SAMPLES:
+        data = runs[case][sample]
+        for ax, (key, label) in zip(axes.flat, PANELS, strict=True):
+            ax.plot(100 * data["strain"], data[key], color=COLOURS[sample], label=sample)
+            if reverse is not None:
+                back = reverse[sample]
+                ax.plot(
+                    100 * back["strain"], back[key], "--", color="tab:red", lw=0.8,
+                    label=f"{sample}, reversed",
+                )  # fmt: skip
+            ax.set_ylabel(label)
+    for ax in axes[1]:
+        ax.set_xlabel("axial strain (%)")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle(CASES[case])
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--into", type=Path, default=HERE)
+    args = parser.parse_args()
+    runs, results = {}, {}
+    for case in CASES:
+        restarts = [args.out / case / f"critical_state_{s}.restart.h5" for s in SAMPLES]
+        if not all(path.is_file() for path in restarts):
+            print(f"{case}: not run (no {' and '.join(map(str, restarts))})")
+            continue
+        runs[case] = {s: shearing(args.out / case, s) for s in SAMPLES}
+        results[case] = {
+            s: {"start": start(runs[case][s]), "final": final(runs[case][s])} for s in SAMPLES
+        }
+    if "friction" in runs:
+        figure7(runs, args.into / "figure7.png")
+    for case in runs:
+        reverse = None
+        if case == "elastic":
+            reverse = {s: shearing(args.out / case, s, "reverse") for s in SAMPLES}
+            for s in SAMPLES:
+                comparison = args.out / case / f"critical_state_{s}.compare.json"
+                verdict = json.loads(comparison.read_text())
+                keys = ("reversible", "bitwise_identical", "max_position_error_rel")
+                results[case][s]["reversal"] = {k: verdict[k] for k in keys}
+                results[case][s]["reversal"]["void_ratio_back"] = float(reverse[s]["void_ratio"][0])
+        panels(runs, case, args.into / f"{case}.png", reverse)
+    text = json.dumps(results, indent=2) + "\n"
+    (args.into / "results.json").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

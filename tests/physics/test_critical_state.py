@@ -1,0 +1,245 @@
+"""The critical-state observables (void ratio, p, q, the fabric of the contact normals, the
+mechanical coordination number, the sliding fraction) on packings whose values are known,
+and a stage's own friction and viscous damping (`stages[].contact`)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from revdem_cli import api as revdem
+from revdem_cli.config import Scenario
+from revdem_cli.config.loader import scenario_from_text
+from revdem_cli.errors import InputError
+from revdem_cli.stage import Model
+from revdem_cli.state import initial_state
+from tests.conftest import periodic_fcc, two_spheres
+
+RADIUS = 0.005
+
+
+def observed(scenario: Scenario) -> tuple[Model, dict]:
+    """The model of `scenario` and its observables row at the start, by name."""
+    model = Model.of(scenario)
+    row = model.observe(initial_state(scenario), model.dynamics)
+    named = {}
+    for name, shape in model.layout.series():
+        at = model.layout.column(name)
+        named[name] = row[at : at + math.prod(shape)].reshape(shape) if shape else row[at]
+    return model, named
+
+
+def test_a_chain_of_three_spheres_and_a_rattler():
+    """Spheres 0-1-2 touching along x, sphere 3 alone: the fabric is n n = diag(1, 0, 0),
+    its deviatoric invariant sqrt(3/2 (4/9 + 1/9 + 1/9)) = 1; two contacts give 2 x 2 / 4 =
+    1 contact a sphere, but with the rattler (no contact) and the two ends (one contact)
+    left out, Z_m = (2 x 2 - 2) / (4 - 1 - 2) = 2 (Thornton 2000)."""
+    sphere = {"material": "sphere", "radius": RADIUS}
+    places = [[0, 0, 0], [0.0099, 0, 0], [0.0198, 0, 0], [0, 0.05, 0]]
+    _, row = observed(two_spheres(particles=[{**sphere, "position": x} for x in places]))
+    assert row["fabric"] == pytest.approx(np.diag([1.0, 0.0, 0.0]), abs=1e-15)
+    assert row["fabric_deviator"] == pytest.approx(1.0, rel=1e-12)
+    assert row["coordination_number"] == 1.0
+    assert row["mechanical_coordination_number"] == 2.0
+    assert row["sliding_fraction"] == 0.0
+
+
+def test_no_contact_gives_zero_fabric_and_coordination():
+    """Two spheres apart: nothing to average, so the fabric, Z_m and the sliding fraction
+    are 0, not a division by zero."""
+    _, row = observed(two_spheres())
+    assert not row["fabric"].any()
+    assert row["mechanical_coordination_number"] == 0.0
+    assert row["fabric_deviator"] == 0.0
+
+
+def test_a_compressed_fcc_lattice_is_isotropic():
+    """A periodic fcc lattice of 108 spheres pressed 0.1 % into each other: 12 contacts a
+    sphere and no rattler (Z_m = 12), the twelve normals <110> average to I / 3 (deviatoric
+    invariant 0); void ratio (3 s)^3 / (108 x 4/3 pi r^3) - 1 from the cell; p the mean of
+    the stress's diagonal, q = 0 by symmetry."""
+    spacing = 0.999 * 2 * RADIUS * 2**0.5
+    fields = periodic_fcc(3, spacing, random_velocity=0.0, seed=0)
+    scenario = Scenario.model_validate(
+        {
+            "name": "lattice",
+            **fields,
+            "integrator": {"dt": 1e-6},
+            "stages": [{"name": "run", "steps": 1}],
+        }
+    )
+    _, row = observed(scenario)
+    assert row["mechanical_coordination_number"] == 12.0
+    assert row["fabric"] == pytest.approx(np.eye(3) / 3.0, abs=1e-15)
+    assert row["fabric_deviator"] < 1e-14
+    solids = 108 * 4.0 / 3.0 * math.pi * RADIUS**3
+    assert row["void_ratio"] == pytest.approx((3 * spacing) ** 3 / solids - 1.0, rel=1e-12)
+    sigma = row["stress"]
+    assert sigma[0, 0] > 0.0  # compression positive
+    assert row["mean_stress"] == pytest.approx(np.trace(sigma) / 3.0, rel=1e-12)
+    assert row["deviator_stress"] < 1e-9 * row["mean_stress"]
+
+
+YAML = """
+name: pair
+materials: {sphere: {density: 1000.0, shear_modulus: 2.0e6, poisson_ratio: 0.2}}
+contact: {model: hertz, tangential: mindlin, friction: 0.5, normal_damping: 0.1}
+particles:
+  - {material: sphere, radius: 0.005, position: [0, 0, 0]}
+  - {material: sphere, radius: 0.005, position: [0.00996, 0, 0]}
+integrator: {dt: 1.0e-7}
+stages:
+  - {name: prepare, steps: 10, contact: {friction: 0.0}}
+  - {name: damp, steps: 10, contact: {normal_damping: 0.3, tangential_damping: 0.2}}
+  - {name: shear, steps: 10}
+"""
+
+
+def test_a_stage_sets_its_own_friction_and_damping():
+    """A stage's contact record takes the coefficients it gives and keeps the others (and
+    the laws) of [contact]; a stage without them runs with [contact]'s record itself."""
+    model = Model.of(scenario_from_text(YAML, ".yaml", "pair.yaml"))
+    prepare, damp, shear = (model.stage_law(s) for s in model.scenario.stages)
+    assert (prepare.mu, prepare.beta_n, prepare.beta_t) == (0.0, 0.1, 0.0)
+    assert (damp.mu, damp.beta_n, damp.beta_t) == (0.5, 0.3, 0.2)
+    assert shear is model.law
+    assert prepare._replace(mu=0.5) == model.law  # the laws and their parameters kept
+
+
+@pytest.mark.parametrize(
+    ("text", "change", "message"),
+    [
+        (
+            YAML.replace("tangential: mindlin, friction: 0.5, ", ""),
+            None,
+            "stages[0].contact.friction: needs a tangential law",
+        ),
+        (YAML, "stages.2.contact.friction=-1", "stages[2].contact.friction"),
+        (YAML, "stages.2.contact.normal_damping=nan", "stages[2].contact.normal_damping"),
+        (YAML, "stages.2.contact.kn=1", "stages[2].contact.kn: unknown field"),
+    ],
+)
+def test_bad_stage_contacts_are_named_by_path(text, change, message):
+    with pytest.raises(InputError) as error:
+        scenario_from_text(text, ".yaml", "pair.yaml", [change] if change else [])
+    assert message in str(error.value)
+    assert "\n" not in str(error.value)
+
+
+SMOKE = Path(__file__).resolve().parents[2] / "configs" / "smoke" / "critical_state.toml"
+LOOSE = {"stages.0.contact.friction": 1.0, "stages.1.contact.friction": 1.0}
+"""The smoke sample's preparation with mu = 1: loose."""
+
+
+def _shearing(result) -> dict[str, np.ndarray]:
+    """Void ratio, q / p and sliding fraction of the shear stage (the last 5 000 steps)."""
+    series = result.observables()
+    time = result.observable("void_ratio")[0]
+    keep = time >= time[-1] - 5000 * 2.0e-5 * (1 + 1e-9)  # 5 000 steps of 20 us
+    return {
+        "e": series["void_ratio"][1][keep],
+        "q/p": series["deviator_stress"][1][keep] / series["mean_stress"][1][keep],
+        "sliding": series["sliding_fraction"][1][keep],
+    }
+
+
+def test_smoke_dense_dilates_and_loose_contracts(tmp_path):
+    """The smoke samples (300 spheres at 10 kPa) sheared 5 % with mu = 0.5: prepared without
+    friction the sample is denser than with mu = 1; sheared, the dense one dilates and the
+    loose one contracts, towards each other (Hanley 2020 Figure 7), both mobilising q / p
+    above 0.5 with some contacts sliding and most not."""
+    dense = _shearing(revdem.run(revdem.load(SMOKE), tmp_path / "dense", reverse=False))
+    loose = _shearing(revdem.run(revdem.load(SMOKE, LOOSE), tmp_path / "loose", reverse=False))
+    assert loose["e"][0] > dense["e"][0] + 0.03, (loose["e"][0], dense["e"][0])
+    assert dense["e"][-1] > dense["e"][0] + 0.02
+    assert loose["e"][-1] < loose["e"][0]
+    assert abs(loose["e"][-1] - dense["e"][-1]) < abs(loose["e"][0] - dense["e"][0])
+    for sample in (dense, loose):
+        assert sample["q/p"][-1] > 0.5
+        assert 0.0 < sample["sliding"][-1] < 0.6
+
+
+def test_smoke_frictionless_undamped_shearing_reverses_bit_for_bit(tmp_path):
+    """The dense smoke sample sheared with the stage's mu = 0 and no damping (energy-
+    conserving, fixed-point arithmetic): every contact slides (its shear force is capped at
+    0), and the reversed shearing lands on the very integers it started from, so on the
+    sample's own initial void ratio."""
+    experiment = revdem.load(SMOKE, {"stages.2.contact.friction": 0.0})
+    result = revdem.run(experiment, tmp_path)
+    assert result.comparison["bitwise_identical"], result.comparison
+    forward = _shearing(result)
+    assert (forward["sliding"][1:] > 0.99).all()
+    back = result.observable("void_ratio", run="reverse")[1]
+    assert back[-1] == forward["e"][0]
+    assert abs(forward["e"][-1] - forward["e"][0]) > 1e-4  # it did move
+
+
+def test_a_run_stopped_inside_a_stage_of_its_own_friction_resumes_to_the_same_bits(tmp_path):
+    """The shear collision (Mindlin, mu = inf in [contact]) with mu = 0.3 for its one stage,
+    stopped by SIGINT while the spheres slide (after frame 4 of 30, step 2 000), resumed from its
+    checkpoint: the files, reversal included, are those of the run left alone, and in both
+    the shear force was capped at 0.3 |f_n| (Hanley 2020 §4-5.1), not left free."""
+    import os
+    import signal
+
+    from revdem_cli.checkpoint import Interrupted
+    from revdem_cli.engine import run_scenario
+    from tests.conftest import CONFIGS
+    from tests.reliability.test_checkpoints import assert_same_files
+
+    changes = {"stages.0.contact": {"friction": 0.3}, "stages.0.output_every": 500}
+    changes |= {"output.figures": []}
+    experiment = revdem.load(CONFIGS / "collision_shear.toml", changes)
+    experiment = experiment.changed({"output.checkpoint_interval": 0.0})  # at every frame
+    whole = revdem.run(experiment, tmp_path / "whole")
+    frames = []
+
+    def interrupt_at_frame_4(label, done, total, particles):
+        frames.append(done)
+        if len(frames) == 4:
+            os.kill(os.getpid(), signal.SIGINT)  # a checkpoint at the next frame, then a stop
+
+    with pytest.raises(Interrupted):
+        run_scenario(experiment.scenario, experiment.text, experiment.suffix, tmp_path / "cut",
+                     True, interrupt_at_frame_4)  # fmt: skip
+    revdem.resume(tmp_path / "cut")
+    assert_same_files(tmp_path / "whole", tmp_path / "cut")
+    shear = whole.observable("max_shear_force")[1]
+    normal = whole.observable("max_normal_force")[1]
+    touching = normal > 0.0
+    ratio = shear[touching] / normal[touching]
+    assert ratio.max() == pytest.approx(0.3, rel=1e-9)
+    assert not whole.comparison["reversible"]  # the cap destroyed information
+
+
+def _overlap(a: dict, b: dict) -> bool:
+    """Whether two final values' ranges over the last 5 % of strain overlap."""
+    return a["min"] <= b["max"] and b["min"] <= a["max"]
+
+
+def test_the_committed_critical_state_runs_say_what_their_report_says():
+    """scenarios/hanley2020/critical_state/results.json, from the full runs: with mu = 0.5
+    the dense sample dilates and the loose one contracts to q/p, Z_m and fabric within each
+    other's ranges over the last 5 % of strain; frictionless and undamped they stay apart in
+    void ratio and each reverses bit for bit to its own; frictionless with viscous normal
+    damping their void ratios meet."""
+    folder = Path(__file__).resolve().parents[2] / "scenarios" / "hanley2020" / "critical_state"
+    results = json.loads((folder / "results.json").read_text())
+    dense, loose = results["friction"]["dense"], results["friction"]["loose"]
+    assert dense["start"]["void_ratio"] < loose["start"]["void_ratio"] - 0.2
+    assert dense["final"]["void_ratio"]["mean"] > dense["start"]["void_ratio"] + 0.1
+    assert loose["final"]["void_ratio"]["mean"] < loose["start"]["void_ratio"] - 0.1
+    for key in ("stress_ratio", "mechanical_coordination_number", "fabric_deviator"):
+        assert _overlap(dense["final"][key], loose["final"][key]), key
+    for sample in ("dense", "loose"):
+        run = results["elastic"][sample]
+        assert run["reversal"]["bitwise_identical"]
+        assert run["reversal"]["void_ratio_back"] == run["start"]["void_ratio"]
+    dense, loose = (results["elastic"][s]["final"]["void_ratio"] for s in ("dense", "loose"))
+    assert loose["mean"] - dense["mean"] > 10 * max(dense["std"], loose["std"])
+    dense, loose = (results["viscous"][s]["final"]["void_ratio"] for s in ("dense", "loose"))
+    assert _overlap(dense, loose)
