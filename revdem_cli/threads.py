@@ -88,10 +88,12 @@ class Stepper:
 
     It returns to Python about every `PAUSE` seconds, and there chooses the thread count of
     the next stretch: the one of the fastest recent stepping, with a short trial of the other
-    now and then. While signals are taken (`checkpoint.Checkpoints.on_signals`), the loop
-    runs in one worker thread, kept for the whole run so that the threading layer keeps its
-    team, and the main thread waits for it: a signal's handler then runs at once and sets
-    `halt`, which the loop reads at every step (`integrate.HALTED`)."""
+    now and then; the calling thread's own kernel calls between stretches (frames, stop
+    conditions) take the same count. While signals are taken
+    (`checkpoint.Checkpoints.on_signals`), the loop runs in one worker thread, kept for the
+    whole run so that the threading layer keeps its team, and the main thread waits for it:
+    a signal's handler then runs at once and sets `halt`, which the loop reads at every step
+    (`integrate.HALTED`)."""
 
     def __init__(self):
         self.halt = np.zeros(1, dtype=np.int64)
@@ -119,6 +121,7 @@ class Stepper:
                 obs_steps[rows:],
             )  # fmt: skip
             self._learn(count, abs(reached - step), time.perf_counter() - started)
+            numba.set_num_threads(self._best(counts))  # for this thread's own kernel calls
             step, rows = reached, rows + recorded
             if status != 0 or step == stop:
                 return status, step, rows, finding
@@ -137,12 +140,17 @@ class Stepper:
         untimed = [count for count in counts if count not in self._rate]
         if untimed:
             return untimed[0], self._stretch.get(untimed[0], 1)
-        best = max(counts, key=lambda count: self._rate[count])
+        best = self._best(counts)
         if len(counts) > 1 and self._stepped >= self._probe_at:
             other = next(count for count in counts if count != best)
             self._probe_at = self._stepped + self._probe_every
             return other, max(1, int(self._rate[best] * PROBE))
         return best, self._stretch[best]
+
+    def _best(self, counts: tuple[int, ...]) -> int:
+        """The count of the fastest stepping timed so far (the largest before any)."""
+        timed = [count for count in counts if count in self._rate]
+        return max(timed, key=self._rate.get) if timed else counts[-1]
 
     def _learn(self, count: int, steps: int, seconds: float) -> None:
         """What a stretch took: the count's rate, its next length (at most four times the
@@ -166,11 +174,7 @@ class Stepper:
             return loop(*args)
 
         if self._worker is None:
-            before = numba.get_num_threads()
-            try:
-                return stepped()
-            finally:
-                numba.set_num_threads(before)
+            return stepped()
         return self._worker.submit(stepped).result()
 
     @contextmanager
