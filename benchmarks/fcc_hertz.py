@@ -125,6 +125,7 @@ def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict
 def loop_seconds(state, model, steps: int) -> float:
     """Seconds of `steps` steps of the compiled stage loop, observables only at the end."""
 
+    from revdem_cli.io.tape import no_tape
     from revdem_cli.kernels.integrate import OK, advance
     from revdem_cli.stage import stepping_bundles
     from revdem_cli.state import empty_events
@@ -133,7 +134,9 @@ def loop_seconds(state, model, steps: int) -> float:
     stepping = model.stepping(1.0e-6, 0, steps, steps)
     bundles = stepping_bundles(state, model, model.dynamics, model.law)
     started = time.perf_counter()
-    status, _, _, _ = advance(*bundles, empty_events(), stepping, 0, steps, steps, obs, obs_steps)
+    status, _, _, _ = advance(
+        *bundles, empty_events(), no_tape(), stepping, 0, steps, steps, obs, obs_steps
+    )
     seconds = time.perf_counter() - started
     if status != OK:
         raise RuntimeError(f"the stepping loop stopped with status {status}")

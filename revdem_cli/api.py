@@ -169,6 +169,8 @@ def output_paths_of(experiment: Experiment, out: Path, reverse: bool) -> list[Pa
     spec = experiment.scenario
     paths = output_paths(out, spec.name)
     written = [paths["forward"], paths["restart"]]
+    if spec.reversal.tape:
+        written.append(paths["tape"])
     if reverse and spec.reversed_stage is not None:
         written += [paths["reverse"], paths["compare"]]
     return written + figure_paths(out, spec)

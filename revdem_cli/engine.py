@@ -17,6 +17,7 @@ from revdem_cli.errors import InputError
 from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
+from revdem_cli.io.tape import Recorder, Replayer
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.stage import (
     Model,
@@ -47,6 +48,7 @@ def output_paths(out_dir: Path, name: str) -> dict[str, Path]:
         for kind, ext in (
             ("forward", "h5"),
             ("restart", "h5"),
+            ("tape", "h5"),
             ("reverse", "h5"),
             ("compare", "json"),
         )
@@ -129,12 +131,17 @@ class Run:
     def paths(self) -> dict[str, Path]:
         return output_paths(self.out_dir, self.scenario.name)
 
-    def checkpoint(self, state, clock, events, writer, trajectory, place: dict) -> None:
-        """Save a checkpoint if one is due: the trajectory flushed first, so that it holds
-        every row the checkpoint counts. `place`: the rest of its `Resumption`."""
+    def checkpoint(
+        self, state, clock, events, writer, trajectory, place: dict, tape: Recorder | None = None
+    ) -> None:
+        """Save a checkpoint if one is due: the trajectory (and the information tape being
+        recorded) written out first, so that they hold every row the checkpoint counts.
+        `place`: the rest of its `Resumption`."""
         if not self.checkpoints.due():
             return
         writer.flush()
+        if tape is not None:
+            tape.flush()
         frames, observables = writer.rows()
         resumption = Resumption(
             events=events.copy(), frames=frames, observables=observables, **place
@@ -142,6 +149,7 @@ class Run:
         self.checkpoints.save(self.restart(state, clock, trajectory, resumption))
 
     def restart(self, state, clock, trajectory, resumption=None) -> Restart:
+        tape = self.paths["tape"].name if self.scenario.reversal.tape else ""
         return Restart(
             state,
             self.scenario.model_dump_json(),
@@ -153,6 +161,7 @@ class Run:
             clock.first_time,
             clock.dt,
             resumption,
+            tape,
         )
 
 
@@ -212,12 +221,20 @@ def _forward(
                 stop_step=-1, end_step=-1,
             )  # fmt: skip
 
-            def checkpoint(state, clock, events, place=place):
-                run.checkpoint(state, clock, events, writer, paths["forward"], place)
+            tape = None  # the stage a restart ends is the one a reversal reverses
+            if scenario.reversal.tape and index == len(scenario.stages) - 1:
+                resumed_at = state.step if events is not None else None
+                tape = Recorder(
+                    paths["tape"], stage.name, clock.first_step, len(state.particles.x),
+                    resumed_at,
+                )  # fmt: skip
+
+            def checkpoint(state, clock, events, place=place, tape=tape):
+                run.checkpoint(state, clock, events, writer, paths["forward"], place, tape)
 
             run_stage(
                 state, run.model, clock, +1, writer, progress, None, checkpoint, events,
-                run.checkpoints.stepper,
+                run.checkpoints.stepper, tape,
             )  # fmt: skip
             time = float(clock.time(state.step))
     reversal_history(state, run.model, clock)  # a velocity predictor's, for the reversal
@@ -321,10 +338,16 @@ def _reverse(
     def checkpoint(state, clock, events):
         run.checkpoint(state, clock, events, writer, start.trajectory, place)
 
+    tape = None
+    if start.tape:
+        tape = Replayer(
+            Path(source).parent / start.tape, clock.stage.name, clock.first_step,
+            len(start.state.particles.x),
+        )  # fmt: skip
     with writer:
         run_stage(
             start.state, run.model, clock, -1, writer, progress, stop, checkpoint, events,
-            run.checkpoints.stepper,
+            run.checkpoints.stepper, tape,
         )  # fmt: skip
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(start.trajectory)

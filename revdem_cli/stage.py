@@ -16,6 +16,7 @@ from revdem_cli.config import Scenario, Stage
 from revdem_cli.contacts import contact_list
 from revdem_cli.errors import RunFailed
 from revdem_cli.io.h5md import TrajectoryWriter
+from revdem_cli.io.tape import Recorder, Replayer, no_tape
 from revdem_cli.kernels.arrays import Cell, ContactLaw, Dynamics, Fixed, Moduli, Stepping
 from revdem_cli.kernels.cell import FIXED, STRAIN_RATE, STRESS
 from revdem_cli.kernels.contact import STATIC
@@ -28,6 +29,9 @@ from revdem_cli.kernels.integrate import (
     HALTED,
     OK,
     PAIR_OVERFLOW,
+    TAPE_EMPTY,
+    TAPE_FULL,
+    TAPE_MISMATCH,
     advance,
 )
 from revdem_cli.kernels.observables import Layout, observe
@@ -243,12 +247,15 @@ def run_stage(
     checkpoint: Checkpoint | None = None,
     events: np.ndarray | None = None,
     stepper: Stepper | None = None,
+    tape: Recorder | Replayer | None = None,
 ) -> None:
     """Advance `state` through one stage (direction +1) or back through it (direction -1).
 
     With `events`, the stage's log so far, the state is part-way through the stage at the
     step of a checkpoint, and the stage carries on from there. `stepper` calls the compiled
-    loop, and its flag stops it (default: called here, never stopped)."""
+    loop, and its flag stops it (default: called here, never stopped). `tape`: the
+    information tape the stage records going forward, or replays going backward
+    (`io.tape`); `checkpoint` writes out what it holds before the state."""
     frames = clock.frame_steps()
     if direction < 0:
         frames = frames[::-1]
@@ -291,11 +298,24 @@ def run_stage(
     frame_steps = set(frames)
     for target in [s for s in pauses if (s - state.step) * direction > 0]:
         while state.step != target:
+            logs = (events, tape.bundle(state, events) if tape else no_tape())
             status, state.step, rows, finding = stepper.advance(
-                advance, stepping_bundles(state, model, dyn, law), events, stepping, state.step,
-                target, buffer, buffer_steps,
+                advance, (*stepping_bundles(state, model, dyn, law), *logs), stepping,
+                state.step, target, buffer, buffer_steps,
             )  # fmt: skip
             _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows])
+            if status == TAPE_FULL:
+                tape.flush()
+                continue
+            if status == TAPE_EMPTY:
+                tape.load(state.step)
+                continue
+            if status == TAPE_MISMATCH:
+                raise RunFailed(
+                    f"{tape.path}: step {state.step}: an entry for pair ({finding.particle}, "
+                    f"{finding.partner}) finds no such pair in the list: the tape is not of "
+                    "this run"
+                )
             if status == HALTED:  # a signal: the checkpoint is written, and raises Interrupted
                 checkpoint(state, clock, events)
                 raise RuntimeError(f"the stage loop was halted at step {state.step} for nothing")
@@ -320,9 +340,11 @@ def run_stage(
             if progress is not None:
                 progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
         if stopped:
-            return
+            break
         if checkpoint is not None and target in frame_steps and target != frames[-1]:
             checkpoint(state, clock, events)
+    if isinstance(tape, Recorder):
+        tape.flush()
 
 
 def reversal_history(state: State, model: Model, clock: StageClock) -> None:
@@ -344,7 +366,7 @@ def reversal_history(state: State, model: Model, clock: StageClock) -> None:
     while ahead.step != end:
         status, ahead.step, _, finding = advance(
             *stepping_bundles(ahead, model, dyn, model.stage_law(clock.stage)), events,
-            stepping, ahead.step, end, end, buffer, buffer_steps,
+            no_tape(), stepping, ahead.step, end, end, buffer, buffer_steps,
         )  # fmt: skip
         if status not in (OK, PAIR_OVERFLOW):
             raise RunFailed(

@@ -428,12 +428,13 @@ def initial_state(scenario: Scenario) -> State:
     cell_now = cell_arrays(scenario)
     integers = fixed_arrays(scenario, p, cell_now)
     skin = default_skin(scenario)
+    taped = scenario.reversal.tape  # a forward step then takes a reversed one in its shadow
     nothing = np.zeros(0, dtype=np.int32)
     needed = build_pairs(p.x, p.radius, skin, cell_now.periodic, cell_now.length, nothing, nothing)
     state = State(
         p,
-        empty_pairs(len(p.x), pair_capacity(needed), shear, False, rolls(scenario)),
-        wall_arrays(scenario, len(p.x)),
+        empty_pairs(len(p.x), pair_capacity(needed), shear, taped, rolls(scenario)),
+        wall_arrays(scenario, len(p.x), taped),
         cell_now,
         integers,
         step=0,

@@ -106,9 +106,9 @@ class Stepper:
         self._probe_at = PROBE_EVERY
         self._probe_every = PROBE_EVERY
 
-    def advance(self, loop, bundles, events, stepping, step, stop, obs, obs_steps) -> tuple:
-        """`loop(*bundles, events, stepping, step, stop, until, rows, steps)` from `step` to
-        `stop` in stretches; returns as it does, its rows recorded in `obs`, `obs_steps`."""
+    def advance(self, loop, bundles, stepping, step, stop, obs, obs_steps) -> tuple:
+        """`loop(*bundles, stepping, step, stop, until, rows, steps)` from `step` to `stop` in
+        stretches; returns as it does, its rows recorded in `obs`, `obs_steps`."""
         counts = self._counts(len(bundles[0].x))
         direction = 1 if stop > step else -1
         rows = 0
@@ -117,7 +117,7 @@ class Stepper:
             until = step + direction * min(length, abs(stop - step))
             started = time.perf_counter()
             status, reached, recorded, finding = self._call(
-                count, loop, *bundles, events, stepping, step, stop, until, obs[rows:],
+                count, loop, *bundles, stepping, step, stop, until, obs[rows:],
                 obs_steps[rows:],
             )  # fmt: skip
             self._learn(count, abs(reached - step), time.perf_counter() - started)

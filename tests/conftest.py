@@ -8,6 +8,7 @@ import pytest
 
 from revdem_cli.config import Scenario, load_scenario
 from revdem_cli.engine import run_scenario
+from revdem_cli.io.tape import no_tape
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -111,8 +112,8 @@ def stepped(scenario: Scenario, steps: int, every: int):
     while state.step < steps:
         target = min(state.step + every, steps)
         status, state.step, _, _ = advance(
-            *stepping_bundles(state, model, dyn, model.stage_law(stage)), events, stepping,
-            state.step, target, target, obs, obs_steps,
+            *stepping_bundles(state, model, dyn, model.stage_law(stage)), events, no_tape(),
+            stepping, state.step, target, target, obs, obs_steps,
         )  # fmt: skip
         if status == PAIR_OVERFLOW:
             state.grow_pairs()

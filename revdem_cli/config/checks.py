@@ -72,6 +72,7 @@ def check_consistency(scenario) -> None:
     check_step_total(scenario)
     check_automatic_dt(scenario)
     check_scheme(scenario)
+    check_tape(scenario)
 
 
 def check_scheme(scenario) -> None:
@@ -91,6 +92,17 @@ def check_scheme(scenario) -> None:
                 "drag (Eq 25, a factor on the half-step velocity) needs integrator.scheme = "
                 "'verlet'; with 'trvp' use viscous contact damping or local damping",
             )
+
+
+def check_tape(scenario) -> None:
+    """The information tape records integers: it needs fixed-point arithmetic, and the
+    velocity predictor's history, which it does not record, left out."""
+    if not scenario.reversal.tape:
+        return
+    if scenario.integrator.arithmetic != "fixed":
+        raise FieldError("reversal.tape", "needs integrator.arithmetic = 'fixed'")
+    if scenario.integrator.scheme != "verlet":
+        raise FieldError("reversal.tape", "needs integrator.scheme = 'verlet'")
 
 
 def check_automatic_dt(scenario) -> None:

@@ -598,7 +598,8 @@ class Stage(_Model):
 
 
 class Reversal(_Model):
-    """Tolerances that decide whether a reversed run reproduced the forward one."""
+    """Tolerances that decide whether a reversed run reproduced the forward one, and the
+    information tape that makes it reproduce it exactly."""
 
     position_tolerance_rel: Float = Field(
         default=1e-10, gt=0, description="largest position error divided by the smallest diameter"
@@ -606,6 +607,15 @@ class Reversal(_Model):
     velocity_tolerance: Float = Field(default=1e-9, gt=0, description="largest velocity error, m/s")
     angular_velocity_tolerance: Float = Field(
         default=1e-6, gt=0, description="largest angular velocity error, rad/s"
+    )
+    tape: bool = Field(
+        strict=True,
+        default=False,
+        description="record, going forward through the reversed stage, what its reversal "
+        "cannot recompute (the information tape, `<name>.tape.h5` beside the restart), so "
+        "that the reversal returns the starting integers bit for bit whatever friction, "
+        "damping, drag, contact loss or a servo destroyed, and the bits they destroyed are "
+        "measured; needs integrator.arithmetic = 'fixed' and scheme = 'verlet'",
     )
 
 

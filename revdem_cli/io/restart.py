@@ -74,6 +74,7 @@ class Restart:
     stage_first_time: float  # s
     stage_dt: float  # the time step that stage ran at, s
     resumption: Resumption | None = None  # a checkpoint's place in its run
+    tape: str = ""  # the information tape of the stage that ended here (io/tape.py), or none
 
 
 def write_restart(path: Path, restart: Restart) -> None:
@@ -104,6 +105,7 @@ def _write_state(f: h5py.File, restart: Restart) -> None:
     meta.attrs["stage_first_step"] = restart.stage_first_step
     meta.attrs["stage_first_time"] = restart.stage_first_time
     meta.attrs["stage_dt"] = restart.stage_dt
+    meta.attrs["tape"] = restart.tape
     for name in Particles._fields:
         _put(f, f"particles/{name}", getattr(s.particles, name))
     for name in WALL_FIELDS:
@@ -231,7 +233,8 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     scenario = stored_scenario(meta.attrs["scenario_json"], path)
     shear = scenario.contact.tangential != "none"
     resumption = _read_resumption(f, path) if "checkpoint" in meta else None
-    reversing = resumption is None or resumption.phase == "reverse"
+    taped = scenario.reversal.tape  # a forward step then takes a reversed one in its shadow
+    reversing = resumption is None or resumption.phase == "reverse" or taped
     particles = Particles(*(read(f"particles/{name}") for name in Particles._fields))
     n_particles = len(particles.x)
     walls = wall_arrays(scenario, n_particles, reversing)
@@ -262,6 +265,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         stage_first_time=float(meta.attrs["stage_first_time"]),
         stage_dt=float(meta.attrs["stage_dt"]),
         resumption=resumption,
+        tape=str(meta.attrs.get("tape", "")),
     )
 
 

@@ -5,9 +5,17 @@ import numpy as np
 
 from revdem_cli.kernels import by_size, jit
 from revdem_cli.kernels import fixed as fx
+from revdem_cli.kernels import tape as tp
 from revdem_cli.kernels.cell import kick_cell, move_cell
-from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE
-from revdem_cli.kernels.events import MOTION_LOST, note, note_damping, note_fixed_points
+from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE, STATIC
+from revdem_cli.kernels.events import (
+    COLUMNS,
+    KINDS,
+    MOTION_LOST,
+    note,
+    note_damping,
+    note_fixed_points,
+)
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.health import HEALTHY, Finding, examine
 from revdem_cli.kernels.neighbours import (
@@ -27,6 +35,9 @@ CELL_TOO_SMALL = 2
 FIXED_OVERFLOW = 3
 BLOWN_UP = 4
 HALTED = 5
+TAPE_FULL = 6
+TAPE_EMPTY = 7
+TAPE_MISMATCH = 8
 
 
 def _kick(v, f, inv_m, h):
@@ -216,6 +227,48 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
 
 
 @jit
+def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recording):
+    """Bring the reversed step's state at `step` to the forward run's with the information
+    tape (`kernels.tape`), recording the entries (going forward, in the reversed step's
+    shadow) or replaying them (going backward). The histories come first; where one
+    changed, the forces are found again from the histories the forward step had (the half
+    kick taken back and given again), so that a force entry holds only what reads
+    velocities; then the rest. Returns -1, or replaying, the pair i N + j of an entry that
+    is not in the list."""
+    h = -0.5 * dt
+    damped = dyn.local_damping > 0.0 or law.beta_n > 0.0 or law.beta_t > 0.0
+    if recording:
+        touched = tp.record(tape, p, pairs, walls, cell, fixed, h, True, damped)
+    else:
+        touched, missing = tp.replay(tape, p, pairs, cell, fixed, step, h, True)
+        if missing >= 0:
+            return missing
+    if touched > 0:
+        tp.unkick(p, fixed, h)
+        scratch = np.zeros((len(KINDS), len(COLUMNS)))  # logged once, by the step itself
+        compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, STATIC, dt, h, scratch, step)
+    if recording:
+        tp.record(tape, p, pairs, walls, cell, fixed, h, False, damped)
+        tp.close_step(tape)
+    else:
+        tp.replay(tape, p, pairs, cell, fixed, step, h, False)
+    return -1
+
+
+@jit
+def shadow_step(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, first):
+    """Record the tape entries of the forward step just taken from `step`: the reversed step
+    from step + 1 taken in place, its state settled onto the state before the forward
+    step, then undone."""
+    tp.hold(tape)
+    tp.classify(tape, pairs, walls)
+    system = (p, pairs, walls, cell, fixed, law, moduli, dyn)
+    reverse_step(*system, events, dt, step + 1, (step - first) * dt)
+    settle(tape, *system, dt, step, True)
+    tp.restore(tape)
+
+
+@jit
 def rebuild_pairs(p, pairs, cell, skin):
     """Rebuild the pair list at the current positions, carrying contact history.
 
@@ -262,8 +315,8 @@ def needs_rebuild(p, pairs, cell, dt, skin, direction):
 
 @jit
 def advance(
-    p, pairs, walls, cell, fixed, law, moduli, dyn, events, stepping, step, stop, until, obs,
-    obs_steps,
+    p, pairs, walls, cell, fixed, law, moduli, dyn, events, tape, stepping, step, stop, until,
+    obs, obs_steps,
 ):  # fmt: skip
     """Run whole steps from `step` towards `stop` (forward if stop > step, else reversed),
     returning at `until` (`stop`, or a step before it: the caller's pause, which changes
@@ -279,7 +332,11 @@ def advance(
     value left its fixed-point grid in the step just taken (fixed.overflow says which),
     BLOWN_UP that the state at the step reached is not physical (the finding says why; the
     rows recorded are of the steps before), HALTED that `stepping.halt` asked for a stop
-    (the state is at the whole step reached).
+    (the state is at the whole step reached). With an information tape (`kernels.tape`)
+    recording, each forward step records its entries, and TAPE_FULL says that the block
+    must be written out before the next; replaying, each reversed step applies them, and
+    TAPE_EMPTY says that the block holds no more, TAPE_MISMATCH that an entry's pair is not
+    in the list (the finding's particle and partner).
     """
     dt, skin, limit = stepping.dt, stepping.skin, stepping.overlap_limit
     first, last, every = stepping.first_step, stepping.last_step, stepping.every
@@ -289,6 +346,10 @@ def advance(
     while step != until:
         if stepping.halt[0] != 0:
             return HALTED, step, rows, finding
+        if tape.mode == tp.RECORD and not tp.has_room(tape):
+            return TAPE_FULL, step, rows, finding
+        if tape.mode == tp.REPLAY and not tp.holds(tape, step - 1):
+            return TAPE_EMPTY, step, rows, finding
         if needs_rebuild(p, pairs, cell, dt, skin, direction):
             finding = examine(p, pairs, walls, cell, limit)
             if finding.what != HEALTHY:  # not worth a search
@@ -299,9 +360,19 @@ def advance(
         elapsed = (step + direction - first) * dt
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
         if direction > 0:
+            if tape.mode == tp.RECORD:
+                tp.keep(tape)
             forward_step(*system, dt, step, elapsed)
+            if tape.mode == tp.RECORD:
+                shadow_step(tape, *system, dt, step, first)
         else:
             reverse_step(*system, dt, step, elapsed)
+            if tape.mode == tp.REPLAY:
+                missing = settle(tape, *system[:8], dt, step - 1, False)
+                if missing >= 0:
+                    n = p.x.shape[0]
+                    return TAPE_MISMATCH, step - 1, rows, Finding(HEALTHY, missing // n,
+                                                                  missing % n, 0.0)  # fmt: skip
         step += direction
         if fixed.overflow[0] != 0:
             return FIXED_OVERFLOW, step, rows, finding

@@ -123,6 +123,7 @@ def _kinetic_energy(particles) -> float:
 
 def engine_is_stable(scenario, dt: float) -> bool:
     """Whether the engine keeps the kinetic energy of `scenario` within GROWTH of its start."""
+    from revdem_cli.io.tape import no_tape
     from revdem_cli.kernels.integrate import OK, advance
     from revdem_cli.stage import Model, stepping_bundles
     from revdem_cli.state import empty_events, initial_state
@@ -133,7 +134,9 @@ def engine_is_stable(scenario, dt: float) -> bool:
     obs, steps = model.buffers(STEPS)
     stepping = model.stepping(dt, 0, STEPS, 1)._replace(overlap_limit=np.inf)  # by energy alone
     bundles = stepping_bundles(state, model, model.dynamics, model.law)
-    status, _, rows, _ = advance(*bundles, empty_events(), stepping, 0, STEPS, STEPS, obs, steps)
+    status, _, rows, _ = advance(
+        *bundles, empty_events(), no_tape(), stepping, 0, STEPS, STEPS, obs, steps
+    )
     kinetic = obs[:rows, model.layout.column("kinetic_energy")]
     return status == OK and bool(np.all(kinetic <= GROWTH * start))
 

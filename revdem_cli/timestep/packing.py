@@ -36,6 +36,7 @@ import numpy as np
 from revdem_cli import laws
 from revdem_cli.contacts import touching_pairs, wall_touches
 from revdem_cli.errors import InputError
+from revdem_cli.io.tape import no_tape
 from revdem_cli.kernels.arrays import Dynamics
 from revdem_cli.kernels.cell import FIXED
 from revdem_cli.kernels.contact import STATIC
@@ -328,8 +329,8 @@ def _advance(state: State, model: Model, dyn: Dynamics, dt: float, steps: int) -
     events, stop = empty_events(), state.step + steps
     while state.step != stop:
         status, state.step, _, _ = advance(
-            *stepping_bundles(state, model, dyn, model.law), events, stepping, state.step, stop,
-            stop,
+            *stepping_bundles(state, model, dyn, model.law), events, no_tape(), stepping,
+            state.step, stop, stop,
             buffer, buffer_steps,
         )  # fmt: skip
         if status == BLOWN_UP:

@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from revdem_cli.io.tape import no_tape
 from revdem_cli.kernels import PARALLEL_FROM
 from revdem_cli.kernels.neighbours import build_pairs, carry_history, index_by_particle
 
@@ -127,7 +128,7 @@ def test_the_list_holds_every_contact_while_spheres_fly_through_many_rebuilds():
     while step < 1500:
         bundles = stepping_bundles(state, model, model.dynamics, model.law)
         status, step, _, _ = advance(
-            *bundles, empty_events(), stepping, step, step + 5, step + 5, obs, obs_steps
+            *bundles, empty_events(), no_tape(), stepping, step, step + 5, step + 5, obs, obs_steps
         )
         if status == PAIR_OVERFLOW:
             state.grow_pairs()

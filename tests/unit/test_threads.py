@@ -25,7 +25,7 @@ def fake_loop(cost: dict[int, float]):
     """A stage loop whose step costs cost[thread count] seconds (busy, as a loop is), with
     an observables row every EVERY steps, stopping at `until`."""
 
-    def loop(particles, events, stepping, step, stop, until, obs, obs_steps):
+    def loop(particles, stepping, step, stop, until, obs, obs_steps):
         seconds = cost[numba.get_num_threads()]
         rows = 0
         while step != until:
@@ -58,7 +58,7 @@ def step_with(
     particles = SimpleNamespace(x=np.zeros((PARALLEL_FROM, 3)))
     rows = abs(stop - start) // EVERY + 2
     obs, obs_steps = np.zeros((rows, 1)), np.zeros(rows, dtype=np.int64)
-    done = stepper.advance(fake_loop(cost), (particles,), None, None, start, stop, obs, obs_steps)
+    done = stepper.advance(fake_loop(cost), (particles,), None, start, stop, obs, obs_steps)
     return stepper, done, obs_steps[: done[2]]
 
 

@@ -1,0 +1,341 @@
+"""The information tape's file (`<name>.tape.h5`, named in the restart) and the buffers the
+compiled loop records into and replays from (`kernels.tape`).
+
+Entries go to disk in blocks, so the tape's memory does not grow with the run: the loop
+returns TAPE_FULL when its block has no room for one more step, and the block is appended
+to the file. Layout (HDF5, every dataset chunked, shuffled and deflated, h5py's gzip):
+
+    /entries/what    int8   (E,)  the array, an index into `kernels.tape.COMPARED`
+    /entries/where   int64  (E,)  its place (pair arrays: (i N + j) 3 + axis)
+    /entries/amount  int64  (E,)  the true value minus the reversal's
+    /steps/count     int64  (S,)  entries of each step of the stage, from its first
+    /steps/bits      float32 (S, M) bits of each step by mechanism (`MECHANISMS`)
+    /steps/contacts  int32  (S, M) contacts (particles, edges) with entries, by mechanism
+
+with the attributes `kind` = "revdem tape", `schema_version`, `first_step` (the stage's),
+`stage`, `particles`, `compared` and `mechanisms`. Going backward, `Replayer` reads it a
+block at a time from the end.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from revdem_cli.errors import InputError, RunFailed
+from revdem_cli.kernels.tape import COMPARED, MECHANISMS, OFF, RECORD, REPLAY, Tape
+
+SCHEMA_VERSION = 1
+STEPS_PER_BLOCK = 4096
+MIN_ENTRIES = 1 << 16
+CHUNK = 1 << 14
+FILTERS = dict(compression="gzip", compression_opts=4, shuffle=True)
+
+CHANGED = (
+    ("particles", ("x", "s", "v", "omega", "f", "torque", "v_drift")),
+    ("pairs", ("force", "history", "moment", "overlap", "destroyed", "rolling", "rolled",
+               "normal_new")),
+    ("walls", ("point", "force", "torque", "overlap", "history", "destroyed", "rolling",
+               "rolled", "normal_new")),
+    ("cell", ("length", "rate", "mid", "force", "stress")),
+    ("fixed", ("x", "v", "omega", "length", "rate", "overflow")),
+)  # fmt: skip
+"""The arrays a step changes (with the event log): what the shadow reversal undoes."""
+
+COMPARED_ARRAYS = {
+    "cell_edges": ("fixed", "length"),
+    "cell_edge_rates": ("fixed", "rate"),
+    "cell_length": ("cell", "length"),
+    "cell_rate": ("cell", "rate"),
+    "cell_force": ("cell", "force"),
+    "force": ("particles", "f"),
+    "moment": ("particles", "torque"),
+    "velocity": ("fixed", "v"),
+    "angular_velocity": ("fixed", "omega"),
+    "position": ("fixed", "x"),
+    "shear_history": ("pairs", "history"),
+    "rolling_history": ("pairs", "rolling"),
+    "wall_shear_history": ("walls", "history"),
+    "wall_rolling_history": ("walls", "rolling"),
+}
+"""Where each array of `kernels.tape.COMPARED` is in a `State`."""
+assert tuple(COMPARED_ARRAYS) == COMPARED
+
+
+def _flat(array: np.ndarray, dtype) -> np.ndarray:
+    """`array` as a flat view of `dtype` (never a copy)."""
+    if not array.flags.c_contiguous:
+        raise ValueError("the information tape views only contiguous arrays")
+    return array.reshape(-1).view(dtype)
+
+
+def _changed(state, events) -> tuple:
+    arrays = [getattr(getattr(state, bundle), name) for bundle, names in CHANGED for name in names]
+    return tuple(_flat(a, np.uint8) for a in arrays + [events])
+
+
+def _compared(state) -> tuple:
+    return tuple(
+        _flat(getattr(getattr(state, bundle), name), np.int64)
+        for bundle, name in COMPARED_ARRAYS.values()
+    )
+
+
+_NOTHING8 = np.zeros(0, dtype=np.uint8)
+_NOTHING64 = np.zeros(0, dtype=np.int64)
+
+
+def no_tape() -> Tape:
+    """The tape of a run without one."""
+    bytes_ = tuple(_NOTHING8 for _ in range(sum(len(names) for _, names in CHANGED) + 1))
+    longs = tuple(_NOTHING64 for _ in COMPARED)
+    return Tape(
+        OFF, bytes_, bytes_, longs, longs, np.zeros(0), np.zeros(0), _NOTHING8, _NOTHING8,
+        np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
+        np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
+        _NOTHING64, np.zeros(3, dtype=np.int64), 0,
+    )  # fmt: skip
+
+
+class _Buffers:
+    """The arrays a tape bundle is made of, kept from call to call and made anew only where
+    the state's arrays changed size (a pair list grown)."""
+
+    def __init__(self):
+        self.kept: tuple = ()
+        self.before: tuple = ()
+        self.what = np.zeros(0, dtype=np.int8)
+        self.where = _NOTHING64
+        self.amount = _NOTHING64
+        self.counts = np.zeros(STEPS_PER_BLOCK, dtype=np.int64)
+        self.bits = np.zeros((STEPS_PER_BLOCK, len(MECHANISMS)))
+        self.contacts = np.zeros((STEPS_PER_BLOCK, len(MECHANISMS)), dtype=np.int64)
+        self.offsets = np.zeros(STEPS_PER_BLOCK + 1, dtype=np.int64)
+        self.span = np.zeros(3, dtype=np.int64)
+        self.causes = _NOTHING8
+        self.wall_causes = _NOTHING8
+
+    def bundle(self, state, events, mode: int) -> Tape:
+        live = _changed(state, events)
+        compared = _compared(state)
+        self.kept = _like(self.kept, live)
+        self.before = _like(self.before, compared)
+        bound = sum(a.shape[0] for a in compared)
+        if self.what.shape[0] < bound + MIN_ENTRIES:
+            self._entries(bound + bound // 2 + MIN_ENTRIES)
+        pairs = state.pairs.i.shape[0]
+        if self.causes.shape[0] != 2 * pairs:
+            self.causes = np.zeros(2 * pairs, dtype=np.uint8)
+        contacts = state.walls.overlap.size
+        if self.wall_causes.shape[0] != 2 * contacts:
+            self.wall_causes = np.zeros(2 * contacts, dtype=np.uint8)
+        force_before = self.before[COMPARED.index("force")].view(np.float64)
+        moment_before = self.before[COMPARED.index("moment")].view(np.float64)
+        return Tape(
+            mode, live, self.kept, compared, self.before, force_before, moment_before,
+            self.causes, self.wall_causes, self.what, self.where, self.amount, self.counts,
+            self.bits, self.contacts, self.offsets, self.span, bound,
+        )  # fmt: skip
+
+    def _entries(self, capacity: int) -> None:
+        used = int(self.span[2])
+        what = np.zeros(capacity, dtype=np.int8)
+        where = np.zeros(capacity, dtype=np.int64)
+        amount = np.zeros(capacity, dtype=np.int64)
+        what[:used], where[:used], amount[:used] = (
+            self.what[:used],
+            self.where[:used],
+            self.amount[:used],
+        )
+        self.what, self.where, self.amount = what, where, amount
+
+
+def _like(copies: tuple, arrays: tuple) -> tuple:
+    """Copies with the sizes of `arrays` (those of `copies` where they fit)."""
+    if len(copies) == len(arrays) and all(
+        c.shape == a.shape for c, a in zip(copies, arrays, strict=True)
+    ):
+        return copies
+    return tuple(np.zeros_like(a) for a in arrays)
+
+
+class Recorder:
+    """Records the tape of a stage going forward into `path`, from the stage's `first_step`;
+    resuming at `step`, the file's steps from there on are dropped and recording goes on."""
+
+    def __init__(self, path: Path, stage: str, first_step: int, particles: int, step=None):
+        self.path = Path(path)
+        self.first_step = first_step
+        self.buffers = _Buffers()
+        self.written_steps = 0
+        self.written_entries = 0
+        if step is None:
+            self._create(stage, particles)
+        else:
+            self._truncate(step - first_step)
+        self.buffers.span[:] = (first_step + self.written_steps, 0, 0)
+
+    def _create(self, stage: str, particles: int) -> None:
+        m = len(MECHANISMS)
+        with _open(self.path, "w") as f:
+            f.attrs.update(
+                kind="revdem tape", schema_version=SCHEMA_VERSION, first_step=self.first_step,
+                stage=stage, particles=particles, compared=list(COMPARED),
+                mechanisms=list(MECHANISMS),
+            )  # fmt: skip
+            for name, dtype in (("what", np.int8), ("where", np.int64), ("amount", np.int64)):
+                f.create_dataset(
+                    f"entries/{name}", (0,), dtype, maxshape=(None,), chunks=(CHUNK,), **FILTERS
+                )
+            f.create_dataset(
+                "steps/count", (0,), np.int64, maxshape=(None,), chunks=(CHUNK,), **FILTERS
+            )
+            for name, dtype in (("bits", np.float32), ("contacts", np.int32)):
+                f.create_dataset(
+                    f"steps/{name}", (0, m), dtype, maxshape=(None, m), chunks=(4096, m), **FILTERS
+                )
+
+    def _truncate(self, steps: int) -> None:
+        """Keep the file's first `steps` steps (a checkpoint's), and the entries they hold."""
+        with _open(self.path, "a") as f:
+            if f["steps/count"].shape[0] < steps:
+                raise InputError(
+                    f"{self.path}: the information tape holds {f['steps/count'].shape[0]} "
+                    f"steps, the checkpoint needs {steps}"
+                )
+            entries = int(f["steps/count"][:steps].sum())
+            for name in ("count", "bits", "contacts"):
+                f[f"steps/{name}"].resize(steps, axis=0)
+            for name in ("what", "where", "amount"):
+                f[f"entries/{name}"].resize((entries,))
+        self.written_steps, self.written_entries = steps, entries
+
+    def bundle(self, state, events) -> Tape:
+        return self.buffers.bundle(state, events, RECORD)
+
+    def flush(self) -> None:
+        """Append the block recorded so far to the file and empty it."""
+        b = self.buffers
+        steps, entries = int(b.span[1]), int(b.span[2])
+        if steps == 0:
+            return
+        with _open(self.path, "a") as f:
+            _append(f["entries/what"], b.what[:entries])
+            _append(f["entries/where"], b.where[:entries])
+            _append(f["entries/amount"], b.amount[:entries])
+            _append(f["steps/count"], b.counts[:steps])
+            _append(f["steps/bits"], b.bits[:steps].astype(np.float32))
+            _append(f["steps/contacts"], b.contacts[:steps].astype(np.int32))
+        self.written_steps += steps
+        self.written_entries += entries
+        b.bits[:steps] = 0.0
+        b.contacts[:steps] = 0
+        b.offsets[:] = 0
+        b.span[:] = (self.first_step + self.written_steps, 0, 0)
+
+
+class Replayer:
+    """Gives the reversed run the tape's entries, a block at a time from the end."""
+
+    def __init__(self, path: Path, stage: str, first_step: int, particles: int):
+        self.path = Path(path)
+        with _open(self.path, "r") as f:
+            attrs = dict(f.attrs)
+            if attrs.get("kind") != "revdem tape":
+                raise InputError(f"{self.path}: not a revdem information tape")
+            if int(attrs.get("schema_version", -1)) != SCHEMA_VERSION:
+                raise InputError(
+                    f"{self.path}: information tape schema {attrs.get('schema_version')}, "
+                    f"this revdem reads {SCHEMA_VERSION}"
+                )
+            if (attrs["stage"], int(attrs["first_step"]), int(attrs["particles"])) != (
+                stage,
+                first_step,
+                particles,
+            ):
+                raise InputError(
+                    f"{self.path}: the information tape of stage {attrs['stage']} from step "
+                    f"{attrs['first_step']} with {attrs['particles']} particles, not of stage "
+                    f"{stage} from step {first_step} with {particles}"
+                )
+            counts = f["steps/count"][:]
+        self.first_step = first_step
+        self.starts = np.concatenate(([0], np.cumsum(counts)))
+        self.buffers = _Buffers()
+
+    @property
+    def steps(self) -> int:
+        return self.starts.shape[0] - 1
+
+    def bundle(self, state, events) -> Tape:
+        return self.buffers.bundle(state, events, REPLAY)
+
+    def load(self, step: int) -> None:
+        """Fill the block with the entries of the steps up to `step` - 1 (the next the
+        reversed run steps to), as many as it holds."""
+        b = self.buffers
+        high = step - 1 - self.first_step  # the last label, counted from the stage's start
+        if not 0 <= high < self.steps:
+            raise RunFailed(
+                f"{self.path}: the information tape holds steps {self.first_step} to "
+                f"{self.first_step + self.steps - 1}, the reversal needs step {step - 1}"
+            )
+        room = b.what.shape[0]
+        low = high
+        while (
+            low > 0
+            and high - low + 1 < STEPS_PER_BLOCK
+            and self.starts[high + 1] - self.starts[low - 1] <= room
+        ):
+            low -= 1
+        begin, end = int(self.starts[low]), int(self.starts[high + 1])
+        if end - begin > room:
+            raise RunFailed(f"{self.path}: step {step - 1} holds more entries than a step can make")
+        with _open(self.path, "r") as f:
+            b.what[: end - begin] = f["entries/what"][begin:end]
+            b.where[: end - begin] = f["entries/where"][begin:end]
+            b.amount[: end - begin] = f["entries/amount"][begin:end]
+        b.offsets[: high - low + 2] = self.starts[low : high + 2] - begin
+        b.span[:] = (self.first_step + low, high - low + 1, end - begin)
+
+
+def _append(dataset, values: np.ndarray) -> None:
+    old = dataset.shape[0]
+    dataset.resize(old + values.shape[0], axis=0)
+    dataset[old:] = values
+
+
+def _open(path: Path, mode: str) -> h5py.File:
+    try:
+        return h5py.File(path, mode)
+    except OSError as exc:
+        if mode == "r":
+            raise InputError(f"{path}: cannot read the information tape ({exc})") from None
+        raise RunFailed(f"{path}: cannot write the information tape ({exc})") from None
+
+
+def summary(path: Path) -> dict:
+    """What a tape holds: its size on disk against the state written at every step, and the
+    bits it recorded, in all and by mechanism."""
+    with _open(Path(path), "r") as f:
+        bits = f["steps/bits"][:].astype(np.float64)
+        contacts = f["steps/contacts"][:]
+        steps = int(f["steps/count"].shape[0])
+        entries = int(f["entries/what"].shape[0])
+        particles = int(f.attrs["particles"])
+    total = bits.sum(axis=0)
+    return {
+        "steps": steps,
+        "entries": entries,
+        "bytes": Path(path).stat().st_size,
+        "bits_destroyed": float(total.sum()),
+        "bits_per_step": float(total.sum() / steps) if steps else 0.0,
+        "by_mechanism": {
+            name: {"bits": float(total[k]), "contacts": int(contacts[:, k].sum())}
+            for k, name in enumerate(MECHANISMS)
+            if total[k] > 0
+        },
+        "particles": particles,
+    }

@@ -1,0 +1,376 @@
+"""The information tape: what a reversal cannot recompute, recorded going forward and
+given back going backward, so that any run in fixed-point arithmetic reverses to its own
+starting integers, whatever destroyed information on the way (Hanley 2020 §4-5).
+
+The rule is the one of reversible computing (Maclaurin, Duvenaud & Adams 2015, §2.3):
+wherever the reversed step cannot recompute a value, the forward step records the
+difference between the true value and what the reversed step predicts. Here the
+prediction is the reversed step itself: after each forward step from state S_n to
+S_{n+1}, a reversed step is taken from S_{n+1} (a shadow of the reversal, in place, then
+undone by copying back the arrays a step changes), and what it arrives at, S'_n, is
+compared with S_n array by array. Every difference becomes an entry (array, place,
+amount), integers throughout:
+
+- positions, velocities and angular velocities are the integers of fixed-point arithmetic,
+  and the entry is their difference in grid steps;
+- net forces and moments, the shear and rolling histories and the cell's own floating-point
+  arrays are compared by their bits, read as integers in the order of the numbers
+  (`ordered`), so the entry counts the doubles between the two values: floating point is
+  its own grid, and the forward run is the same bit for bit with or without the tape.
+
+A force entry changes the half kick the reversed step took with it: the velocity is
+kicked again with the corrected force (`rekicked`) before velocities are compared, so a
+velocity entry holds only what the kick does not explain (drag's remainder). The reversed
+run applies the entries of step n right after its step to n, in the same order and by the
+same function (`settle`), so it reaches S_n bit for bit; the shadow reversal is the real
+one bit for bit because every per-contact value depends only on its own pair and every
+sum is taken in a fixed order (on integer grids).
+
+Entries of the pair arrays are keyed by the pair (i, j), not by its slot, since the
+reversed run builds its own list at other steps. Each entry also counts as
+log2(1 + 2|amount|) bits, the bits that tell an integer from the others of at most its
+size, charged to the mechanism that made it (`MECHANISMS`).
+"""
+
+from collections import namedtuple
+
+import numpy as np
+
+from revdem_cli.kernels import fixed as fx
+from revdem_cli.kernels import jit
+
+OFF, RECORD, REPLAY = range(3)
+
+COMPARED = (
+    "cell_edges",  # fixed.length, the cell's edges on their grid
+    "cell_edge_rates",  # fixed.rate
+    "cell_length",  # cell.length, m (bits)
+    "cell_rate",  # cell.rate, m/s (bits)
+    "cell_force",  # cell.force, the inertial servo's force on each edge, N (bits)
+    "force",  # particles' net forces, N (bits)
+    "moment",  # particles' net moments, N m (bits)
+    "velocity",  # fixed.v, grid steps
+    "angular_velocity",  # fixed.omega
+    "position",  # fixed.x
+    "shear_history",  # pairs.history, N (bits), keyed by pair
+    "rolling_history",  # pairs.rolling, N m (bits), keyed by pair
+    "wall_shear_history",  # walls.history (bits)
+    "wall_rolling_history",  # walls.rolling (bits)
+)
+"""The arrays compared, in the order they are settled: the cell before the positions its
+coordinates scale, forces before the velocities they kick."""
+(
+    CELL_EDGES,
+    CELL_EDGE_RATES,
+    CELL_LENGTH,
+    CELL_RATE,
+    CELL_FORCE,
+    FORCE,
+    MOMENT,
+    VELOCITY,
+    ANGULAR_VELOCITY,
+    POSITION,
+    SHEAR,
+    ROLLING,
+    WALL_SHEAR,
+    WALL_ROLLING,
+) = range(len(COMPARED))
+
+MECHANISMS = (
+    "coulomb_slip",  # a shear history capped at mu |f_n| (§5.1)
+    "contact_lost_with_shear_force",  # a shear history zeroed at separation (§4)
+    "rolling_limit",  # a rolling history capped at its law's limit (§5.3)
+    "contact_lost_with_rolling_moment",  # a rolling history zeroed at separation
+    "round_off",  # what the reversed remap and turn of a history (Eq 7-9) miss by round-off
+    "damping",  # forces that read velocities: local (Eq 21) and viscous damping (§5.2)
+    "drag",  # the velocity drag's rounding leaves (Eq 25, 28; §5.2)
+    "cell_servo",  # the cell's edges and what they move: a servo reads the stress (Eq 23)
+)
+"""What an entry is charged to: a history's by what its contact did in the forward step,
+the rest by the array."""
+SLIP, LOST, LIMIT, ROLLED_OFF, ROUND_OFF, DAMPING, DRAG, SERVO = range(len(MECHANISMS))
+
+Tape = namedtuple(
+    "Tape",
+    [
+        "mode",  # OFF, RECORD or REPLAY
+        "live",  # the arrays a step changes, as bytes (uint8 views), a fixed number of them
+        "kept",  # their copies while the shadow reversal runs
+        "state",  # the arrays of COMPARED as int64 views (the doubles' bits), in that order
+        "before",  # their copies at the start of the step
+        "force_before",  # `before`'s force and moment as doubles (views)
+        "moment_before",
+        "causes",  # per pair slot: what its shear (2k) and rolling (2k + 1) history did
+        "wall_causes",  # per wall contact q W + b, the same
+        "what",  # entries: the array (index in COMPARED), int64 (E,)
+        "where",  # the place: flat index, or for pair arrays (i N + j) 3 + axis, int64 (E,)
+        "amount",  # true value minus the reversal's, int64 (E,)
+        "counts",  # entries of each step of the block, int64 (S,)
+        "bits",  # bits of each step of the block by mechanism, (S, len(MECHANISMS))
+        "contacts",  # contacts (or particles, or edges) with entries, same shape, int64
+        "offsets",  # first entry of each step of the block, int64 (S + 1,)
+        "span",  # [first step of the block, steps in it, entries in it], int64 (3,)
+        "bound",  # entries one step can make at most: the room kept free for a step
+    ],
+)
+"""Entries are labelled by the step whose state they restore: a forward step from n records
+label n, and the reversed step to n applies it."""
+
+
+@jit
+def ordered(bits):
+    """The bits of a double as an integer in the order of the doubles: consecutive doubles
+    are consecutive integers, -0.0 is -1 and +0.0 is 0."""
+    return bits if bits >= 0 else ~(bits & np.int64(0x7FFFFFFFFFFFFFFF))
+
+
+@jit
+def unordered(number):
+    """The bits of the double that `ordered` numbers so."""
+    return number if number >= 0 else (~number) | np.int64(-0x8000000000000000)
+
+
+@jit
+def bits_of(amount):
+    """log2(1 + 2|amount|): the bits that tell an integer from the others of at most its size."""
+    return np.log2(1.0 + 2.0 * abs(float(amount)))
+
+
+@jit
+def rekicked(f, inv, q, h, step):
+    """The increment, in grid steps, of the reversed step's half kick h f / m of one
+    component (as `fixed.kick_row` takes it)."""
+    return np.int64(fx.rounded(h * f * inv[q] * (1.0 / step)))
+
+
+@jit
+def _copy(into, arrays):
+    """into[k][:] = arrays[k] for each array, element by element (a slice assignment would
+    first look for overlap, and copy through a temporary)."""
+    for k in range(len(arrays)):
+        source, target = arrays[k], into[k]
+        for e in range(source.shape[0]):
+            target[e] = source[e]
+
+
+@jit
+def keep(tape):
+    """`before` <- the compared arrays now (S_n)."""
+    _copy(tape.before, tape.state)
+
+
+@jit
+def hold(tape):
+    """`kept` <- the arrays a step changes (S_{n+1}), before the shadow reversal."""
+    _copy(tape.kept, tape.live)
+
+
+@jit
+def restore(tape):
+    """The arrays a step changes back to `kept`: the shadow reversal undone."""
+    _copy(tape.live, tape.kept)
+
+
+@jit
+def classify(tape, pairs, walls):
+    """What each contact's histories did in the forward step just taken (S_n to S_{n+1}):
+    capped (slip, rolling limit) or lost at separation; round-off otherwise."""
+    n = pairs.count[0]
+    for k in range(min(n, pairs.destroyed.shape[0])):
+        apart = pairs.overlap[k] <= 0.0
+        tape.causes[2 * k] = ROUND_OFF
+        if pairs.destroyed[k] > 0.0:
+            tape.causes[2 * k] = LOST if apart else SLIP
+        if pairs.rolled.shape[0] > 0:
+            tape.causes[2 * k + 1] = ROUND_OFF
+            if pairs.rolled[k] > 0.0:
+                tape.causes[2 * k + 1] = ROLLED_OFF if apart else LIMIT
+    if walls.history.shape[0] == 0:
+        return
+    count = walls.overlap.shape[1]
+    for q in range(walls.overlap.shape[0]):
+        for b in range(count):
+            c = q * count + b
+            apart = walls.overlap[q, b] <= 0.0
+            tape.wall_causes[2 * c] = ROUND_OFF
+            if walls.destroyed[q, b] > 0.0:
+                tape.wall_causes[2 * c] = LOST if apart else SLIP
+            if walls.rolled.shape[0] > 0:
+                tape.wall_causes[2 * c + 1] = ROUND_OFF
+                if walls.rolled[q, b] > 0.0:
+                    tape.wall_causes[2 * c + 1] = ROLLED_OFF if apart else LIMIT
+
+
+@jit
+def _mechanism(tape, what, index):
+    """The mechanism an entry of array `what` at flat `index` (pair arrays: slot 3 k + axis)
+    is charged to."""
+    if what <= CELL_FORCE or what == POSITION:
+        return SERVO
+    if what == FORCE or what == MOMENT:
+        return DAMPING
+    if what == VELOCITY or what == ANGULAR_VELOCITY:
+        return DRAG
+    rolling = 1 if what == ROLLING or what == WALL_ROLLING else 0
+    if what == SHEAR or what == ROLLING:
+        return tape.causes[2 * (index // 3) + rolling]
+    return tape.wall_causes[2 * (index // 3) + rolling]
+
+
+@jit
+def _in_order(what):
+    """Whether array `what` holds doubles, compared and changed in their order."""
+    doubles = what == CELL_LENGTH or what == CELL_RATE or what == CELL_FORCE
+    return doubles or what == FORCE or what == MOMENT or what >= SHEAR
+
+
+@jit
+def _apply(tape, p, cell, fixed, what, index, amount, h):
+    """Add `amount` to array `what` at flat `index` (doubles: in their order), with what
+    follows from it: a force or moment kicks its velocity again, a velocity, angular
+    velocity or position refreshes its image."""
+    values = tape.state[what]
+    q, axis = index // 3, index % 3
+    grid = fixed.grid
+    if what == FORCE or what == MOMENT:
+        forces = p.f if what == FORCE else p.torque
+        wrong = forces[q, axis]
+        values[index] = unordered(ordered(values[index]) + amount)
+        if what == FORCE:
+            step = grid[fx.VELOCITY]
+            again = rekicked(forces[q, axis], p.inv_mass, q, h, step)
+            fixed.v[q, axis] += again - rekicked(wrong, p.inv_mass, q, h, step)
+            p.v[q, axis] = fixed.v[q, axis] * step
+        elif p.torque.shape[0] > 0 and fixed.omega.shape[0] > 0:
+            step = grid[fx.ANGULAR_VELOCITY]
+            again = rekicked(forces[q, axis], p.inv_inertia, q, h, step)
+            fixed.omega[q, axis] += again - rekicked(wrong, p.inv_inertia, q, h, step)
+            p.omega[q, axis] = fixed.omega[q, axis] * step
+        return
+    if _in_order(what):
+        values[index] = unordered(ordered(values[index]) + amount)
+        return
+    values[index] += amount
+    if what == VELOCITY:
+        p.v[q, axis] = fixed.v[q, axis] * grid[fx.VELOCITY]
+    elif what == ANGULAR_VELOCITY:
+        p.omega[q, axis] = fixed.omega[q, axis] * grid[fx.ANGULAR_VELOCITY]
+    elif what == POSITION:
+        if p.s.shape[0] > 0:
+            p.s[q, axis] = fixed.x[q, axis] * grid[axis]
+            p.x[q, axis] = p.s[q, axis] * cell.length[axis]
+        else:
+            p.x[q, axis] = fixed.x[q, axis] * grid[axis]
+
+
+@jit
+def _slot(pairs, i, j):
+    """The slot of pair (i, j) in the list, -1 if it is not listed."""
+    for k in range(pairs.first[i], pairs.first[i + 1]):
+        if pairs.j[k] == j:
+            return k
+    return -1
+
+
+@jit
+def record(tape, p, pairs, walls, cell, fixed, h, histories, damped):
+    """Settle the shadow reversal's state S'_n onto `before` (S_n): the histories (with
+    `histories`) or the other arrays, each in the order of COMPARED, appending each
+    difference as an entry of the block's step being recorded and charging its bits; `h`
+    is the reversed step's half kick, -dt/2; `damped`: forces read velocities, so that a
+    force entry is charged to damping rather than to round-off."""
+    label = tape.span[1]
+    used = tape.span[2]
+    n = p.x.shape[0]
+    for what in range(SHEAR if histories else 0, len(COMPARED) if histories else SHEAR):
+        values = tape.state[what]
+        was = tape.before[what]
+        keyed = what == SHEAR or what == ROLLING
+        size = min(3 * pairs.count[0], values.shape[0]) if keyed else values.shape[0]
+        counted = -1  # the last contact (or particle, or edge) charged with an entry
+        for index in range(size):
+            if values[index] == was[index]:
+                continue
+            if _in_order(what):
+                amount = ordered(was[index]) - ordered(values[index])
+            else:
+                amount = was[index] - values[index]
+            where = index
+            if keyed:
+                k = index // 3
+                where = (np.int64(pairs.i[k]) * n + pairs.j[k]) * 3 + index % 3
+            tape.what[used] = what
+            tape.where[used] = where
+            tape.amount[used] = amount
+            used += 1
+            mechanism = _mechanism(tape, what, index)
+            if mechanism == DAMPING and not damped:
+                mechanism = ROUND_OFF
+            tape.bits[label, mechanism] += bits_of(amount)
+            if index // 3 != counted:
+                tape.contacts[label, mechanism] += 1
+                counted = index // 3
+            _apply(tape, p, cell, fixed, what, index, amount, h)
+    recorded = used - tape.span[2]
+    tape.span[2] = used
+    return recorded
+
+
+@jit
+def close_step(tape):
+    """End the step being recorded: its entries counted, the next step's begun."""
+    label = tape.span[1]
+    tape.counts[label] = tape.span[2] - tape.offsets[label]
+    tape.offsets[label + 1] = tape.span[2]
+    tape.span[1] = label + 1
+
+
+@jit
+def replay(tape, p, pairs, cell, fixed, step, h, histories):
+    """Apply the entries of `step` (the reversed run has just stepped to it) as `record`
+    settled them: those of the histories (with `histories`) or the others. Returns (the
+    entries applied, -1), or where an entry's pair is not in the list (-1, the pair
+    i N + j)."""
+    label = step - tape.span[0]
+    n = p.x.shape[0]
+    applied = 0
+    for e in range(tape.offsets[label], tape.offsets[label + 1]):
+        what = tape.what[e]
+        if (what >= SHEAR) != histories:
+            continue
+        index = tape.where[e]
+        if what == SHEAR or what == ROLLING:
+            key = index // 3
+            k = _slot(pairs, key // n, key % n)
+            if k < 0:
+                return -1, key
+            index = 3 * k + index % 3
+        _apply(tape, p, cell, fixed, what, index, tape.amount[e], h)
+        applied += 1
+    return applied, -1
+
+
+@jit
+def unkick(p, fixed, h):
+    """Take back the half kick h f / m (and h t / I) the reversed step's gather gave with the
+    forces it found, before they are found again (`fixed.kick_row` undone)."""
+    v_step = fixed.grid[fx.VELOCITY]
+    w_step = fixed.grid[fx.ANGULAR_VELOCITY]
+    for q in range(p.f.shape[0]):
+        for d in range(3):
+            fixed.v[q, d] -= rekicked(p.f[q, d], p.inv_mass, q, h, v_step)
+            p.v[q, d] = fixed.v[q, d] * v_step
+            fixed.omega[q, d] -= rekicked(p.torque[q, d], p.inv_inertia, q, h, w_step)
+            p.omega[q, d] = fixed.omega[q, d] * w_step
+
+
+@jit
+def has_room(tape):
+    """Whether the record block has room for one more step."""
+    return tape.span[1] < tape.counts.shape[0] and tape.span[2] + tape.bound <= tape.what.shape[0]
+
+
+@jit
+def holds(tape, step):
+    """Whether the replay block holds the entries of `step`."""
+    return 0 <= step - tape.span[0] < tape.span[1]
