@@ -232,8 +232,8 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
     tape (`kernels.tape`), recording the entries (going forward, in the reversed step's
     shadow) or replaying them (going backward). The histories come first; where one
     changed, the forces are found again from the histories the forward step had (the half
-    kick taken back and given again), so that a force entry holds only what reads
-    velocities; then the rest. Returns -1, or replaying, the pair i N + j of an entry that
+    kick taken back and given again; the histories kept as settled), so that a force entry
+    holds only what reads velocities; then the rest. Returns -1, or replaying, the pair i N + j of an entry that
     is not in the list."""
     h = -0.5 * dt
     damped = dyn.local_damping > 0.0 or law.beta_n > 0.0 or law.beta_t > 0.0
@@ -244,9 +244,11 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
         if missing >= 0:
             return missing
     if touched > 0:
+        tp.hold_histories(tape)
         tp.unkick(p, fixed, h)
         scratch = np.zeros((len(KINDS), len(COLUMNS)))  # logged once, by the step itself
         compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, STATIC, dt, h, scratch, step)
+        tp.put_back_histories(tape)
     if recording:
         tp.record(tape, p, pairs, walls, cell, fixed, h, False, damped)
         tp.close_step(tape)

@@ -166,6 +166,19 @@ def hold(tape):
 
 
 @jit
+def hold_histories(tape):
+    """`before`'s histories <- the histories now: those settled, kept while the forces are
+    found again (which caps them again, and may move a capped one by a double)."""
+    _copy(tape.before[SHEAR:], tape.state[SHEAR:])
+
+
+@jit
+def put_back_histories(tape):
+    """The histories back to those `hold_histories` kept."""
+    _copy(tape.state[SHEAR:], tape.before[SHEAR:])
+
+
+@jit
 def restore(tape):
     """The arrays a step changes back to `kept`: the shadow reversal undone."""
     _copy(tape.live, tape.kept)
