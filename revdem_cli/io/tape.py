@@ -49,16 +49,17 @@ COMPARED_ARRAYS = {
     "cell_edge_rates": ("fixed", "rate"),
     "cell_length": ("cell", "length"),
     "cell_rate": ("cell", "rate"),
-    "cell_force": ("cell", "force"),
-    "force": ("particles", "f"),
-    "moment": ("particles", "torque"),
-    "velocity": ("fixed", "v"),
-    "angular_velocity": ("fixed", "omega"),
     "position": ("fixed", "x"),
     "shear_history": ("pairs", "history"),
     "rolling_history": ("pairs", "rolling"),
     "wall_shear_history": ("walls", "history"),
     "wall_rolling_history": ("walls", "rolling"),
+    "cell_force": ("cell", "force"),
+    "cell_stress": ("cell", "stress"),
+    "force": ("particles", "f"),
+    "moment": ("particles", "torque"),
+    "velocity": ("fixed", "v"),
+    "angular_velocity": ("fixed", "omega"),
 }
 """Where each array of `kernels.tape.COMPARED` is in a `State`."""
 assert tuple(COMPARED_ARRAYS) == COMPARED
@@ -92,7 +93,7 @@ def no_tape() -> Tape:
     bytes_ = tuple(_NOTHING8 for _ in range(sum(len(names) for _, names in CHANGED) + 1))
     longs = tuple(_NOTHING64 for _ in COMPARED)
     return Tape(
-        OFF, bytes_, bytes_, longs, longs, np.zeros(0), np.zeros(0), _NOTHING8, _NOTHING8,
+        OFF, bytes_, bytes_, longs, longs, _NOTHING8, _NOTHING8,
         np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
         np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
         _NOTHING64, np.zeros(3, dtype=np.int64), 0,
@@ -131,12 +132,10 @@ class _Buffers:
         contacts = state.walls.overlap.size
         if self.wall_causes.shape[0] != 2 * contacts:
             self.wall_causes = np.zeros(2 * contacts, dtype=np.uint8)
-        force_before = self.before[COMPARED.index("force")].view(np.float64)
-        moment_before = self.before[COMPARED.index("moment")].view(np.float64)
         return Tape(
-            mode, live, self.kept, compared, self.before, force_before, moment_before,
-            self.causes, self.wall_causes, self.what, self.where, self.amount, self.counts,
-            self.bits, self.contacts, self.offsets, self.span, bound,
+            mode, live, self.kept, compared, self.before, self.causes, self.wall_causes,
+            self.what, self.where, self.amount, self.counts, self.bits, self.contacts,
+            self.offsets, self.span, bound,
         )  # fmt: skip
 
     def _entries(self, capacity: int) -> None:

@@ -230,11 +230,12 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
 def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recording):
     """Bring the reversed step's state at `step` to the forward run's with the information
     tape (`kernels.tape`), recording the entries (going forward, in the reversed step's
-    shadow) or replaying them (going backward). The histories come first; where one
-    changed, the forces are found again from the histories the forward step had (the half
-    kick taken back and given again; the histories kept as settled), so that a force entry
-    holds only what reads velocities; then the rest. Returns -1, or replaying, the pair i N + j of an entry that
-    is not in the list."""
+    shadow) or replaying them (going backward), in two passes: first the cell, positions
+    and histories; where one changed, the forces are found again from them (the positions'
+    images refreshed, the half kick taken back and given again, the histories kept as
+    settled), so that a force entry holds only what reads velocities; then the forces and
+    velocities. Returns -1, or replaying, the pair i N + j of an entry that is not in the
+    list."""
     h = -0.5 * dt
     damped = dyn.local_damping > 0.0 or law.beta_n > 0.0 or law.beta_t > 0.0
     if recording:
@@ -244,6 +245,8 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
         if missing >= 0:
             return missing
     if touched > 0:
+        if p.s.shape[0] > 0:  # the cell's edges may have moved under the cell coordinates
+            fx.mirror(p.x.shape[0], fixed.x, p.x, p.s, fixed.grid[fx.X : fx.Z + 1], cell.length)
         tp.hold_histories(tape)
         tp.unkick(p, fixed, h)
         scratch = np.zeros((len(KINDS), len(COLUMNS)))  # logged once, by the step itself

@@ -46,35 +46,41 @@ COMPARED = (
     "cell_edge_rates",  # fixed.rate
     "cell_length",  # cell.length, m (bits)
     "cell_rate",  # cell.rate, m/s (bits)
-    "cell_force",  # cell.force, the inertial servo's force on each edge, N (bits)
-    "force",  # particles' net forces, N (bits)
-    "moment",  # particles' net moments, N m (bits)
-    "velocity",  # fixed.v, grid steps
-    "angular_velocity",  # fixed.omega
     "position",  # fixed.x
     "shear_history",  # pairs.history, N (bits), keyed by pair
     "rolling_history",  # pairs.rolling, N m (bits), keyed by pair
     "wall_shear_history",  # walls.history (bits)
     "wall_rolling_history",  # walls.rolling (bits)
+    "cell_force",  # cell.force, the inertial servo's force on each edge, N (bits)
+    "cell_stress",  # cell.stress, which the next step's servo reads, Pa (bits)
+    "force",  # particles' net forces, N (bits)
+    "moment",  # particles' net moments, N m (bits)
+    "velocity",  # fixed.v, grid steps
+    "angular_velocity",  # fixed.omega
 )
-"""The arrays compared, in the order they are settled: the cell before the positions its
-coordinates scale, forces before the velocities they kick."""
+"""The arrays compared: every array a reversed step reads from the state it starts from. They
+are settled in two passes: first what forces are found from (the cell before the positions
+its coordinates scale, then the histories), then, once the forces have been found again
+from those, what comes of the forces (forces before the velocities they kick)."""
 (
     CELL_EDGES,
     CELL_EDGE_RATES,
     CELL_LENGTH,
     CELL_RATE,
-    CELL_FORCE,
-    FORCE,
-    MOMENT,
-    VELOCITY,
-    ANGULAR_VELOCITY,
     POSITION,
     SHEAR,
     ROLLING,
     WALL_SHEAR,
     WALL_ROLLING,
+    CELL_FORCE,
+    CELL_STRESS,
+    FORCE,
+    MOMENT,
+    VELOCITY,
+    ANGULAR_VELOCITY,
 ) = range(len(COMPARED))
+SECOND = CELL_FORCE
+"""The first array of the second pass."""
 
 MECHANISMS = (
     "coulomb_slip",  # a shear history capped at mu |f_n| (§5.1)
@@ -98,8 +104,6 @@ Tape = namedtuple(
         "kept",  # their copies while the shadow reversal runs
         "state",  # the arrays of COMPARED as int64 views (the doubles' bits), in that order
         "before",  # their copies at the start of the step
-        "force_before",  # `before`'s force and moment as doubles (views)
-        "moment_before",
         "causes",  # per pair slot: what its shear (2k) and rolling (2k + 1) history did
         "wall_causes",  # per wall contact q W + b, the same
         "what",  # entries: the array (index in COMPARED), int64 (E,)
@@ -169,13 +173,13 @@ def hold(tape):
 def hold_histories(tape):
     """`before`'s histories <- the histories now: those settled, kept while the forces are
     found again (which caps them again, and may move a capped one by a double)."""
-    _copy(tape.before[SHEAR:], tape.state[SHEAR:])
+    _copy(tape.before[SHEAR:SECOND], tape.state[SHEAR:SECOND])
 
 
 @jit
 def put_back_histories(tape):
     """The histories back to those `hold_histories` kept."""
-    _copy(tape.state[SHEAR:], tape.before[SHEAR:])
+    _copy(tape.state[SHEAR:SECOND], tape.before[SHEAR:SECOND])
 
 
 @jit
@@ -218,7 +222,7 @@ def classify(tape, pairs, walls):
 def _mechanism(tape, what, index):
     """The mechanism an entry of array `what` at flat `index` (pair arrays: slot 3 k + axis)
     is charged to."""
-    if what <= CELL_FORCE or what == POSITION:
+    if what <= POSITION or what == CELL_FORCE or what == CELL_STRESS:
         return SERVO
     if what == FORCE or what == MOMENT:
         return DAMPING
@@ -233,8 +237,8 @@ def _mechanism(tape, what, index):
 @jit
 def _in_order(what):
     """Whether array `what` holds doubles, compared and changed in their order."""
-    doubles = what == CELL_LENGTH or what == CELL_RATE or what == CELL_FORCE
-    return doubles or what == FORCE or what == MOMENT or what >= SHEAR
+    integers = what == CELL_EDGES or what == CELL_EDGE_RATES or what == POSITION
+    return not (integers or what == VELOCITY or what == ANGULAR_VELOCITY)
 
 
 @jit
@@ -286,16 +290,16 @@ def _slot(pairs, i, j):
 
 
 @jit
-def record(tape, p, pairs, walls, cell, fixed, h, histories, damped):
-    """Settle the shadow reversal's state S'_n onto `before` (S_n): the histories (with
-    `histories`) or the other arrays, each in the order of COMPARED, appending each
+def record(tape, p, pairs, walls, cell, fixed, h, first, damped):
+    """Settle the shadow reversal's state S'_n onto `before` (S_n): the arrays of the `first`
+    pass, or of the second, each in the order of COMPARED, appending each
     difference as an entry of the block's step being recorded and charging its bits; `h`
     is the reversed step's half kick, -dt/2; `damped`: forces read velocities, so that a
     force entry is charged to damping rather than to round-off."""
     label = tape.span[1]
     used = tape.span[2]
     n = p.x.shape[0]
-    for what in range(SHEAR if histories else 0, len(COMPARED) if histories else SHEAR):
+    for what in range(0 if first else SECOND, SECOND if first else len(COMPARED)):
         values = tape.state[what]
         was = tape.before[what]
         keyed = what == SHEAR or what == ROLLING
@@ -339,9 +343,9 @@ def close_step(tape):
 
 
 @jit
-def replay(tape, p, pairs, cell, fixed, step, h, histories):
+def replay(tape, p, pairs, cell, fixed, step, h, first):
     """Apply the entries of `step` (the reversed run has just stepped to it) as `record`
-    settled them: those of the histories (with `histories`) or the others. Returns (the
+    settled them: those of the `first` pass, or of the second. Returns (the
     entries applied, -1), or where an entry's pair is not in the list (-1, the pair
     i N + j)."""
     label = step - tape.span[0]
@@ -349,7 +353,7 @@ def replay(tape, p, pairs, cell, fixed, step, h, histories):
     applied = 0
     for e in range(tape.offsets[label], tape.offsets[label + 1]):
         what = tape.what[e]
-        if (what >= SHEAR) != histories:
+        if (what < SECOND) != first:
             continue
         index = tape.where[e]
         if what == SHEAR or what == ROLLING:

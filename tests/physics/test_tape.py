@@ -1,0 +1,237 @@
+"""The information tape (`kernels.tape`, `io.tape`): runs whose reversal friction, damping,
+contact loss, rolling resistance or a servo breaks (Hanley 2020 §4-5) reverse to their own
+starting integers with it, and not without; a tape altered in one entry, or without the
+entries of one mechanism, parts the reversal; the bits it recorded by mechanism."""
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from revdem_cli import api as revdem
+from revdem_cli.errors import InputError, RunFailed
+from revdem_cli.io import tape as tape_file
+from revdem_cli.io.tape import summary
+from revdem_cli.kernels.tape import COMPARED, ordered, unordered
+from tests.conftest import FLOOR, PLANE, SPHERE
+
+
+def test_ordered_bits_count_the_doubles_between_two_values():
+    rng = np.random.default_rng(5)
+    values = np.concatenate(
+        (
+            rng.normal(size=200) * 10.0 ** rng.integers(-300, 300, 200),
+            [0.0, -0.0, 5e-324, -5e-324, np.inf, -np.inf, 1.0, -1.0],
+        )
+    )
+    numbers = np.array([ordered(b) for b in values.view(np.int64)])
+    by_value = np.lexsort((~np.signbit(values), values))  # -0.0 before +0.0
+    assert np.all(np.diff(numbers[by_value]) > 0)  # the order of the doubles
+    assert all(unordered(n) == b for n, b in zip(numbers, values.view(np.int64), strict=True))
+    assert ordered(np.float64(-0.0).view(np.int64)) == -1
+    assert ordered(np.float64(0.0).view(np.int64)) == 0
+    for x in (1.0, -3.5e-200, 7e300):
+        after = np.nextafter(x, np.inf)
+        step = ordered(np.float64(after).view(np.int64)) - ordered(np.float64(x).view(np.int64))
+        assert step == 1
+
+
+def _fixed(experiment: revdem.Experiment, tape: bool) -> revdem.Experiment:
+    return experiment.changed({"integrator.arithmetic": "fixed", "reversal.tape": tape})
+
+
+def _shear_collision(mu: float) -> revdem.Experiment:
+    """Hanley 2020 Figure 5's collision: the shear force is lost at separation, and with a
+    finite mu the contact slides first."""
+    return revdem.load("configs/collision_shear.toml").changed(
+        {"contact.friction": mu, "output.figures": []}
+    )
+
+
+def _resting(damping: dict) -> revdem.Experiment:
+    """A sphere pressed 8 um into a plane by a linear spring of 1000 N/m, settling towards
+    the 5.1 um of its weight under damping."""
+    return revdem.from_dict(
+        {
+            "name": "resting",
+            "materials": {"sphere": SPHERE, "plane": PLANE},
+            "contact": {"model": "linear", "kn": 1e3, **damping.get("contact", {})},
+            "damping": damping.get("damping", {}),
+            "particles": [
+                {"material": "sphere", "radius": 0.005, "position": [0, 0, 0.005 - 8e-6]}
+            ],
+            "walls": [FLOOR],
+            "gravity": [0, 0, -9.81],
+            "integrator": {"dt": 1e-6},
+            "stages": [{"name": "settle", "steps": 3000, "output_every": 100, "reverse": True}],
+        }
+    )
+
+
+def _servo() -> revdem.Experiment:
+    """The fcc triaxial test with mu = 0.25 under the proportional servo, shortened."""
+    return revdem.load("configs/fcc_triaxial.toml").changed(
+        {
+            "contact.tangential": "linear",
+            "contact.ks": 1e11,
+            "contact.friction": 0.25,
+            "cell.servo": "proportional",
+            "stages.0.steps": 1000,
+            "stages.1.steps": 3000,
+        }
+    )
+
+
+CASES = {
+    "slip and contact loss": (
+        lambda: _shear_collision(0.3),
+        {"coulomb_slip", "contact_lost_with_shear_force"},
+    ),
+    "contact loss, no slip": (
+        lambda: _shear_collision(math.inf),
+        {"contact_lost_with_shear_force", "round_off"},
+    ),
+    "viscous damping": (lambda: _resting({"contact": {"normal_damping": 0.3}}), {"damping"}),
+    "local damping": (lambda: _resting({"damping": {"local": 0.5}}), {"damping"}),
+    "rolling limit": (lambda: revdem.load("configs/rolling_resistance.toml"), {"rolling_limit"}),
+    "proportional servo": (_servo, {"cell_servo", "round_off"}),
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_the_tape_reverses_a_run_that_destroys_information_to_its_own_integers(tmp_path, case):
+    make, mechanisms = CASES[case]
+    try:  # without the tape the reversal parts from the forward run, or runs off its grids
+        bare = revdem.run(_fixed(make(), tape=False), tmp_path / "bare").comparison
+        assert not bare["bitwise_identical"]
+    except RunFailed as failure:
+        assert "left the range of its fixed-point grid" in str(failure)
+    taped = revdem.run(_fixed(make(), tape=True), tmp_path / "taped")
+    assert taped.comparison["bitwise_identical"], taped.comparison["first_divergence_step"]
+    assert taped.comparison["max_velocity_error"] == 0.0
+    recorded = summary(taped.outputs.restart.with_name(f"{make().name}.tape.h5"))
+    assert mechanisms <= set(recorded["by_mechanism"]), recorded["by_mechanism"]
+    assert recorded["bits_destroyed"] > 0.0
+
+
+def _entries(path):
+    with h5py.File(path) as f:
+        return {name: f[f"entries/{name}"][:] for name in ("what", "where", "amount")} | {
+            "count": f["steps/count"][:]
+        }
+
+
+def _rewrite(path, entries) -> None:
+    """Write `entries` (what, where, amount, and the count of each step) over the tape's."""
+    with h5py.File(path, "a") as f:
+        for name in ("what", "where", "amount"):
+            f[f"entries/{name}"].resize((len(entries[name]),))
+            f[f"entries/{name}"][:] = entries[name]
+        f["steps/count"][:] = entries["count"]
+
+
+def _labels(entries) -> np.ndarray:
+    """The step (from the stage's first) each entry restores."""
+    return np.repeat(np.arange(len(entries["count"])), entries["count"])
+
+
+def _frame_errors(result) -> dict[int, float]:
+    frames = result.comparison["frames"]
+    return dict(zip(frames["step"], frames["velocity_error"], strict=True))
+
+
+def test_an_altered_entry_parts_the_reversal_where_it_stands(tmp_path):
+    taped = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path / "taped")
+    restart = taped.outputs.restart
+    path = restart.with_name("collision_shear.tape.h5")
+    entries = _entries(path)
+    labels = _labels(entries)
+    shear = np.flatnonzero(entries["what"] == COMPARED.index("shear_history"))
+    altered = shear[len(shear) // 2]  # a slipping contact's history, part-way through
+    entries["amount"][altered] += 1 << 40  # 2^40 doubles: about a part in 4000 of it
+    _rewrite(path, entries)
+    parted = revdem.reverse(restart, tmp_path / "parted")
+    errors = _frame_errors(parted)
+    step = int(labels[altered])
+    assert all(error == 0.0 for frame, error in errors.items() if frame > step)
+    first_below = max(frame for frame in errors if frame <= step)
+    assert errors[first_below] > 0.0
+    assert not parted.comparison["bitwise_identical"]
+
+
+@pytest.mark.parametrize(
+    ("case", "array"),
+    [
+        ("slip and contact loss", "shear_history"),
+        ("viscous damping", "force"),
+        ("local damping", "force"),
+        ("rolling limit", "wall_rolling_history"),
+        ("proportional servo", "cell_length"),
+    ],
+)
+def test_a_mechanism_left_off_the_tape_breaks_the_reversal(tmp_path, case, array):
+    make, _ = CASES[case]
+    taped = revdem.run(_fixed(make(), tape=True), tmp_path / "taped")
+    assert taped.comparison["bitwise_identical"]
+    path = taped.outputs.restart.with_name(f"{make().name}.tape.h5")
+    entries = _entries(path)
+    kept = entries["what"] != COMPARED.index(array)
+    assert not kept.all(), f"the tape holds no {array} entry"
+    labels = _labels(entries)[kept]
+    _rewrite(
+        path,
+        {name: entries[name][kept] for name in ("what", "where", "amount")}
+        | {"count": np.bincount(labels, minlength=len(entries["count"]))},
+    )
+    assert not revdem.reverse(taped.outputs.restart, tmp_path / "without").comparison[
+        "bitwise_identical"
+    ]
+
+
+def test_a_tape_in_small_blocks_streams_to_disk_and_back(tmp_path, monkeypatch):
+    """Blocks of 64 steps: the recording is written out 235 times and read back block by
+    block from the end, and the reversal is still exact."""
+    monkeypatch.setattr(tape_file, "STEPS_PER_BLOCK", 64)
+    taped = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path)
+    assert taped.comparison["bitwise_identical"]
+
+
+def test_the_tape_needs_fixed_point_arithmetic_and_velocity_verlet():
+    with pytest.raises(InputError, match="reversal.tape: needs integrator.arithmetic = 'fixed'"):
+        _shear_collision(0.3).changed({"reversal.tape": True})
+    with pytest.raises(InputError, match="reversal.tape: needs integrator.scheme = 'verlet'"):
+        _fixed(_resting({"contact": {"normal_damping": 0.3}}), True).changed(
+            {"integrator.scheme": "trvp"}
+        )
+
+
+@pytest.mark.parametrize("frames", [6, 40], ids=["forward", "reversed"])
+def test_a_taped_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path, frames):
+    """The tape is cut back to the checkpoint's step and recorded on, or replayed on from
+    there: a run stopped part-way through either phase resumes to the same tape and the
+    same exact reversal."""
+    from revdem_cli.engine import output_paths, run_scenario
+
+    experiment = _fixed(_resting({"contact": {"normal_damping": 0.3}}), True).changed(
+        {"output.checkpoint_interval": 0.0}
+    )
+    whole = revdem.run(experiment, tmp_path / "whole")
+    shown = []
+
+    def stop(label, done, total, particles):  # a crash after `frames` frames
+        shown.append(label)
+        if len(shown) == frames:
+            raise RuntimeError("stopped")
+
+    with pytest.raises(RuntimeError, match="stopped"):
+        scenario, text, suffix = experiment.scenario, experiment.text, experiment.suffix
+        run_scenario(scenario, text, suffix, tmp_path / "cut", progress=stop)
+    assert ("reversed" in shown[-1]) == (frames == 40)
+    resumed = revdem.resume(tmp_path / "cut")
+    assert resumed.comparison["bitwise_identical"]
+    a = _entries(output_paths(tmp_path / "whole", "resting")["tape"])
+    b = _entries(output_paths(tmp_path / "cut", "resting")["tape"])
+    for name in a:
+        assert np.array_equal(a[name], b[name]), name
+    assert whole.comparison["bitwise_identical"]
