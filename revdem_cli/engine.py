@@ -18,6 +18,7 @@ from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
 from revdem_cli.io.tape import Recorder, Replayer
+from revdem_cli.io.tape import summary as tape_summary
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.stage import (
     Model,
@@ -225,8 +226,8 @@ def _forward(
             if scenario.reversal.tape and index == len(scenario.stages) - 1:
                 resumed_at = state.step if events is not None else None
                 tape = Recorder(
-                    paths["tape"], stage.name, clock.first_step, len(state.particles.x),
-                    resumed_at,
+                    paths["tape"], stage.name, (clock.first_step, clock.first_time, clock.dt),
+                    state, resumed_at,
                 )  # fmt: skip
 
             def checkpoint(state, clock, events, place=place, tape=tape):
@@ -353,6 +354,8 @@ def _reverse(
     forward = Path(start.trajectory)
     if forward.exists():
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
+        if tape is not None:
+            verdict["information_tape"] = tape_summary(tape.path)
         write_text(paths["compare"], json.dumps(verdict, indent=2) + "\n")
         outputs.comparison, outputs.verdict = paths["compare"], verdict
         outputs.figures = _figures(scenario, forward, paths["reverse"], run.out_dir)

@@ -621,7 +621,7 @@ class Reversal(_Model):
 
 FIGURE_KINDS = (
     "speed", "forces", "velocity_z", "wall_forces", "stress_ratios", "contact_forces",
-    "contact_normals",
+    "contact_normals", "information",
 )  # fmt: skip
 """The figures `revdem_cli.report.figures.FIGURES` draws."""
 
@@ -638,7 +638,9 @@ class Output(_Model):
         "'stress_ratios' = principal stress ratios and coordination number against the "
         "compression of a periodic cell; with contacts = true, at the end of the run: "
         "'contact_forces' = distribution of normal contact forces over their mean, semi-log; "
-        "'contact_normals' = rose diagrams of the contact normals in the xz and xy planes",
+        "'contact_normals' = rose diagrams of the contact normals in the xz and xy planes; "
+        "with reversal.tape = true, 'information' = the bits the reversed stage destroyed, "
+        "by mechanism, summed and per step, against time or the compression of the cell",
     )
     particle_stress: bool = Field(
         strict=True,

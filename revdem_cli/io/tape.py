@@ -164,24 +164,27 @@ class Recorder:
     """Records the tape of a stage going forward into `path`, from the stage's `first_step`;
     resuming at `step`, the file's steps from there on are dropped and recording goes on."""
 
-    def __init__(self, path: Path, stage: str, first_step: int, particles: int, step=None):
+    def __init__(self, path: Path, stage: str, clock: tuple[int, float, float], state, step=None):
+        """`clock`: the stage's first step, its time there (s) and its time step (s); `state`:
+        the state at the stage's start (or, resuming, at `step`)."""
         self.path = Path(path)
-        self.first_step = first_step
+        self.first_step = clock[0]
         self.buffers = _Buffers()
         self.written_steps = 0
         self.written_entries = 0
         if step is None:
-            self._create(stage, particles)
+            self._create(stage, clock, state)
         else:
-            self._truncate(step - first_step)
-        self.buffers.span[:] = (first_step + self.written_steps, 0, 0)
+            self._truncate(step - self.first_step)
+        self.buffers.span[:] = (self.first_step + self.written_steps, 0, 0)
 
-    def _create(self, stage: str, particles: int) -> None:
+    def _create(self, stage: str, clock: tuple[int, float, float], state) -> None:
         m = len(MECHANISMS)
         with _open(self.path, "w") as f:
             f.attrs.update(
-                kind="revdem tape", schema_version=SCHEMA_VERSION, first_step=self.first_step,
-                stage=stage, particles=particles, compared=list(COMPARED),
+                kind="revdem tape", schema_version=SCHEMA_VERSION, first_step=clock[0],
+                first_time=clock[1], dt=clock[2], stage=stage, particles=len(state.particles.x),
+                state_bytes=state_bytes(state), compared=list(COMPARED),
                 mechanisms=list(MECHANISMS),
             )  # fmt: skip
             for name, dtype in (("what", np.int8), ("where", np.int64), ("amount", np.int64)):
@@ -300,6 +303,17 @@ class Replayer:
         b.span[:] = (self.first_step + low, high - low + 1, end - begin)
 
 
+def state_bytes(state) -> int:
+    """The bytes of the arrays the tape compares, the listed pairs' only: what storing the
+    whole state at every step would take, step by step."""
+    listed = int(state.pairs.count[0])
+    total = 0
+    for bundle, name in COMPARED_ARRAYS.values():
+        array = getattr(getattr(state, bundle), name)
+        total += array[:listed].nbytes if bundle == "pairs" else array.nbytes
+    return total
+
+
 def _append(dataset, values: np.ndarray) -> None:
     old = dataset.shape[0]
     dataset.resize(old + values.shape[0], axis=0)
@@ -315,26 +329,41 @@ def _open(path: Path, mode: str) -> h5py.File:
         raise RunFailed(f"{path}: cannot write the information tape ({exc})") from None
 
 
+def by_step(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """A tape's steps, their times (s), the bits of each by mechanism, and the mechanisms'
+    names."""
+    with _open(Path(path), "r") as f:
+        bits = f["steps/bits"][:].astype(np.float64)
+        first, time, dt = int(f.attrs["first_step"]), float(f.attrs["first_time"]), f.attrs["dt"]
+        names = [str(name) for name in f.attrs["mechanisms"]]
+    labels = np.arange(bits.shape[0])
+    return first + labels, time + labels * float(dt), bits, names
+
+
 def summary(path: Path) -> dict:
-    """What a tape holds: its size on disk against the state written at every step, and the
-    bits it recorded, in all and by mechanism."""
+    """What a tape holds: its size on disk against storing the compared state at every step,
+    and the bits it recorded, in all and by mechanism (with the contacts, particles or
+    edges that had entries, counted once a step)."""
     with _open(Path(path), "r") as f:
         bits = f["steps/bits"][:].astype(np.float64)
         contacts = f["steps/contacts"][:]
         steps = int(f["steps/count"].shape[0])
         entries = int(f["entries/what"].shape[0])
-        particles = int(f.attrs["particles"])
+        full = int(f.attrs["state_bytes"]) * steps
     total = bits.sum(axis=0)
+    size = Path(path).stat().st_size
     return {
+        "file": Path(path).name,
         "steps": steps,
         "entries": entries,
-        "bytes": Path(path).stat().st_size,
+        "bytes": size,
+        "full_state_bytes": full,
+        "size_over_full_state": size / full if full else None,
         "bits_destroyed": float(total.sum()),
         "bits_per_step": float(total.sum() / steps) if steps else 0.0,
         "by_mechanism": {
-            name: {"bits": float(total[k]), "contacts": int(contacts[:, k].sum())}
+            name: {"bits": float(total[k]), "with_entries": int(contacts[:, k].sum())}
             for k, name in enumerate(MECHANISMS)
             if total[k] > 0
         },
-        "particles": particles,
     }

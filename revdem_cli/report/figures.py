@@ -286,6 +286,51 @@ def contact_normals_figure(forward: Path, reverse: Path | None, png: Path) -> Pa
     return _save(fig, png)
 
 
+def information_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """The information the run destroyed, from its tape (`io.tape`): the bits recorded, summed
+    from the start of the reversed stage, and per step (averaged over a hundredth of the
+    stage), by mechanism, against time, or in a cell with a strain-rate axis against the
+    compression along it (mm)."""
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.io.tape import by_step
+
+    with open_trajectory(forward) as f:
+        scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])
+    steps, times, bits, names = by_step(Path(forward).with_name(f"{scenario['name']}.tape.h5"))
+    x, xlabel = times * 1e3, "time (ms)"
+    motion = scenario["stages"][-1].get("cell") or {}
+    axis = next((k for k, a in enumerate("xyz") if (motion.get(a) or {}).get("strain_rate")), None)
+    if axis is not None:
+        with open_trajectory(forward) as f:
+            at = f["observables/cell_length/step"][:]
+            length = f["observables/cell_length/value"][:, axis]
+        edge = np.interp(steps, at, length)
+        x, xlabel = (edge[0] - edge) * 1e3, f"compression along {'xyz'[axis]} (mm)"
+    window = max(1, len(steps) // 100)
+    kernel = np.ones(window) / window
+    fig, (total, rate) = plt.subplots(2, 1, figsize=(6, 6.5), dpi=120, sharex=True)
+    for k, name in enumerate(names):
+        if bits[:, k].sum() == 0.0:
+            continue
+        total.plot(x, np.cumsum(bits[:, k]), label=name)
+        rate.plot(x, np.convolve(bits[:, k], kernel, mode="same"), label=name, lw=1)
+    total.set_ylabel("bits destroyed since the start")
+    rate.set_ylabel(f"bits per step (mean of {window})")
+    for ax in (total, rate):
+        ax.set_yscale("symlog", linthresh=1.0)
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    rate.set_xlabel(xlabel)
+    return _save(fig, png)
+
+
 FIGURES = {
     "speed": speed_figure,
     "velocity_z": velocity_z_figure,
@@ -294,5 +339,6 @@ FIGURES = {
     "stress_ratios": stress_ratios_figure,
     "contact_forces": contact_forces_figure,
     "contact_normals": contact_normals_figure,
+    "information": information_figure,
 }
 """Figure kinds a scenario can ask for in [output] figures."""

@@ -22,6 +22,8 @@ def describe(path: str | Path) -> dict:
                 return _restart(path, f)
             if "parameters/revdem" in f and "particles/all/position" in f:
                 return _trajectory(path, f)
+            if f.attrs.get("kind") == "revdem tape":
+                return _tape(path, f)
             raise InputError(f"{path}: not a revdem trajectory or restart file")
     except (KeyError, ValueError, OSError) as exc:
         raise InputError(f"{path}: damaged revdem file ({exc})") from None
@@ -76,6 +78,20 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
     return info
 
 
+def _tape(path: Path, f: h5py.File) -> dict:
+    """An information tape (`io.tape`)."""
+    from revdem_cli.io.tape import summary
+
+    return {
+        "file": str(path),
+        "kind": "tape",
+        "stage": str(f.attrs["stage"]),
+        "first_step": int(f.attrs["first_step"]),
+        "particles": int(f.attrs["particles"]),
+        "tape": summary(path),
+    }
+
+
 def _restart(path: Path, f: h5py.File) -> dict:
     """A restart file, or a checkpoint: a restart taken part-way through a run."""
     attrs = f["revdem"].attrs
@@ -90,15 +106,43 @@ def _restart(path: Path, f: h5py.File) -> dict:
         "stage": str(attrs["stage"]),
         "stage_dt": float(attrs["stage_dt"]),
         "trajectory": str(attrs["trajectory"]),
+        **_tape_of(path, str(attrs.get("tape", ""))),
     }
+
+
+def _tape_of(path: Path, name: str) -> dict:
+    """A restart's information tape, summarised, where it names one that is there."""
+    from revdem_cli.io.tape import summary
+
+    tape = path.parent / name
+    return {"tape": summary(tape)} if name and tape.is_file() else {}
 
 
 def _time_step(dt: float | str) -> str:
     return "dt chosen at its start" if dt == "auto" else f"{dt:.6g} s"
 
 
+def tape_lines(tape: dict) -> list[str]:
+    """An information tape's summary as `label: value` lines."""
+    lines = [
+        f"tape:       {tape['file']}, {tape['steps']} steps, {tape['entries']} entries, "
+        f"{tape['bytes']} B ({tape['size_over_full_state']:.3g} of the state at every step)",
+        f"destroyed:  {tape['bits_destroyed']:.6g} bits, {tape['bits_per_step']:.4g} a step",
+    ]
+    for name, part in tape["by_mechanism"].items():
+        lines.append(f"  {name}: {part['bits']:.6g} bits, {part['with_entries']} with entries")
+    return lines
+
+
 def info_lines(info: dict) -> list[str]:
     """The summary as `label: value` lines."""
+    if info["kind"] == "tape":
+        return [
+            f"file:       {info['file']}",
+            f"kind:       information tape of stage {info['stage']} from step "
+            f"{info['first_step']}, {info['particles']} particles",
+            *tape_lines(info["tape"]),
+        ]
     stages = ", ".join(
         f"{s['name']} ({s['steps']} steps of {_time_step(s['dt'])}"
         f"{', reversed' if s['reverse'] else ''})"
@@ -131,6 +175,8 @@ def info_lines(info: dict) -> list[str]:
             f"(end of stage {info['stage']}, dt {info['stage_dt']:.6g} s)"
         )
         lines.append(f"trajectory: {info['trajectory']}")
+        if "tape" in info:
+            lines += tape_lines(info["tape"])
     verdict = info.get("comparison")
     if verdict is not None:
         if verdict["reversible"]:

@@ -33,6 +33,14 @@ def comparison_table(verdict: dict) -> Table:
     first = verdict["first_divergence_step"]
     table.add_row("first divergence step", "none" if first is None else str(first), "")
     table.add_row("bitwise identical", "yes" if verdict["bitwise_identical"] else "no", "")
+    tape = verdict.get("information_tape")
+    if tape is not None:
+        table.add_row("bits destroyed (information tape)", f"{tape['bits_destroyed']:.4g}", "")
+        for name, part in tape["by_mechanism"].items():
+            table.add_row(f"  {name}", f"{part['bits']:.4g}", "")
+        table.add_row(
+            "tape size / whole state every step", f"{tape['size_over_full_state']:.3g}", ""
+        )
     return table
 
 
