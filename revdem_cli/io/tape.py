@@ -125,7 +125,7 @@ class _Buffers:
         self.before = _like(self.before, compared)
         bound = sum(a.shape[0] for a in compared)
         if self.what.shape[0] < bound + MIN_ENTRIES:
-            self._entries(bound + bound // 2 + MIN_ENTRIES)
+            self._entries(2 * bound + MIN_ENTRIES)
         pairs = state.pairs.i.shape[0]
         if self.causes.shape[0] != 2 * pairs:
             self.causes = np.zeros(2 * pairs, dtype=np.uint8)

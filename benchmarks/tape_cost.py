@@ -1,0 +1,139 @@
+"""The cost of the information tape ([reversal] tape = true) on the fcc Hertz benchmark
+(benchmarks/fcc_hertz.py) in fixed-point arithmetic: the forward stepping loop recording
+the tape (blocks written out to a file as they fill) against the same loop without it.
+
+n x n x n fcc cells, Mindlin shear springs (mu = 0.5, `history`) or none
+(`frictionless`); each measurement in a process of its own (its thread count, its
+memory): the loop's particle-steps per second (best of REPEATS, set-up and compilation
+excluded), the peak memory per sphere above what the process held before the spheres
+were made, and for the tape its bytes and bits per step. Results: OUT/tape_cost.json.
+
+    NUMBA_NUM_THREADS=1 python benchmarks/tape_cost.py [--n 10 24]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from fcc_hertz import REPEATS, STEPS, _rss, scenario_data  # noqa: E402
+
+
+def taped(n: int, variant: str, steps: int, tape: bool) -> dict:
+    data = scenario_data(n, variant, steps, "fixed")
+    data["reversal"] = {"tape": tape}
+    return data
+
+
+def stepped(state, model, steps: int, recorder) -> float:
+    """Seconds of `steps` forward steps of the compiled stage loop, recording into
+    `recorder` (`io.tape.Recorder`, its blocks written out as they fill) or without a tape."""
+    from revdem_cli.io.tape import no_tape
+    from revdem_cli.kernels.integrate import OK, TAPE_FULL, advance
+    from revdem_cli.stage import stepping_bundles
+    from revdem_cli.state import empty_events
+
+    obs, obs_steps = model.buffers(2)
+    first = state.step
+    stepping = model.stepping(1.0e-6, first, first + steps, steps)
+    events = empty_events()
+    started = time.perf_counter()
+    while state.step != first + steps:
+        tape = recorder.bundle(state, events) if recorder else no_tape()
+        bundles = stepping_bundles(state, model, model.dynamics, model.law)
+        status, state.step, _, _ = advance(
+            *bundles, events, tape, stepping, state.step, first + steps, first + steps, obs,
+            obs_steps,
+        )  # fmt: skip
+        if status == TAPE_FULL:
+            recorder.flush()
+        elif status != OK:
+            raise RuntimeError(f"the stepping loop stopped with status {status}")
+    if recorder:
+        recorder.flush()
+    return time.perf_counter() - started
+
+
+def measure(n: int, variant: str, tape: bool) -> dict:
+    from revdem_cli.config import Scenario
+    from revdem_cli.io.tape import Recorder, summary
+    from revdem_cli.stage import Model
+    from revdem_cli.state import initial_state
+
+    steps = STEPS.get(n, 200)
+    with tempfile.TemporaryDirectory() as folder:
+        warm = Scenario.model_validate(taped(2, variant, 1, tape))  # compile or load
+        state = initial_state(warm)
+        clock = (0, 0.0, 1.0e-6)
+        warming = Recorder(Path(folder) / "w.h5", "run", clock, state) if tape else None
+        stepped(state, Model.of(warm), 1, warming)
+        baseline = _rss("VmRSS")
+        Path("/proc/self/clear_refs").write_text("5")  # peak memory from here on
+        scenario = Scenario.model_validate(taped(n, variant, steps * REPEATS, tape))
+        model, state = Model.of(scenario), initial_state(scenario)
+        path = Path(folder) / "tape.h5"
+        recorder = Recorder(path, "run", clock, state) if tape else None
+        loop = min(stepped(state, model, steps, recorder) for _ in range(REPEATS))
+        count = len(state.particles.x)
+        row = {
+            "n": n,
+            "variant": variant,
+            "tape": tape,
+            "particles": count,
+            "steps": steps,
+            "threads": int(os.environ.get("NUMBA_NUM_THREADS", os.cpu_count())),
+            "loop_s": loop,
+            "particle_steps_per_s": count * steps / loop,
+            "peak_bytes_per_particle": (_rss("VmHWM") - baseline) / count,
+        }
+        if tape:
+            recorded = summary(path)
+            row["tape_bytes_per_step"] = recorded["bytes"] / recorded["steps"]
+            row["bits_per_step"] = recorded["bits_per_step"]
+            row["size_over_full_state"] = recorded["size_over_full_state"]
+    return row
+
+
+def in_process(n: int, variant: str, tape: bool) -> dict:
+    code = (
+        "import json, sys; sys.path.insert(0, 'benchmarks'); from tape_cost import measure; "
+        f"print(json.dumps(measure({n}, {variant!r}, {tape})))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--n", type=int, nargs="+", default=[10, 24])
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
+    arguments = parser.parse_args()
+    rows = []
+    print(f"{'n':>3} {'variant':>12} {'without':>10} {'with tape':>10} {'cost':>5} {'B/sphere':>9}")
+    for n in arguments.n:
+        for variant in ("frictionless", "history"):
+            bare, recorded = in_process(n, variant, False), in_process(n, variant, True)
+            recorded["cost"] = bare["particle_steps_per_s"] / recorded["particle_steps_per_s"]
+            rows += [bare, recorded]
+            print(
+                f"{n:3d} {variant:>12} {bare['particle_steps_per_s']:10.3g} "
+                f"{recorded['particle_steps_per_s']:10.3g} {recorded['cost']:5.2f} "
+                f"{bare['peak_bytes_per_particle']:4.0f}/{recorded['peak_bytes_per_particle']:4.0f}"
+            )
+    arguments.out.mkdir(parents=True, exist_ok=True)
+    (arguments.out / "tape_cost.json").write_text(json.dumps(rows, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
