@@ -123,7 +123,7 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         pair_events = pair_loop(n, *particle_args, None, *pair_args)
     wall_events = wall_loop(n, *wall_args)
     if holds_stress(cell):
-        stress_of(p, pairs, cell)
+        stress_of(p, pairs, cell, cell.stress)
     out, last, quantity = gather_loop(n, *gather_args)
     fx.note_overflow(fixed, quantity, (out, last))
     servo_forces(cell, dyn.local_damping)

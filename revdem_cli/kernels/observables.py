@@ -267,10 +267,11 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
     row_out[6] = 2.0 * contacts / p.x.shape[0]
     at = WALL_FORCES + 6 * nwalls
     if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
-        stress_of(p, pairs, cell)
+        stress = np.zeros((3, 3))  # the cell's own, which a servo reads, left as it is
+        stress_of(p, pairs, cell, stress)
         for a in range(3):
             for c in range(3):
-                row_out[at + 3 * a + c] = cell.stress[a, c]
+                row_out[at + 3 * a + c] = stress[a, c]
             row_out[at + 9 + a] = cell.length[a]
         at += 12
     fabric_args = (p.x, p.radius, images(cell), pairs.i, pairs.j, pairs.count[0], pairs.destroyed)

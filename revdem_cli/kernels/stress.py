@@ -33,15 +33,15 @@ stress_sums = by_blocks(_stress_sums)
 
 
 @jit
-def stress_of(p, pairs, cell):
-    """Average stress in the cell, -1/V sum over contacts of d (x) f with d the branch vector
-    from i to j and f the force on i (Hanley 2020 Eq 22-23 summed over the particles;
-    compression positive), summed over the pair list by blocks (`kernels.sums`)."""
+def stress_of(p, pairs, cell, sigma):
+    """Average stress in the cell into `sigma` (3, 3), -1/V sum over contacts of d (x) f with d
+    the branch vector from i to j and f the force on i (Hanley 2020 Eq 22-23 summed over
+    the particles; compression positive), summed over the pair list by blocks
+    (`kernels.sums`)."""
     n = p.x.shape[0]
     parts = pairs.partials
     args = (p.x, images(cell), pairs.i, pairs.j, pairs.first, pairs.force, parts)
     stress_sums(n, *args)
-    sigma = cell.stress
     sigma[:, :] = 0.0
     for b in range(blocks_of(n)):
         for a in range(3):

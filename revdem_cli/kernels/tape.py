@@ -37,7 +37,7 @@ from collections import namedtuple
 import numpy as np
 
 from revdem_cli.kernels import fixed as fx
-from revdem_cli.kernels import jit
+from revdem_cli.kernels import inline, jit
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -118,29 +118,31 @@ Tape = namedtuple(
     ],
 )
 """Entries are labelled by the step whose state they restore: a forward step from n records
-label n, and the reversed step to n applies it."""
+label n, and the reversed step to n applies it. The helpers of one entry are inlined: a
+compiled call that receives the bundles pays a reference-count update for each of their
+arrays, which would cost more than the entry."""
 
 
-@jit
+@inline
 def ordered(bits):
     """The bits of a double as an integer in the order of the doubles: consecutive doubles
     are consecutive integers, -0.0 is -1 and +0.0 is 0."""
     return bits if bits >= 0 else ~(bits & np.int64(0x7FFFFFFFFFFFFFFF))
 
 
-@jit
+@inline
 def unordered(number):
     """The bits of the double that `ordered` numbers so."""
     return number if number >= 0 else (~number) | np.int64(-0x8000000000000000)
 
 
-@jit
+@inline
 def bits_of(amount):
     """log2(1 + 2|amount|): the bits that tell an integer from the others of at most its size."""
     return np.log2(1.0 + 2.0 * abs(float(amount)))
 
 
-@jit
+@inline
 def rekicked(f, inv, q, h, step):
     """The increment, in grid steps, of the reversed step's half kick h f / m of one
     component (as `fixed.kick_row` takes it)."""
@@ -218,73 +220,69 @@ def classify(tape, pairs, walls):
                     tape.wall_causes[2 * c + 1] = ROLLED_OFF if apart else LIMIT
 
 
-@jit
-def _mechanism(tape, what, index):
-    """The mechanism an entry of array `what` at flat `index` (pair arrays: slot 3 k + axis)
-    is charged to."""
+@inline
+def _charged(what, damped):
+    """The mechanism every entry of array `what` is charged to, or -1 for a history's, which
+    its contact's cause says (`classify`). `damped`: forces read velocities."""
     if what <= POSITION or what == CELL_FORCE or what == CELL_STRESS:
         return SERVO
     if what == FORCE or what == MOMENT:
-        return DAMPING
+        return DAMPING if damped else ROUND_OFF
     if what == VELOCITY or what == ANGULAR_VELOCITY:
         return DRAG
-    rolling = 1 if what == ROLLING or what == WALL_ROLLING else 0
-    if what == SHEAR or what == ROLLING:
-        return tape.causes[2 * (index // 3) + rolling]
-    return tape.wall_causes[2 * (index // 3) + rolling]
+    return -1
 
 
-@jit
+@inline
 def _in_order(what):
     """Whether array `what` holds doubles, compared and changed in their order."""
     integers = what == CELL_EDGES or what == CELL_EDGE_RATES or what == POSITION
     return not (integers or what == VELOCITY or what == ANGULAR_VELOCITY)
 
 
-@jit
-def _apply(tape, p, cell, fixed, what, index, amount, h):
-    """Add `amount` to array `what` at flat `index` (doubles: in their order), with what
-    follows from it: a force or moment kicks its velocity again, a velocity, angular
-    velocity or position refreshes its image."""
-    values = tape.state[what]
+@inline
+def _targets(what, p, fixed):
+    """What an entry of array `what` acts on besides it: the forces, inverse masses,
+    velocity integers and their images, and the velocity grid step of its particles (the
+    angular ones for moments and angular velocities)."""
+    if what == MOMENT or what == ANGULAR_VELOCITY:
+        return p.torque, p.inv_inertia, fixed.omega, p.omega, fixed.grid[fx.ANGULAR_VELOCITY]
+    return p.f, p.inv_mass, fixed.v, p.v, fixed.grid[fx.VELOCITY]
+
+
+@inline
+def _apply(values, what, index, amount, h, forces, inverse, ints, images, step, x, s, length,
+           grid):  # fmt: skip
+    """Add `amount` to `values` (array `what`, flat) at `index` (doubles: in their order), with
+    what follows from it: a force or moment kicks its velocity again (`_targets`), a
+    velocity, angular velocity or position refreshes its image (positions: x, and in a
+    deforming cell s, with the cell's `length` and the position `grid`). Plain arrays: one
+    entry's work takes no bundle."""
     q, axis = index // 3, index % 3
-    grid = fixed.grid
     if what == FORCE or what == MOMENT:
-        forces = p.f if what == FORCE else p.torque
         wrong = forces[q, axis]
         values[index] = unordered(ordered(values[index]) + amount)
-        if what == FORCE:
-            step = grid[fx.VELOCITY]
-            again = rekicked(forces[q, axis], p.inv_mass, q, h, step)
-            fixed.v[q, axis] += again - rekicked(wrong, p.inv_mass, q, h, step)
-            p.v[q, axis] = fixed.v[q, axis] * step
-        elif p.torque.shape[0] > 0 and fixed.omega.shape[0] > 0:
-            step = grid[fx.ANGULAR_VELOCITY]
-            again = rekicked(forces[q, axis], p.inv_inertia, q, h, step)
-            fixed.omega[q, axis] += again - rekicked(wrong, p.inv_inertia, q, h, step)
-            p.omega[q, axis] = fixed.omega[q, axis] * step
-        return
-    if _in_order(what):
+        again = rekicked(forces[q, axis], inverse, q, h, step)
+        ints[q, axis] += again - rekicked(wrong, inverse, q, h, step)
+        images[q, axis] = ints[q, axis] * step
+    elif _in_order(what):
         values[index] = unordered(ordered(values[index]) + amount)
-        return
-    values[index] += amount
-    if what == VELOCITY:
-        p.v[q, axis] = fixed.v[q, axis] * grid[fx.VELOCITY]
-    elif what == ANGULAR_VELOCITY:
-        p.omega[q, axis] = fixed.omega[q, axis] * grid[fx.ANGULAR_VELOCITY]
-    elif what == POSITION:
-        if p.s.shape[0] > 0:
-            p.s[q, axis] = fixed.x[q, axis] * grid[axis]
-            p.x[q, axis] = p.s[q, axis] * cell.length[axis]
-        else:
-            p.x[q, axis] = fixed.x[q, axis] * grid[axis]
+    else:
+        values[index] += amount
+        if what == VELOCITY or what == ANGULAR_VELOCITY:
+            images[q, axis] = ints[q, axis] * step
+        elif what == POSITION and s.shape[0] > 0:
+            s[q, axis] = values[index] * grid[axis]
+            x[q, axis] = s[q, axis] * length[axis]
+        elif what == POSITION:
+            x[q, axis] = values[index] * grid[axis]
 
 
-@jit
-def _slot(pairs, i, j):
+@inline
+def _slot(first, partners, i, j):
     """The slot of pair (i, j) in the list, -1 if it is not listed."""
-    for k in range(pairs.first[i], pairs.first[i + 1]):
-        if pairs.j[k] == j:
+    for k in range(first[i], first[i + 1]):
+        if partners[k] == j:
             return k
     return -1
 
@@ -292,23 +290,28 @@ def _slot(pairs, i, j):
 @jit
 def record(tape, p, pairs, walls, cell, fixed, h, first, damped):
     """Settle the shadow reversal's state S'_n onto `before` (S_n): the arrays of the `first`
-    pass, or of the second, each in the order of COMPARED, appending each
-    difference as an entry of the block's step being recorded and charging its bits; `h`
-    is the reversed step's half kick, -dt/2; `damped`: forces read velocities, so that a
-    force entry is charged to damping rather than to round-off."""
+    pass, or of the second, each in the order of COMPARED, appending each difference as an
+    entry of the block's step being recorded and charging its bits; `h` is the reversed
+    step's half kick, -dt/2; `damped`: forces read velocities, so that a force entry is
+    charged to damping rather than to round-off."""
     label = tape.span[1]
     used = tape.span[2]
     n = p.x.shape[0]
     for what in range(0 if first else SECOND, SECOND if first else len(COMPARED)):
         values = tape.state[what]
         was = tape.before[what]
+        forces, inverse, ints, images, step = _targets(what, p, fixed)
         keyed = what == SHEAR or what == ROLLING
         size = min(3 * pairs.count[0], values.shape[0]) if keyed else values.shape[0]
+        charged = _charged(what, damped)
+        causes = tape.wall_causes if what >= WALL_SHEAR else tape.causes
+        rolling = 1 if what == ROLLING or what == WALL_ROLLING else 0
+        in_order = _in_order(what)
         counted = -1  # the last contact (or particle, or edge) charged with an entry
         for index in range(size):
             if values[index] == was[index]:
                 continue
-            if _in_order(what):
+            if in_order:
                 amount = ordered(was[index]) - ordered(values[index])
             else:
                 amount = was[index] - values[index]
@@ -320,14 +323,13 @@ def record(tape, p, pairs, walls, cell, fixed, h, first, damped):
             tape.where[used] = where
             tape.amount[used] = amount
             used += 1
-            mechanism = _mechanism(tape, what, index)
-            if mechanism == DAMPING and not damped:
-                mechanism = ROUND_OFF
+            mechanism = charged if charged >= 0 else causes[2 * (index // 3) + rolling]
             tape.bits[label, mechanism] += bits_of(amount)
             if index // 3 != counted:
                 tape.contacts[label, mechanism] += 1
                 counted = index // 3
-            _apply(tape, p, cell, fixed, what, index, amount, h)
+            _apply(values, what, index, amount, h, forces, inverse, ints, images, step, p.x, p.s,
+                   cell.length, fixed.grid)  # fmt: skip
     recorded = used - tape.span[2]
     tape.span[2] = used
     return recorded
@@ -345,24 +347,32 @@ def close_step(tape):
 @jit
 def replay(tape, p, pairs, cell, fixed, step, h, first):
     """Apply the entries of `step` (the reversed run has just stepped to it) as `record`
-    settled them: those of the `first` pass, or of the second. Returns (the
-    entries applied, -1), or where an entry's pair is not in the list (-1, the pair
-    i N + j)."""
+    settled them: those of the `first` pass, or of the second. Returns (the entries
+    applied, -1), or where an entry's pair is not in the list (-1, the pair i N + j)."""
     label = step - tape.span[0]
     n = p.x.shape[0]
     applied = 0
+    last = -1
+    values = tape.state[0]
+    forces, inverse, ints, images, grid_step = _targets(0, p, fixed)
     for e in range(tape.offsets[label], tape.offsets[label + 1]):
         what = tape.what[e]
         if (what < SECOND) != first:
             continue
+        if what != last:  # a step's entries come array by array
+            values = tape.state[what]
+            forces, inverse, ints, images, grid_step = _targets(what, p, fixed)
+            last = what
         index = tape.where[e]
         if what == SHEAR or what == ROLLING:
             key = index // 3
-            k = _slot(pairs, key // n, key % n)
+            k = _slot(pairs.first, pairs.j, key // n, key % n)
             if k < 0:
                 return -1, key
             index = 3 * k + index % 3
-        _apply(tape, p, cell, fixed, what, index, tape.amount[e], h)
+        amount = tape.amount[e]
+        _apply(values, what, index, amount, h, forces, inverse, ints, images, grid_step, p.x,
+               p.s, cell.length, fixed.grid)  # fmt: skip
         applied += 1
     return applied, -1
 

@@ -235,3 +235,16 @@ def test_a_taped_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path
     for name in a:
         assert np.array_equal(a[name], b[name]), name
     assert whole.comparison["bitwise_identical"]
+
+
+def test_observing_a_state_leaves_the_stress_a_servo_reads():
+    """The observables take the cell's stress from the contact forces as they are; the
+    servo's own stress, which the next step reads (and the tape restores), is left alone."""
+    from revdem_cli.stage import Model
+    from revdem_cli.state import initial_state
+
+    scenario = _servo().scenario
+    state = initial_state(scenario)
+    state.cell.stress[:] = 7.0
+    Model.of(scenario).observe(state, Model.of(scenario).dynamics)
+    assert np.all(state.cell.stress == 7.0)
