@@ -1,4 +1,4 @@
-"""The fcc Hertz benchmark of ../shared/bench/README.md, revdem beside LAMMPS in one run.
+"""The fcc Hertz benchmark of ../shared/bench/README.md, revdem beside its peers in one run.
 
 n x n x n cubic fcc cells (N = 4 n^3 spheres of diameter 10 mm, lattice constant
 0.999 d sqrt(2): every sphere presses on its 12 neighbours with an overlap of 10 um),
@@ -6,7 +6,8 @@ periodic, Hertz with G = 2 MPa and nu = 0.2, density 1000 kg/m^3, no damping, ve
 components uniform in [-0.01, 0.01] m/s, dt = 1 us, skin 0.5 mm; `frictionless`, or
 `history` (Mindlin shear springs with history, mu = 0.5).
 
-    python benchmarks/fcc_hertz.py [--sizes 10 24 64] [--threads 1 2] [--no-lammps]
+    python benchmarks/fcc_hertz.py [--sizes 10 24 64] [--threads 1 2]
+                                   [--peers lammps liggghts yade] [--peer-sizes 10 24]
                                    [--scaling] [--out benchmarks/results]
 
 Each measurement runs in a process of its own (its thread count, its memory): the stepping
@@ -16,8 +17,13 @@ the state's bytes per sphere, the process's peak memory per sphere above what it
 before the spheres were made, and a digest of the final state, which must not depend on the
 thread count. Beside them: the JIT compile time (a run with an empty kernel cache), the warm
 start (a second `revdem run configs/collision.toml` of one step, from process start to
-exit), LAMMPS on the same workload when it can be installed, and the ratios. Results go to
-OUT/fcc_hertz.json; --scaling adds the time per particle-step against N, OUT/scaling.png.
+exit). The peers (LAMMPS, LIGGGHTS and Yade, each through ../shared/bench/PEER/run.sh, which
+installs it when missing) run the same workload at the sizes of --peer-sizes, with as many
+MPI ranks or OpenMP threads as revdem has threads, right after revdem's measurement; beside
+each figure its ratio to each peer and to the fastest of them (`--peers` with no names runs
+none). Before them ../shared/bench/check.sh runs the three on a small case from one velocity
+field; its output goes to OUT/peers_check.txt. Results go to OUT/fcc_hertz.json; --scaling
+adds the time per particle-step against N, OUT/scaling.png.
 """
 
 from __future__ import annotations
@@ -33,14 +39,16 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-LAMMPS = ROOT.parent / "shared" / "bench" / "lammps" / "run.sh"
+BENCH = ROOT.parent / "shared" / "bench"
+PEERS = ("lammps", "liggghts", "yade")
+"""The codes of ../shared/bench, each with its own `run.sh N_CELLS STEPS PROCS VARIANT`."""
 STEPS = {10: 1000, 24: 200, 64: 20}
 """Steps timed at each size: the benchmark's 1000 at n = 10 and 200 at n = 24, and enough
 at n = 64 (about a million spheres) for a few seconds of stepping."""
 
 REPEATS = 3
 """Each figure is the best of this many timings (one process, one after another for revdem;
-separate runs for LAMMPS): the machines are shared, and a slower timing measures the other
+separate runs for each peer): the machines are shared, and a slower timing measures the other
 work on them."""
 
 DIAMETER = 0.01
@@ -176,22 +184,51 @@ def startup_times() -> dict:
     }
 
 
-def lammps(n: int, steps: int, ranks: int, variant: str) -> float | None:
-    """LAMMPS's particle-steps per second on the same workload, the best of REPEATS runs,
-    or None if it cannot run."""
-    if not LAMMPS.exists():
+def peer(name: str, n: int, steps: int, procs: int, variant: str) -> dict | None:
+    """A peer's particle-steps per second on the same workload with `procs` MPI ranks or
+    OpenMP threads, the best of REPEATS runs of its run.sh, or None if it cannot run."""
+    script = BENCH / name / "run.sh"
+    if not script.exists():
         return None
     best = None
     for _ in range(REPEATS):
         done = subprocess.run(
-            ["bash", str(LAMMPS), str(n), str(steps), str(ranks), variant],
+            ["bash", str(script), str(n), str(steps), str(procs), variant],
             capture_output=True,
             text=True,
         )
-        for word in done.stdout.split():
-            if word.startswith("particle_steps_per_s="):
-                best = max(best or 0.0, float(word.split("=")[1]))
+        for line in done.stdout.splitlines():
+            words = line.split()
+            if not words or words[0] != name:
+                continue
+            fields = dict(word.split("=", 1) for word in words[1:] if "=" in word)
+            figure = float(fields["particle_steps_per_s"])
+            if best is None or figure > best["particle_steps_per_s"]:
+                best = {
+                    "peer": name,
+                    "n": n,
+                    "variant": variant,
+                    "particles": int(fields["particles"]),
+                    "steps": steps,
+                    "procs": procs,
+                    "kind": "threads" if "threads" in fields else "ranks",
+                    "particle_steps_per_s": figure,
+                }
     return best
+
+
+def peers_check(out: Path) -> Path | None:
+    """../shared/bench/check.sh at its default size, its output in OUT/peers_check.txt."""
+    script = BENCH / "check.sh"
+    if not script.exists():
+        return None
+    done = subprocess.run(["bash", str(script)], capture_output=True, text=True)
+    path = out / "peers_check.txt"
+    path.write_text(
+        f"# ../shared/bench/check.sh (n = 4, 100 steps, 1 rank or thread), "
+        f"{time.strftime('%Y-%m-%d')}, exit status {done.returncode}\n" + done.stdout
+    )
+    return path
 
 
 def scaling_figure(rows: list[dict], png: Path) -> Path:
@@ -226,15 +263,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=sorted(STEPS))
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
-    parser.add_argument("--no-lammps", action="store_true")
+    parser.add_argument(
+        "--peers", nargs="*", choices=PEERS, default=list(PEERS), help="none: revdem alone"
+    )
+    parser.add_argument("--peer-sizes", type=int, nargs="+", default=[10, 24])
     parser.add_argument("--scaling", action="store_true")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     results = {
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "load_average_at_start": os.getloadavg(),
         "startup": startup_times(),
         "runs": [],
-        "lammps": [],
+        "peers": [],
         "fixed_point": [],
         "scaling": [],
     }
@@ -242,34 +284,45 @@ def main() -> None:
         f"start-up: JIT compile {results['startup']['jit_compile_s']:.1f} s, "
         f"warm start {results['startup']['warm_start_s']:.2f} s"
     )
+    if args.peers:
+        check = peers_check(args.out)
+        print(f"wrote {check}" if check else "no ../shared/bench/check.sh")
     header = f"{'variant':13} {'n':>3} {'N':>8} {'thr':>3} {'particle-steps/s':>17} "
-    print(header + f"{'B/sphere':>9} {'peak B/sph':>10} {'LAMMPS':>9} {'ratio':>6}")
+    header += f"{'B/sphere':>9} {'peak B/sph':>10}"
+    print(header + "".join(f" {name:>9} {'ratio':>5}" for name in args.peers) + "  best peer")
     for variant in ("frictionless", "history"):
         for n in args.sizes:
             steps = STEPS.get(n, max(10, int(4e6 / (4 * n**3))))
             digests = set()
             for threads in args.threads:
+                load = os.getloadavg()[0]
                 row = in_process(n, variant, steps, threads)
                 digests.add(row["digest"])
-                theirs = None if args.no_lammps else lammps(n, steps, threads, variant)
-                if theirs is not None:
-                    results["lammps"].append(
-                        {
-                            "n": n,
-                            "variant": variant,
-                            "ranks": threads,
-                            "particle_steps_per_s": theirs,
-                        }
-                    )
-                row["lammps_particle_steps_per_s"] = theirs
-                row["ratio_to_lammps"] = row["particle_steps_per_s"] / theirs if theirs else None
-                results["runs"].append(row)
-                print(
+                row["load_average_1min"] = load
+                row["peers"], row["ratio_to"] = {}, {}
+                line = (
                     f"{variant:13} {n:3d} {row['particles']:8d} {threads:3d} "
                     f"{row['particle_steps_per_s']:17.4g} {row['state_bytes_per_particle']:9.0f} "
-                    f"{row['peak_bytes_per_particle']:10.0f} "
-                    + (f"{theirs:9.3g} {row['ratio_to_lammps']:6.2f}" if theirs else f"{'-':>9}")
+                    f"{row['peak_bytes_per_particle']:10.0f}"
                 )
+                for name in args.peers:
+                    theirs = (
+                        peer(name, n, steps, threads, variant) if n in args.peer_sizes else None
+                    )
+                    if theirs is None:
+                        line += f" {'-':>9} {'-':>5}"
+                        continue
+                    results["peers"].append(theirs)
+                    figure = theirs["particle_steps_per_s"]
+                    row["peers"][name] = figure
+                    row["ratio_to"][name] = row["particle_steps_per_s"] / figure
+                    line += f" {figure:9.3g} {row['ratio_to'][name]:5.2f}"
+                if row["peers"]:
+                    best = max(row["peers"], key=row["peers"].get)
+                    row["best_peer"], row["ratio_to_best_peer"] = best, row["ratio_to"][best]
+                    line += f"  {best} {row['ratio_to_best_peer']:.2f}"
+                results["runs"].append(row)
+                print(line)
             same = len(digests) == 1
             results.setdefault("bitwise_identical_across_threads", []).append(
                 {"n": n, "variant": variant, "identical": same}
@@ -302,6 +355,7 @@ def main() -> None:
                 results["scaling"].append(in_process(n, variant, steps, threads))
         png = scaling_figure(results["scaling"], args.out / "scaling.png")
         print(f"wrote {png}")
+    results["load_average_at_end"] = os.getloadavg()
     path = args.out / "fcc_hertz.json"
     path.write_text(json.dumps(results, indent=2) + "\n")
     print(f"wrote {path}")
