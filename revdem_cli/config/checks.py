@@ -96,8 +96,11 @@ def check_scheme(scenario) -> None:
 
 def check_tape(scenario) -> None:
     """The information tape records integers: it needs fixed-point arithmetic, and the
-    velocity predictor's history, which it does not record, left out."""
+    velocity predictor's history, which it does not record, left out; the figure of what it
+    recorded needs it."""
     if not scenario.reversal.tape:
+        if "information" in scenario.output.figures:
+            raise FieldError("output.figures", "'information' needs reversal.tape = true")
         return
     if scenario.integrator.arithmetic != "fixed":
         raise FieldError("reversal.tape", "needs integrator.arithmetic = 'fixed'")

@@ -200,6 +200,8 @@ def test_a_tape_in_small_blocks_streams_to_disk_and_back(tmp_path, monkeypatch):
 def test_the_tape_needs_fixed_point_arithmetic_and_velocity_verlet():
     with pytest.raises(InputError, match="reversal.tape: needs integrator.arithmetic = 'fixed'"):
         _shear_collision(0.3).changed({"reversal.tape": True})
+    with pytest.raises(InputError, match="output.figures: 'information' needs reversal.tape"):
+        _shear_collision(0.3).changed({"output.figures": ["information"]})
     with pytest.raises(InputError, match="reversal.tape: needs integrator.scheme = 'verlet'"):
         _fixed(_resting({"contact": {"normal_damping": 0.3}}), True).changed(
             {"integrator.scheme": "trvp"}
