@@ -120,3 +120,22 @@ def stepped(scenario: Scenario, steps: int, every: int):
             continue
         assert status == OK, f"the stage loop stopped with status {status} at {state.step}"
         yield state
+
+
+def crashed_after(experiment, folder, frames: int) -> list[str]:
+    """Run `experiment` into `folder` as `revdem run` does, crashing it (RuntimeError) after
+    `frames` frames, its checkpoint left behind; returns the progress labels shown, the
+    last the phase it crashed in."""
+    from revdem_cli.engine import run_scenario
+
+    shown = []
+
+    def stop(label, done, total, particles):
+        shown.append(label)
+        if len(shown) == frames:
+            raise RuntimeError("stopped")
+
+    with pytest.raises(RuntimeError, match="stopped"):
+        scenario, text, suffix = experiment.scenario, experiment.text, experiment.suffix
+        run_scenario(scenario, text, suffix, folder, progress=stop)
+    return shown

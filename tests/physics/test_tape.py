@@ -14,7 +14,7 @@ from revdem_cli.errors import InputError, RunFailed
 from revdem_cli.io import tape as tape_file
 from revdem_cli.io.tape import summary
 from revdem_cli.kernels.tape import COMPARED, ordered, unordered
-from tests.conftest import FLOOR, PLANE, SPHERE
+from tests.conftest import FLOOR, PLANE, SPHERE, crashed_after
 
 
 def test_ordered_bits_count_the_doubles_between_two_values():
@@ -213,22 +213,13 @@ def test_a_taped_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path
     """The tape is cut back to the checkpoint's step and recorded on, or replayed on from
     there: a run stopped part-way through either phase resumes to the same tape and the
     same exact reversal."""
-    from revdem_cli.engine import output_paths, run_scenario
+    from revdem_cli.engine import output_paths
 
     experiment = _fixed(_resting({"contact": {"normal_damping": 0.3}}), True).changed(
         {"output.checkpoint_interval": 0.0}
     )
     whole = revdem.run(experiment, tmp_path / "whole")
-    shown = []
-
-    def stop(label, done, total, particles):  # a crash after `frames` frames
-        shown.append(label)
-        if len(shown) == frames:
-            raise RuntimeError("stopped")
-
-    with pytest.raises(RuntimeError, match="stopped"):
-        scenario, text, suffix = experiment.scenario, experiment.text, experiment.suffix
-        run_scenario(scenario, text, suffix, tmp_path / "cut", progress=stop)
+    shown = crashed_after(experiment, tmp_path / "cut", frames)
     assert ("reversed" in shown[-1]) == (frames == 40)
     resumed = revdem.resume(tmp_path / "cut")
     assert resumed.comparison["bitwise_identical"]

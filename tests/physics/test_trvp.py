@@ -13,7 +13,7 @@ from revdem_cli import api as revdem
 from revdem_cli.errors import InputError
 from revdem_cli.io.restart import read_restart
 from revdem_cli.kernels.predictor import coefficients
-from tests.conftest import FLOOR, PLANE, SPHERE
+from tests.conftest import FLOOR, PLANE, SPHERE, crashed_after
 
 
 @pytest.mark.parametrize("k", [1, 2, 3, 4])
@@ -127,22 +127,13 @@ def test_the_time_step_guard_takes_the_predictors_limit(tmp_path):
 def test_a_trvp_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path, frames):
     """The predictor's history travels in the checkpoint: a run stopped part-way through its
     forward or its reversed phase resumes to the uninterrupted run's frames, bit for bit."""
-    from revdem_cli.engine import output_paths, run_scenario
+    from revdem_cli.engine import output_paths
 
     experiment = _resting({"scheme": "trvp", "trvp_order": 3}).changed(
         {"output.checkpoint_interval": 0.0, "stages.1.steps": 1000}
     )
     whole = revdem.run(experiment, tmp_path / "whole")
-    shown = []
-
-    def stop(label, done, total, particles):  # a crash after `frames` frames
-        shown.append(label)
-        if len(shown) == frames:
-            raise RuntimeError("stopped")
-
-    with pytest.raises(RuntimeError, match="stopped"):
-        scenario, text, suffix = experiment.scenario, experiment.text, experiment.suffix
-        run_scenario(scenario, text, suffix, tmp_path / "cut", progress=stop)
+    shown = crashed_after(experiment, tmp_path / "cut", frames)
     assert ("reversed" in shown[-1]) == (frames == 16)
     resumed = revdem.resume(tmp_path / "cut")
     cut = output_paths(tmp_path / "cut", "resting")
