@@ -19,6 +19,16 @@ spheres with shear history (benchmarks/fcc_hertz.py: its arrays, its share of th
 and the scenario's copy of its starting state), twice that for a pair list that grows by
 a quarter as a packing densifies and for the checks of a new scenario."""
 
+TAPE_BYTES_PER_SPHERE = 6400
+"""Memory the information tape adds a sphere (`[reversal] tape = true`), bytes: 6.3 kB
+measured with shear history (benchmarks/tape_cost.py, n = 6: the copy of what a step
+changes for the shadow reversal, the state before the step, and a block of entries with
+room for two steps in which every compared value changed)."""
+
+PREDICTOR_BYTES_PER_ORDER = 48
+"""Memory the velocity predictor adds a sphere for each order, bytes: a half-step velocity
+and angular velocity kept, and with the first the predicted ones."""
+
 BYTES_PER_SPHERE_AND_WALL = 160
 """Memory of the contact history of a sphere with a wall, bytes (5 vectors and 4 scalars)."""
 
@@ -61,6 +71,10 @@ def check_host(scenario) -> None:
 def check_memory(scenario) -> None:
     """Refuse, before generating anything, more spheres than this machine's memory holds."""
     per_sphere = BYTES_PER_SPHERE + BYTES_PER_SPHERE_AND_WALL * len(scenario.walls)
+    if scenario.reversal.tape:
+        per_sphere += TAPE_BYTES_PER_SPHERE
+    if scenario.integrator.predictor_order:
+        per_sphere += PREDICTOR_BYTES_PER_ORDER * (scenario.integrator.predictor_order + 1)
     memory = memory_bytes()
     count = len(scenario.particles)
     generated = [(f"packings[{k}].count", p) for k, p in enumerate(scenario.packings)]
