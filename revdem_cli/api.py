@@ -171,6 +171,11 @@ def output_paths_of(experiment: Experiment, out: Path, reverse: bool) -> list[Pa
     written = [paths["forward"], paths["restart"]]
     if spec.reversal.tape:
         written.append(paths["tape"])
+    if spec.reversal.all_stages:
+        from revdem_cli.engine import stage_paths
+
+        for index in range(len(spec.stages) - 1):
+            written += stage_paths(out, spec.name, index, spec).values()
     if reverse and spec.reversed_stage is not None:
         written += [paths["reverse"], paths["compare"]]
     return written + figure_paths(out, spec)

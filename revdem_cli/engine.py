@@ -10,10 +10,12 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from revdem_cli.checkpoint import Checkpoints, checkpoint_path, find_checkpoint
 from revdem_cli.compare import compare_trajectories
 from revdem_cli.config import Scenario
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, RunFailed
 from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
@@ -54,6 +56,16 @@ def output_paths(out_dir: Path, name: str) -> dict[str, Path]:
             ("compare", "json"),
         )
     }
+
+
+def stage_paths(out_dir: Path, name: str, index: int, scenario: Scenario) -> dict[str, Path]:
+    """Where the restart and the information tape of stage `index` go: those of the run for
+    its last stage, `NAME.stage-K.restart.h5` and `NAME.stage-K.tape.h5` for an earlier one
+    (written when `[reversal] all_stages` reverses every stage)."""
+    if index == len(scenario.stages) - 1:
+        paths = output_paths(out_dir, name)
+        return {"restart": paths["restart"], "tape": paths["tape"]}
+    return {kind: out_dir / f"{name}.stage-{index}.{kind}.h5" for kind in ("restart", "tape")}
 
 
 def _writer(
@@ -133,24 +145,27 @@ class Run:
         return output_paths(self.out_dir, self.scenario.name)
 
     def checkpoint(
-        self, state, clock, events, writer, trajectory, place: dict, tape: Recorder | None = None
+        self, state, clock, events, writer, trajectory, place: dict, tape=None, files=("", "")
     ) -> None:
         """Save a checkpoint if one is due: the trajectory (and the information tape being
-        recorded) written out first, so that they hold every row the checkpoint counts.
-        `place`: the rest of its `Resumption`."""
+        recorded, `tape`) written out first, so that they hold every row the checkpoint
+        counts. `place`: the rest of its `Resumption`; `files`: as `restart`'s."""
         if not self.checkpoints.due():
             return
         writer.flush()
-        if tape is not None:
+        if isinstance(tape, Recorder):
             tape.flush()
         frames, observables = writer.rows()
         resumption = Resumption(
             events=events.copy(), frames=frames, observables=observables, **place
         )
-        self.checkpoints.save(self.restart(state, clock, trajectory, resumption))
+        self.checkpoints.save(self.restart(state, clock, trajectory, resumption, files))
 
-    def restart(self, state, clock, trajectory, resumption=None) -> Restart:
-        tape = self.paths["tape"].name if self.scenario.reversal.tape else ""
+    def restart(self, state, clock, trajectory, resumption=None, files=("", "")) -> Restart:
+        """A restart of the state at the end of (or, with `resumption`, part-way through) the
+        stage of `clock`; `files`: the names of the stage's information tape and of the
+        restart of the stage before it, which a reversal of every stage goes on from."""
+        tape, previous = files
         return Restart(
             state,
             self.scenario.model_dump_json(),
@@ -163,6 +178,7 @@ class Run:
             clock.dt,
             resumption,
             tape,
+            previous,
         )
 
 
@@ -222,24 +238,30 @@ def _forward(
                 stop_step=-1, end_step=-1,
             )  # fmt: skip
 
-            tape = None  # the stage a restart ends is the one a reversal reverses
-            if scenario.reversal.tape and index == len(scenario.stages) - 1:
+            files = _stage_files(run, index)
+            tape = None  # the stages a reversal reverses: the last, or with all_stages every one
+            if files[0]:
                 resumed_at = state.step if events is not None else None
                 tape = Recorder(
-                    paths["tape"], stage.name, (clock.first_step, clock.first_time, clock.dt),
-                    state, resumed_at,
+                    run.out_dir / files[0], stage.name,
+                    (clock.first_step, clock.first_time, clock.dt), state, resumed_at,
                 )  # fmt: skip
 
-            def checkpoint(state, clock, events, place=place, tape=tape):
-                run.checkpoint(state, clock, events, writer, paths["forward"], place, tape)
+            def checkpoint(state, clock, events, place=place, tape=tape, files=files):
+                run.checkpoint(state, clock, events, writer, paths["forward"], place, tape, files)
 
             run_stage(
                 state, run.model, clock, +1, writer, progress, None, checkpoint, events,
                 run.checkpoints.stepper, tape,
             )  # fmt: skip
             time = float(clock.time(state.step))
+            if index < len(scenario.stages) - 1 and scenario.reversal.all_stages:
+                stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
+                restart = run.restart(state, clock, paths["forward"], files=files)
+                write_restart(stage_restart["restart"], restart)
     reversal_history(state, run.model, clock)  # a velocity predictor's, for the reversal
-    write_restart(paths["restart"], run.restart(state, clock, paths["forward"]))
+    last = _stage_files(run, len(scenario.stages) - 1)
+    write_restart(paths["restart"], run.restart(state, clock, paths["forward"], files=last))
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
     if reverse:
         restart = read_restart(paths["restart"])
@@ -252,6 +274,19 @@ def _forward(
     run.checkpoints.discard()
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
     return outputs
+
+
+def _stage_files(run: Run, index: int) -> tuple[str, str]:
+    """The names of the information tape of stage `index` ("" where it has none) and of the
+    restart of the stage before it ("" unless every stage is reversed)."""
+    scenario = run.scenario
+    last = index == len(scenario.stages) - 1
+    reversal = scenario.reversal
+    tape = stage_paths(run.out_dir, scenario.name, index, scenario)["tape"].name
+    previous = ""
+    if reversal.all_stages and index > 0:
+        previous = stage_paths(run.out_dir, scenario.name, index - 1, scenario)["restart"].name
+    return (tape if reversal.tape and (last or reversal.all_stages) else ""), previous
 
 
 def check_time_step(scenario: Scenario) -> None:
@@ -312,8 +347,9 @@ def _reverse(
     progress: Progress | None,
 ) -> Outputs:
     """The stage that ended at the restart `start` backwards, or on from `start` when it is
-    a checkpoint of this reversal; then the comparison with the forward run and the
-    figures. `source`: the restart file's path."""
+    a checkpoint of this reversal; on through the stages before it where the restart names
+    the one before (`[reversal] all_stages`); then the comparison with the forward run and
+    the figures. `source`: the restart file's path."""
     scenario, paths = run.scenario, run.paths
     resumption = start.resumption
     text = start.scenario_text
@@ -331,36 +367,71 @@ def _reverse(
         writer = _continued_writer(
             paths["reverse"], resumption, start.state, run.model, text, "reverse", source
         )
-    place = dict(
-        phase="reverse", stage_index=-1, reverse=False, source_restart=source, stop_step=stop,
-        end_step=clock.last_step,
-    )  # fmt: skip
-
-    def checkpoint(state, clock, events):
-        run.checkpoint(state, clock, events, writer, start.trajectory, place)
-
-    tape = None
-    if start.tape:
-        tape = Replayer(
-            Path(source).parent / start.tape, clock.stage.name, clock.first_step,
-            len(start.state.particles.x),
-        )  # fmt: skip
+    tapes = []
     with writer:
-        run_stage(
-            start.state, run.model, clock, -1, writer, progress, stop, checkpoint, events,
-            run.checkpoints.stepper, tape,
-        )  # fmt: skip
+        while True:
+            tape = _replayer(start, source, clock)
+            _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress)
+            tapes += [tape] if tape else []
+            if not start.previous or stop != clock.first_step:
+                break
+            start, source = _stage_before(start, source)
+            clock = _reverse_clock(scenario, start, start.state.step)
+            stop, events = clock.first_step, None
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(start.trajectory)
     if forward.exists():
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
-        if tape is not None:
-            verdict["information_tape"] = tape_summary(tape.path)
+        if tapes:
+            verdict["information_tape"] = tape_summary(tapes[0].path)
+        if len(tapes) > 1:
+            verdict["information_tapes"] = [tape_summary(tape.path) for tape in tapes]
         write_text(paths["compare"], json.dumps(verdict, indent=2) + "\n")
         outputs.comparison, outputs.verdict = paths["compare"], verdict
         outputs.figures = _figures(scenario, forward, paths["reverse"], run.out_dir)
     run.checkpoints.discard()
     return outputs
+
+
+def _replayer(start: Restart, source: str, clock: StageClock) -> Replayer | None:
+    """The information tape a restart names, to replay, or None."""
+    if not start.tape:
+        return None
+    path = Path(source).parent / start.tape
+    return Replayer(path, clock.stage.name, clock.first_step, len(start.state.particles.x))
+
+
+def _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress) -> None:
+    """One stage of a reversal, from the state of `start` back to `stop`, into `writer`."""
+    place = dict(
+        phase="reverse", stage_index=-1, reverse=False, source_restart=source, stop_step=stop,
+        end_step=clock.last_step,
+    )  # fmt: skip
+    files = (start.tape, start.previous)
+
+    def checkpoint(state, clock, events):
+        run.checkpoint(state, clock, events, writer, start.trajectory, place, tape, files)
+
+    run_stage(
+        start.state, run.model, clock, -1, writer, progress, stop, checkpoint, events,
+        run.checkpoints.stepper, tape,
+    )  # fmt: skip
+
+
+def _stage_before(after: Restart, source: str) -> tuple[Restart, str]:
+    """The restart at the end of the stage before the one `after` ended, which a reversal of
+    every stage goes on from: its state is where the reversal has arrived, but for what the
+    next stage's start set (its forces under the next stage's law, the cell's and walls'
+    motion), which the restart gives back. RunFailed if the spheres' integers differ."""
+    path = Path(source).parent / after.previous
+    before = read_restart(path)
+    for name in ("x", "v", "omega"):
+        if not np.array_equal(getattr(before.state.fixed, name), getattr(after.state.fixed, name)):
+            raise RunFailed(
+                f"{path}: the reversal reached step {after.state.step} with other integers "
+                f"({name}) than the forward run had at the end of stage {before.stage}"
+            )
+    return before, str(path)
 
 
 def resume_run(out_dir: Path, progress: Progress | None = None) -> Outputs:

@@ -101,6 +101,8 @@ def check_tape(scenario) -> None:
     if not scenario.reversal.tape:
         if "information" in scenario.output.figures:
             raise FieldError("output.figures", "'information' needs reversal.tape = true")
+        if scenario.reversal.all_stages:
+            raise FieldError("reversal.all_stages", "needs reversal.tape = true")
         return
     if scenario.integrator.arithmetic != "fixed":
         raise FieldError("reversal.tape", "needs integrator.arithmetic = 'fixed'")

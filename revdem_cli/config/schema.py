@@ -617,6 +617,13 @@ class Reversal(_Model):
         "damping, drag, contact loss or a servo destroyed, and the bits they destroyed are "
         "measured; needs integrator.arithmetic = 'fixed' and scheme = 'verlet'",
     )
+    all_stages: bool = Field(
+        strict=True,
+        default=False,
+        description="reverse every stage back to the start, not only the last: each stage "
+        "records its tape and leaves a restart at its end (`<name>.stage-K.restart.h5`, "
+        "`.tape.h5`), and the reversed run goes on through them to step 0; needs tape = true",
+    )
 
 
 FIGURE_KINDS = (

@@ -75,6 +75,7 @@ class Restart:
     stage_dt: float  # the time step that stage ran at, s
     resumption: Resumption | None = None  # a checkpoint's place in its run
     tape: str = ""  # the information tape of the stage that ended here (io/tape.py), or none
+    previous: str = ""  # the restart at the end of the stage before, when every stage reverses
 
 
 def write_restart(path: Path, restart: Restart) -> None:
@@ -106,6 +107,7 @@ def _write_state(f: h5py.File, restart: Restart) -> None:
     meta.attrs["stage_first_time"] = restart.stage_first_time
     meta.attrs["stage_dt"] = restart.stage_dt
     meta.attrs["tape"] = restart.tape
+    meta.attrs["previous"] = restart.previous
     for name in Particles._fields:
         _put(f, f"particles/{name}", getattr(s.particles, name))
     for name in WALL_FIELDS:
@@ -266,6 +268,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         stage_dt=float(meta.attrs["stage_dt"]),
         resumption=resumption,
         tape=str(meta.attrs.get("tape", "")),
+        previous=str(meta.attrs.get("previous", "")),
     )
 
 

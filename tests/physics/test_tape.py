@@ -241,3 +241,35 @@ def test_observing_a_state_leaves_the_stress_a_servo_reads():
     state.cell.stress[:] = 7.0
     Model.of(scenario).observe(state, Model.of(scenario).dynamics)
     assert np.all(state.cell.stress == 7.0)
+
+
+def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
+    """[reversal] all_stages: a sphere pressed under local damping, let go undamped, then held
+    by a viscous contact; the reversal goes back through all three stages, each with its
+    own damping and tape, and ends at step 0 on the starting integers."""
+    experiment = _fixed(_resting({}), True).changed(
+        {
+            "reversal.all_stages": True,
+            "stages": [
+                {"name": "press", "steps": 1000, "output_every": 100, "damping": {"local": 0.5}},
+                {"name": "free", "steps": 1000, "output_every": 100},
+                {
+                    "name": "held",
+                    "steps": 1000,
+                    "output_every": 100,
+                    "contact": {"normal_damping": 0.3},
+                    "reverse": True,
+                },
+            ],
+        }
+    )
+    result = revdem.run(experiment, tmp_path)
+    verdict = result.comparison
+    assert verdict["bitwise_identical"]
+    assert verdict["frames_compared"] == 31 and min(verdict["frames"]["step"]) == 0
+    assert [tape["file"] for tape in verdict["information_tapes"]] == [
+        "resting.tape.h5", "resting.stage-1.tape.h5", "resting.stage-0.tape.h5",
+    ]  # fmt: skip
+    assert verdict["information_tapes"][2]["by_mechanism"]["damping"]["bits"] > 0.0
+    with pytest.raises(InputError, match="reversal.all_stages: needs reversal.tape = true"):
+        experiment.changed({"reversal.tape": False})
