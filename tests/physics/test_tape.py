@@ -243,11 +243,10 @@ def test_observing_a_state_leaves_the_stress_a_servo_reads():
     assert np.all(state.cell.stress == 7.0)
 
 
-def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
-    """[reversal] all_stages: a sphere pressed under local damping, let go undamped, then held
-    by a viscous contact; the reversal goes back through all three stages, each with its
-    own damping and tape, and ends at step 0 on the starting integers."""
-    experiment = _fixed(_resting({}), True).changed(
+def _three_stages() -> revdem.Experiment:
+    """A sphere pressed under local damping, let go undamped, then held by a viscous contact,
+    every stage reversed."""
+    return _fixed(_resting({}), True).changed(
         {
             "reversal.all_stages": True,
             "stages": [
@@ -263,6 +262,12 @@ def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
             ],
         }
     )
+
+
+def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
+    """[reversal] all_stages: the reversal goes back through all three stages, each with its
+    own damping and tape, and ends at step 0 on the starting integers."""
+    experiment = _three_stages()
     result = revdem.run(experiment, tmp_path)
     verdict = result.comparison
     assert verdict["bitwise_identical"]
@@ -273,3 +278,14 @@ def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
     assert verdict["information_tapes"][2]["by_mechanism"]["damping"]["bits"] > 0.0
     with pytest.raises(InputError, match="reversal.all_stages: needs reversal.tape = true"):
         experiment.changed({"reversal.tape": False})
+
+
+def test_a_reversal_of_every_stage_resumes_in_an_earlier_stage(tmp_path):
+    """Stopped while reversing the middle stage (frame 45 of 60), the run resumes from its
+    checkpoint there and goes on through the first stage to the same exact end."""
+    experiment = _three_stages().changed({"output.checkpoint_interval": 0.0})
+    shown = crashed_after(experiment, tmp_path, 45)
+    assert shown[-1] == "free (reversed)"
+    resumed = revdem.resume(tmp_path)
+    assert resumed.comparison["bitwise_identical"]
+    assert resumed.comparison["frames_compared"] == 31
