@@ -19,7 +19,7 @@ from revdem_cli.errors import InputError, RunFailed
 from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
-from revdem_cli.io.tape import Recorder, Replayer
+from revdem_cli.io.tape import Recorder, Replayer, combined
 from revdem_cli.io.tape import summary as tape_summary
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.stage import (
@@ -382,10 +382,11 @@ def _reverse(
     forward = Path(start.trajectory)
     if forward.exists():
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
-        if tapes:
-            verdict["information_tape"] = tape_summary(tapes[0].path)
-        if len(tapes) > 1:
-            verdict["information_tapes"] = [tape_summary(tape.path) for tape in tapes]
+        summaries = [tape_summary(tape.path) for tape in tapes]
+        if summaries:  # several: a reversal of every stage, the last stage's first
+            verdict["information_tape"] = combined(summaries)
+        if len(summaries) > 1:
+            verdict["information_tapes"] = summaries
         write_text(paths["compare"], json.dumps(verdict, indent=2) + "\n")
         outputs.comparison, outputs.verdict = paths["compare"], verdict
         outputs.figures = _figures(scenario, forward, paths["reverse"], run.out_dir)

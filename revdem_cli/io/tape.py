@@ -367,3 +367,21 @@ def summary(path: Path) -> dict:
             if total[k] > 0
         },
     }
+
+
+def combined(summaries: list[dict]) -> dict:
+    """The `summary` of several tapes (a reversal of every stage) taken together."""
+    total = {"file": ", ".join(part["file"] for part in summaries)}
+    for key in ("steps", "entries", "bytes", "full_state_bytes", "bits_destroyed"):
+        total[key] = sum(part[key] for part in summaries)
+    full = total["full_state_bytes"]
+    total["size_over_full_state"] = total["bytes"] / full if full else None
+    total["bits_per_step"] = total["bits_destroyed"] / total["steps"] if total["steps"] else 0.0
+    mechanisms: dict[str, dict] = {}
+    for part in summaries:
+        for name, amount in part["by_mechanism"].items():
+            into = mechanisms.setdefault(name, {"bits": 0.0, "with_entries": 0})
+            into["bits"] += amount["bits"]
+            into["with_entries"] += amount["with_entries"]
+    total["by_mechanism"] = {name: mechanisms[name] for name in MECHANISMS if name in mechanisms}
+    return total

@@ -276,6 +276,8 @@ def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
         "resting.tape.h5", "resting.stage-1.tape.h5", "resting.stage-0.tape.h5",
     ]  # fmt: skip
     assert verdict["information_tapes"][2]["by_mechanism"]["damping"]["bits"] > 0.0
+    total = sum(tape["bits_destroyed"] for tape in verdict["information_tapes"])
+    assert verdict["information_tape"]["bits_destroyed"] == pytest.approx(total)
     with pytest.raises(InputError, match="reversal.all_stages: needs reversal.tape = true"):
         experiment.changed({"reversal.tape": False})
 
