@@ -36,6 +36,7 @@ from revdem_cli.kernels.integrate import (
 )
 from revdem_cli.kernels.observables import Layout, observe
 from revdem_cli.kernels.stress import particle_stress
+from revdem_cli.kernels.tape import MECHANISMS
 from revdem_cli.state import (
     BlownUp,
     CellTooSmall,
@@ -121,7 +122,12 @@ class Model:
         """The columns of the scenario's observables rows."""
         walls = tuple(wall.name for wall in self.scenario.walls)
         scenario = self.scenario
-        return Layout(walls, scenario.cell is not None, scenario.solid_fraction is not None)
+        return Layout(
+            walls,
+            scenario.cell is not None,
+            scenario.solid_fraction is not None,
+            scenario.reversal.tape,
+        )
 
     @cached_property
     def solid_volume(self) -> float:
@@ -288,7 +294,7 @@ def run_stage(
     stepping = model.stepping(clock.dt, clock.first_step, clock.last_step, every, stepper.halt)
     if events is None:
         events = empty_events()
-        _record_now(state, model, dyn, clock, writer, events)
+        _record_now(state, model, dyn, clock, writer, events, tape)
     label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
     total = abs(frames[-1] - frames[0])
     stop = clock.stage.stop_when if direction > 0 else None
@@ -303,7 +309,7 @@ def run_stage(
                 advance, (*stepping_bundles(state, model, dyn, law), *logs), stepping,
                 state.step, target, buffer, buffer_steps,
             )  # fmt: skip
-            _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows])
+            _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows], tape)
             if status == TAPE_FULL:
                 tape.flush()
                 continue
@@ -471,17 +477,27 @@ def _write_frame(writer, state: State, model: Model, clock: StageClock, events) 
     writer.frame(state.step, time, state.particles, events, box, stress, state.fixed, contacts)
 
 
-def _record_now(state, model, dyn, clock, writer, events) -> None:
+def _record_now(state, model, dyn, clock, writer, events, tape) -> None:
     """Write the frame and observables of the state as it is (the start of a stage)."""
     _write_frame(writer, state, model, clock, events)
     if writer.last_observable_step() != state.step:
-        _write_observables(
-            writer, model, clock, np.array([state.step]), model.observe(state, dyn)[None, :]
-        )
+        rows = model.observe(state, dyn)[None, :]
+        _write_observables(writer, model, clock, np.array([state.step]), rows, tape)
 
 
 def _write_observables(
-    writer: TrajectoryWriter, model: Model, clock: StageClock, steps: np.ndarray, rows: np.ndarray
+    writer: TrajectoryWriter,
+    model: Model,
+    clock: StageClock,
+    steps: np.ndarray,
+    rows: np.ndarray,
+    tape: Recorder | Replayer | None = None,
 ) -> None:
+    """Complete observables rows and write them; with a tape, the bits it recorded (going
+    forward; NaN going backward, where they are given back)."""
     model.complete(rows)
+    if model.layout.taped:
+        at = model.layout.column("bits_destroyed")
+        bits = tape.destroyed_by(steps) if isinstance(tape, Recorder) else np.nan
+        rows[:, at : at + len(MECHANISMS)] = bits
     writer.observables(steps, clock.time(steps), rows)

@@ -101,6 +101,7 @@ class Stepper:
         self._worker: ThreadPoolExecutor | None = None
         self._rate: dict[int, float] = {}  # steps a second, the latest stretch on each count
         self._stretch: dict[int, int] = {}  # steps of the next stretch on each count
+        self._warm: set[int] = set()  # counts past their first stretch
         self._count = 0
         self._stepped = 0.0  # seconds of stepping
         self._probe_at = PROBE_EVERY
@@ -153,17 +154,24 @@ class Stepper:
         return max(timed, key=self._rate.get) if timed else counts[-1]
 
     def _learn(self, count: int, steps: int, seconds: float) -> None:
-        """What a stretch took: the count's rate, its next length (at most four times the
-        last, so that a first stretch slowed by compilation is not taken for its rate), and
-        the trials' schedule."""
+        """What a stretch took: the count's next length (at most four times the last), its
+        rate, and the trials' schedule. A count's first stretch only warms it up (its first
+        calls find their code and threads: at 256 spheres the first step on one thread took
+        0.13 s against 0.05 ms for the next), and until a count has a rate, only a stretch
+        of at least PROBE seconds (or half a PAUSE, if shorter) gives it one."""
         self.steps_with[count] = self.steps_with.get(count, 0) + steps
         self._stepped += seconds
         if steps == 0:
             return
         rate = steps / max(seconds, 1e-9)
+        self._stretch[count] = max(1, min(int(rate * PAUSE), 4 * self._stretch.get(count, 1)))
+        if count not in self._warm:
+            self._warm.add(count)
+            return
+        if count not in self._rate and seconds < min(PROBE, 0.5 * PAUSE):
+            return
         was_best = max(self._rate, key=self._rate.get) if self._rate else count
         self._rate[count] = rate
-        self._stretch[count] = max(1, min(int(rate * PAUSE), 4 * self._stretch.get(count, 1)))
         if count != was_best:  # a trial: it won, or it waits twice as long for the next
             won = rate > self._rate[was_best]
             self._probe_every = PROBE_EVERY if won else min(2 * self._probe_every, PROBE_EVERY_MOST)

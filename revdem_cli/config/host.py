@@ -105,7 +105,12 @@ def check_frames(scenario) -> None:
             )
         rows = stage.output_every // stage.observable_interval + 2
         walls = tuple(wall.name for wall in scenario.walls)
-        layout = Layout(walls, scenario.cell is not None, scenario.solid_fraction is not None)
+        layout = Layout(
+            walls,
+            scenario.cell is not None,
+            scenario.solid_fraction is not None,
+            scenario.reversal.tape,
+        )
         needed = rows * 8 * (layout.width + 1)  # and its step
         if needed > memory_bytes() // 2:
             field = "observables_every" if stage.observables_every else "output_every"

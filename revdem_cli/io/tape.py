@@ -9,7 +9,7 @@ to the file. Layout (HDF5, every dataset chunked, shuffled and deflated, h5py's 
     /entries/where   int64  (E,)  its place (pair arrays: (i N + j) 3 + axis)
     /entries/amount  int64  (E,)  the true value minus the reversal's
     /steps/count     int64  (S,)  entries of each step of the stage, from its first
-    /steps/bits      float32 (S, M) bits of each step by mechanism (`MECHANISMS`)
+    /steps/bits      float64 (S, M) bits of each step by mechanism (`MECHANISMS`)
     /steps/contacts  int32  (S, M) contacts (particles, edges) with entries, by mechanism
 
 with the attributes `kind` = "revdem tape", `schema_version`, `first_step` (the stage's),
@@ -172,6 +172,7 @@ class Recorder:
         self.buffers = _Buffers()
         self.written_steps = 0
         self.written_entries = 0
+        self.written_bits = np.zeros(len(MECHANISMS))  # by mechanism, in the file
         if step is None:
             self._create(stage, clock, state)
         else:
@@ -194,7 +195,7 @@ class Recorder:
             f.create_dataset(
                 "steps/count", (0,), np.int64, maxshape=(None,), chunks=(CHUNK,), **FILTERS
             )
-            for name, dtype in (("bits", np.float32), ("contacts", np.int32)):
+            for name, dtype in (("bits", np.float64), ("contacts", np.int32)):
                 f.create_dataset(
                     f"steps/{name}", (0, m), dtype, maxshape=(None, m), chunks=(4096, m), **FILTERS
                 )
@@ -208,6 +209,7 @@ class Recorder:
                     f"steps, the checkpoint needs {steps}"
                 )
             entries = int(f["steps/count"][:steps].sum())
+            self.written_bits = _running(np.zeros(len(MECHANISMS)), f["steps/bits"][:steps])[-1]
             for name in ("count", "bits", "contacts"):
                 f[f"steps/{name}"].resize(steps, axis=0)
             for name in ("what", "where", "amount"):
@@ -228,14 +230,23 @@ class Recorder:
             _append(f["entries/where"], b.where[:entries])
             _append(f["entries/amount"], b.amount[:entries])
             _append(f["steps/count"], b.counts[:steps])
-            _append(f["steps/bits"], b.bits[:steps].astype(np.float32))
+            _append(f["steps/bits"], b.bits[:steps])
             _append(f["steps/contacts"], b.contacts[:steps].astype(np.int32))
         self.written_steps += steps
         self.written_entries += entries
+        self.written_bits = _running(self.written_bits, b.bits[:steps])[-1]
         b.bits[:steps] = 0.0
         b.contacts[:steps] = 0
         b.offsets[:] = 0
         b.span[:] = (self.first_step + self.written_steps, 0, 0)
+
+    def destroyed_by(self, steps: np.ndarray) -> np.ndarray:
+        """The bits recorded from the stage's start to each of `steps` (of the block being
+        recorded or its end), by mechanism, (len(steps), len(MECHANISMS))."""
+        recorded = int(self.buffers.span[1])
+        so_far = _running(self.written_bits, self.buffers.bits[:recorded])
+        labels = np.asarray(steps) - self.first_step - self.written_steps
+        return so_far[np.clip(labels, 0, recorded)]
 
 
 class Replayer:
@@ -301,6 +312,13 @@ class Replayer:
             b.amount[: end - begin] = f["entries/amount"][begin:end]
         b.offsets[: high - low + 2] = self.starts[low : high + 2] - begin
         b.span[:] = (self.first_step + low, high - low + 1, end - begin)
+
+
+def _running(total: np.ndarray, bits: np.ndarray) -> np.ndarray:
+    """`total`, then `total` plus each row of `bits` in turn: one sum, step by step in the
+    same order however the rows came in blocks, so that a run resumed from a checkpoint
+    reports the bits of an uninterrupted one to the last digit."""
+    return np.cumsum(np.vstack((total, bits)), axis=0)
 
 
 def state_bytes(state) -> int:

@@ -16,6 +16,7 @@ from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, contact_energy
 from revdem_cli.kernels.pairs import pair_overlap, separation
 from revdem_cli.kernels.stress import stress_of
 from revdem_cli.kernels.sums import blocks_of, by_blocks, span
+from revdem_cli.kernels.tape import MECHANISMS
 from revdem_cli.kernels.vectors import ZERO, cell_of, dot, row
 from revdem_cli.kernels.wall_contacts import wall_normal
 
@@ -58,11 +59,14 @@ class Layout:
     sphere contacts, the mechanical coordination number and the sliding fraction
     (CONTACT_FABRIC); then the observables derived from those by the engine: the solid
     fraction of a [solid_fraction] container, in a periodic cell the principal stresses
-    (Pa, 3, largest first) and CELL_STATE, and the fabric's deviatoric invariant."""
+    (Pa, 3, largest first) and CELL_STATE, and the fabric's deviatoric invariant; with an
+    information tape, the bits it recorded from the stage's start, by mechanism (written by
+    the engine going forward, NaN reversed)."""
 
     walls: tuple[str, ...]
     periodic: bool
     container: bool  # a [solid_fraction] container
+    taped: bool = False  # an information tape: the bits it recorded (`kernels.tape`)
 
     def series(self) -> list[tuple[str, tuple[int, ...]]]:
         """(name, shape) of every observable, in column order."""
@@ -76,6 +80,7 @@ class Layout:
             + ([("principal_stress", (3,))] if self.periodic else [])
             + (list(CELL_STATE) if self.periodic else [])
             + [("fabric_deviator", ())]
+            + ([("bits_destroyed", (len(MECHANISMS),))] if self.taped else [])
         )
 
     @property

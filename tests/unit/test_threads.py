@@ -21,17 +21,24 @@ pytestmark = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="need
 EVERY = 10
 
 
-def fake_loop(cost: dict[int, float]):
-    """A stage loop whose step costs cost[thread count] seconds (busy, as a loop is), with
-    an observables row every EVERY steps, stopping at `until`."""
+def _busy(seconds: float) -> None:
+    deadline = time.perf_counter() + seconds
+    while time.perf_counter() < deadline:
+        pass
+
+
+def fake_loop(cost: dict[int, float], first_call: dict[int, float] | None = None):
+    """A stage loop whose step costs cost[thread count] seconds (busy, as a loop is), and
+    whose first call on a count first_call[count] more, with an observables row every EVERY
+    steps, stopping at `until`."""
+    warming = dict(first_call or {})
 
     def loop(particles, stepping, step, stop, until, obs, obs_steps):
         seconds = cost[numba.get_num_threads()]
+        _busy(warming.pop(numba.get_num_threads(), 0.0))
         rows = 0
         while step != until:
-            deadline = time.perf_counter() + seconds
-            while time.perf_counter() < deadline:
-                pass
+            _busy(seconds)
             step += 1 if until > step else -1
             if step % EVERY == 0:
                 obs_steps[rows] = step
@@ -52,13 +59,14 @@ def quick(monkeypatch):
 
 
 def step_with(
-    cost: dict[int, float], stop: int, start: int = 0
+    cost: dict[int, float], stop: int, start: int = 0, first_call=None
 ) -> tuple[Stepper, tuple, np.ndarray]:
     stepper = Stepper()
     particles = SimpleNamespace(x=np.zeros((PARALLEL_FROM, 3)))
     rows = abs(stop - start) // EVERY + 2
     obs, obs_steps = np.zeros((rows, 1)), np.zeros(rows, dtype=np.int64)
-    done = stepper.advance(fake_loop(cost), (particles,), None, start, stop, obs, obs_steps)
+    loop = fake_loop(cost, first_call)
+    done = stepper.advance(loop, (particles,), None, start, stop, obs, obs_steps)
     return stepper, done, obs_steps[: done[2]]
 
 
@@ -81,6 +89,15 @@ def test_the_stepper_computes_on_the_thread_count_that_steps_faster(quick, slow,
     stepper, (_, reached, _, _), _ = step_with({slow: 1e-4, fast: 2e-5}, 40000)
     assert reached == 40000
     assert stepper.steps_with[fast] > 0.9 * 40000, stepper.steps_with
+
+
+def test_a_slow_first_call_is_not_taken_for_the_rate_of_its_thread_count(quick):
+    """One thread five times faster, but its first call slowed by a warm-up ten times a
+    step of two threads (a first call finds its code and its threads): the steps still go
+    to one thread."""
+    stepper, (_, reached, _, _), _ = step_with({1: 2e-5, 2: 1e-4}, 40000, first_call={1: 1e-3})
+    assert reached == 40000
+    assert stepper.steps_with[1] > 0.9 * 40000, stepper.steps_with
 
 
 def test_a_run_is_bitwise_the_same_wherever_the_thread_count_changes(tmp_path, monkeypatch):
