@@ -493,8 +493,9 @@ def _write_observables(
     rows: np.ndarray,
     tape: Recorder | Replayer | None = None,
 ) -> None:
-    """Complete observables rows and write them; with a tape, the bits it recorded (going
-    forward; NaN going backward, where they are given back)."""
+    """Complete observables rows and write them; with a tape, the bits it recorded from the
+    stage's start (going forward; NaN going backward, where they are given back, and in a
+    stage without a tape)."""
     model.complete(rows)
     if model.layout.taped:
         at = model.layout.column("bits_destroyed")

@@ -113,6 +113,11 @@ def test_the_tape_reverses_a_run_that_destroys_information_to_its_own_integers(t
     recorded = summary(taped.outputs.restart.with_name(f"{make().name}.tape.h5"))
     assert mechanisms <= set(recorded["by_mechanism"]), recorded["by_mechanism"]
     assert recorded["bits_destroyed"] > 0.0
+    _, bits = taped.observable("bits_destroyed")  # from the stage's start, by mechanism
+    bits = bits[np.isfinite(bits).all(axis=1)]  # NaN before the stage with the tape
+    assert bits[-1].sum() == pytest.approx(recorded["bits_destroyed"], rel=1e-12)
+    assert np.all(np.diff(bits, axis=0) >= 0.0)  # summed as the run goes
+    assert np.isnan(taped.observable("bits_destroyed", "reverse")[1]).all()
 
 
 def _entries(path):
