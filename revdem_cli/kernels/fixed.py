@@ -19,7 +19,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, jit
+from revdem_cli.kernels import by_size, inline, jit
 
 RANGE = 2**62 - 1
 """Largest magnitude of a value on a grid, in grid steps: the sum of two such values still
@@ -70,14 +70,20 @@ def add_on_grid(total, value, factor, per_step):
     return result, max(abs(result[0]), abs(result[1]), abs(result[2])) <= RANGE
 
 
+@inline
+def kick_steps(h, f, inv_m, step):
+    """A half kick h f / m of one component in grid steps of `step`, before rounding (grid
+    steps are powers of two: multiplying by 1 / step divides exactly)."""
+    return h * f * inv_m * (1.0 / step)
+
+
 @jit
 def kick_row(n, mirror, f, inv_m, q, h, step):
     """The half kick of particle q on its grid, n += round(h f / m / step), mirror = n step;
     whether it stayed in range."""
     ok = True
-    per_step = 1.0 / step  # grid steps are powers of two: multiplying divides exactly
     for d in range(3):
-        n[q, d], fine = moved_on_grid(n[q, d], h * f[q, d] * inv_m[q] * per_step)
+        n[q, d], fine = moved_on_grid(n[q, d], kick_steps(h, f[q, d], inv_m[q], step))
         ok = ok and fine
         mirror[q, d] = n[q, d] * step
     return ok

@@ -145,8 +145,8 @@ def bits_of(amount):
 @inline
 def rekicked(f, inv, q, h, step):
     """The increment, in grid steps, of the reversed step's half kick h f / m of one
-    component (as `fixed.kick_row` takes it)."""
-    return np.int64(fx.rounded(h * f * inv[q] * (1.0 / step)))
+    component, as `fixed.kick_row` takes it."""
+    return np.int64(fx.rounded(fx.kick_steps(h, f, inv[q], step)))
 
 
 @jit
