@@ -12,9 +12,10 @@ to the file. Layout (HDF5, every dataset chunked, shuffled and deflated, h5py's 
     /steps/bits      float64 (S, M) bits of each step by mechanism (`MECHANISMS`)
     /steps/contacts  int32  (S, M) contacts (particles, edges) with entries, by mechanism
 
-with the attributes `kind` = "revdem tape", `schema_version`, `first_step` (the stage's),
-`stage`, `particles`, `compared` and `mechanisms`. Going backward, `Replayer` reads it a
-block at a time from the end.
+with the attributes `kind` = "revdem tape", `schema_version`, `first_step`, `first_time`
+and `dt` (the stage's), `stage`, `particles`, `state_bytes` (the compared state of one step,
+which `summary` sets the tape beside), `compared` and `mechanisms`. Going backward,
+`Replayer` reads it a block at a time from the end.
 """
 
 from __future__ import annotations
