@@ -74,7 +74,8 @@ def moduli(scenario: Scenario) -> Moduli:
 
 def contact_law(scenario: Scenario) -> ContactLaw:
     """The compiled record of the scenario's contact: its laws by number, the Coulomb and
-    viscous coefficients, and every law's parameters."""
+    viscous coefficients, the histories' grid in fixed-point arithmetic, and every law's
+    parameters."""
     spec = scenario.contact
     return ContactLaw(
         laws.number("normal", spec.model),
@@ -83,6 +84,7 @@ def contact_law(scenario: Scenario) -> ContactLaw:
         math.inf if spec.friction is None else float(spec.friction),
         spec.normal_damping,
         spec.tangential_damping,
+        2.0**-fixed.HISTORY_BITS if scenario.integrator.arithmetic == "fixed" else 0.0,
         *laws.parameters(spec),
     )
 

@@ -13,6 +13,7 @@ moment on i.
 import math
 
 from revdem_cli.kernels import inline
+from revdem_cli.kernels.fixed import binade, snapped
 from revdem_cli.kernels.vectors import axpy, cross, dot, scaled
 from revdem_cli.laws import NONE, dispatch
 
@@ -90,12 +91,16 @@ def remap(shear, n):
 @inline
 def unmap(mapped, n_new, n_old):
     """Exact inverse of `remap`: the vector in the plane normal to n_old whose projection
-    along n_new is parallel to `mapped`, with the magnitude of `mapped`."""
+    along n_new is parallel to `mapped`, with the magnitude of `mapped`; zero where there is
+    none (`mapped` along n_new, as a history a few grid steps long can be)."""
     size2 = dot(mapped, mapped)
     if size2 == 0.0:
         return (0.0, 0.0, 0.0)
     lifted = axpy(-dot(n_old, mapped) / dot(n_old, n_new), n_new, mapped)
-    return scaled(math.sqrt(size2 / dot(lifted, lifted)), lifted)
+    length2 = dot(lifted, lifted)
+    if length2 == 0.0:
+        return (0.0, 0.0, 0.0)
+    return scaled(math.sqrt(size2 / length2), lifted)
 
 
 @inline
@@ -160,13 +165,14 @@ def tangential(a, n):
 
 @inline
 def normal_force(law, overlap, rstar, mstar, estar, vrel, n):
-    """(normal force magnitude, compression positive, with viscous damping; k_n) of one
-    contact in overlap > 0, j moving at vrel relative to i (the velocity the damping reads)."""
+    """(normal force magnitude, compression positive, with viscous damping; its elastic part)
+    of one contact in overlap > 0, j moving at vrel relative to i (the velocity the damping
+    reads)."""
     elastic, stiffness, _ = normal_law(law, overlap, rstar, estar)
     normal = elastic
     if law.beta_n > 0.0:
         normal -= 2.0 * law.beta_n * math.sqrt(mstar * stiffness) * dot(vrel, n)  # viscous
-    return normal, stiffness
+    return normal, elastic
 
 
 @inline
@@ -182,40 +188,49 @@ def contact_force(
     across the contact normal `n_new` of the later positions (`unwind_shear`); mapping it
     onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
     the history as is. Returns (force on i, history, amount the Coulomb cap removed, normal
-    force magnitude, which `rolling_moment` limits by). `small`: |spin dt| < SMALL_ANGLE
+    force magnitude, which `rolling_moment` limits by, and its elastic part). `small`: |spin dt| < SMALL_ANGLE
     (see `cos_sin`). The shear increment reads the relative velocity `vrel`, the viscous
-    damping `vdamp` (the same, or from the velocity predictor's velocities).
+    damping `vdamp` (the same, or from the velocity predictor's velocities). In fixed-point
+    arithmetic the history is rounded onto its grid (`fixed.HISTORY_BITS`, from the binade
+    of the elastic normal force, which the positions alone give) before the force is taken
+    from it: the reversed step, undoing the step in floating point, rounds back onto the
+    history it started from unless the remap or turn carries its round-off across half a
+    grid step. The elastic normal force is returned last, for `rolling_moment`'s grid.
     """
-    normal, _ = normal_force(law, overlap, rstar, mstar, estar, vdamp, n)
+    normal, elastic = normal_force(law, overlap, rstar, mstar, estar, vdamp, n)
     force = scaled(-normal, n)
     if law.tangential == NO_SHEAR:
-        return force, history, 0.0, normal
+        return force, history, 0.0, normal, elastic
     vt = tangential(vrel, n)
     ks = shear_stiffness(law, overlap, rstar, gstar)
     shear = spring(mode, history, n, n_new, spin, dt, ks, vt, small)
     shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
+    shear = snapped(shear, law.history_grid * binade(elastic))
     if law.beta_t > 0.0:
         damped = tangential(vdamp, n)
         shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), damped, shear)  # viscous
-        return axpy(1.0, shear_total, force), shear, slip, normal
-    return axpy(1.0, shear, force), shear, slip, normal
+        return axpy(1.0, shear_total, force), shear, slip, normal, elastic
+    return axpy(1.0, shear, force), shear, slip, normal, elastic
 
 
 @inline
 def rolling_moment(
-    law, mode, dt, overlap, n, rstar, normal, w_i, w_j, spin, history, n_new, small=False
-):
+    law, mode, dt, overlap, n, rstar, normal, elastic, w_i, w_j, spin, history, n_new,
+    small=False,
+):  # fmt: skip
     """Rolling resistance moment on i at one contact in overlap > 0 whose normal force is
-    `normal` (`contact_force`'s), and its new history:
+    `normal` and its elastic part `elastic` (`contact_force`'s), and its new history:
     the rolling spring of the contact's rolling law, wound by the rotation of j relative to
     i in the contact plane, (w_j - w_i)_t dt, and carried across steps as the shear history
     is (`spring`), then capped at the law's limit (Hanley 2020 §5.3: a limit destroys
-    information as the Coulomb cap does). Returns (the moment on i, which is the new
+    information as the Coulomb cap does) and, in fixed-point arithmetic, rounded onto its grid
+    as the shear history is, from the binade of the elastic normal force times R*. Returns (the moment on i, which is the new
     history, and the amount the cap removed); j takes the opposite moment."""
     kr = rolling_stiffness(law, overlap, rstar)
     rate = tangential(axpy(-1.0, w_i, w_j), n)
     moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)
-    return coulomb_cap(moment, _rolling_limit(law.rolling, law, normal, rstar))
+    moment, capped = coulomb_cap(moment, _rolling_limit(law.rolling, law, normal, rstar))
+    return snapped(moment, law.history_grid * binade(elastic * rstar)), capped
 
 
 @inline

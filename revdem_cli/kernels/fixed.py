@@ -41,6 +41,38 @@ def rounded(y):
     return np.trunc(y + math.copysign(0.5, y))
 
 
+HISTORY_BITS = 40
+"""A shear history lies on a grid of 2^-40 of the power of two at or below its contact's
+elastic normal force (a rolling history: of that force times R*), so its grid is as fine,
+relative to it, for a contact pressed by micronewtons as for one pressed by kilonewtons;
+and 12 bits coarser than a float64 there, so that the history's remap and turn (Hanley
+2020 Eq 7-9), undone in floating point by the reversed step, mostly land within half a step
+of where they started and round back onto it."""
+
+EXPONENT = np.int64(0x7FF0000000000000)
+
+
+@inline
+def binade(x):
+    """The power of two at or below |x| (x normal): x with its mantissa bits cleared."""
+    return np.int64(np.float64(x).view(np.int64) & EXPONENT).view(np.float64)
+
+
+@inline
+def snapped(vector, step):
+    """A 3-vector rounded to the grid of `step` (`rounded`), held as doubles: a multiple of a
+    power of two below 2^52 steps is a double exactly; zero is +0.0, whatever the sign it was
+    rounded from. step = 0: floating-point arithmetic, the vector as it is."""
+    if step == 0.0:
+        return vector
+    per = 1.0 / step
+    return (
+        rounded(vector[0] * per) * step + 0.0,
+        rounded(vector[1] * per) * step + 0.0,
+        rounded(vector[2] * per) * step + 0.0,
+    )
+
+
 @jit
 def in_range(n):
     return abs(n) <= RANGE

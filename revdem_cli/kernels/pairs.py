@@ -214,7 +214,7 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, pred
                     entries(block, DAMP_OMEGA_I, k), entries(block, DAMP_OMEGA_J, k), strain,
                     deforming,
                 )[0]  # fmt: skip
-        f, shear, slipped, normal = contact_force(
+        f, shear, slipped, normal, elastic = contact_force(
             law,
             mode,
             dt,
@@ -243,7 +243,20 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, pred
             old = entries(block, ROLLING, k)
             n_new = entries(block, NORMAL_NEW, k) if unwound else ZERO
             rolling, capped = rolling_moment(
-                law, mode, dt, overlap, n, rstar, normal, w_i, w_j, spin, old, n_new, small
+                law,
+                mode,
+                dt,
+                overlap,
+                n,
+                rstar,
+                normal,
+                elastic,
+                w_i,
+                w_j,
+                spin,
+                old,
+                n_new,
+                small,
             )
             enter3(block, NEW_ROLLING, k, rolling if touching else ZERO)
             enter(block, ROLLED, k, capped if touching else 0.0)
@@ -254,7 +267,7 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, pred
 def undamped(law, tangential):
     """`law` without viscous damping or rolling resistance, with the tangential law
     `tangential`."""
-    return ContactLaw(law.normal, tangential, NO_ROLLING, law.mu, 0.0, 0.0, *law[6:])  # CONTACT
+    return ContactLaw(law.normal, tangential, NO_ROLLING, law.mu, 0.0, 0.0, *law[6:])
 
 
 @inline

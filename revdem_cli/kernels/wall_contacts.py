@@ -89,7 +89,7 @@ def _wall_loop(
                         n, arm, 0.0, row(v_damp, q), row(w_damp, q), row(wall_velocity, b), ZERO
                     )
                 n_new = cell_of(normal_new, q, b) if normal_new.shape[0] > 0 else ZERO
-                f, shear, slipped, normal = contact_force(
+                f, shear, slipped, normal, elastic = contact_force(
                     law,
                     mode,
                     dt,
@@ -110,8 +110,8 @@ def _wall_loop(
                 if rolling_law:
                     old = cell_of(rolling, q, b)
                     turned, capped = rolling_moment(
-                        law, mode, dt, overlap, n, radius[q], normal, row(w, q), ZERO, spin, old,
-                        n_new,
+                        law, mode, dt, overlap, n, radius[q], normal, elastic, row(w, q), ZERO,
+                        spin, old, n_new,
                     )  # fmt: skip
                     t = axpy(1.0, turned, t)
                     place(rolling, q, b, turned)

@@ -2,9 +2,12 @@
 # The runs behind scenarios/tape/README.md: each case in fixed-point arithmetic without and
 # with the information tape ([reversal] tape = true), and the verdicts, tape sizes and bits
 # destroyed, one line each, into OUT/summary.txt.
-#   scenarios/tape/run.sh OUT        (from the project root; about an hour on one core)
+#   scenarios/tape/run.sh OUT [CASE ...]   (from the project root; every case: about an hour
+#                                          on one core; CASE: the names below, to run those)
 set -u
-OUT=${1:?usage: scenarios/tape/run.sh OUT}
+OUT=${1:?usage: scenarios/tape/run.sh OUT [CASE ...]}
+shift
+ONLY=" $* "
 REVDEM=${REVDEM:-.venv/bin/revdem}
 PYTHON=${PYTHON:-.venv/bin/python}
 mkdir -p "$OUT"
@@ -12,6 +15,7 @@ FCC=(--set contact.tangential=linear --set contact.ks=1e11 --set contact.frictio
      --set stages.1.steps=100000)
 case_() {  # which name config [--set ...]: which = both (without the tape, then with it) or taped
   which=$1; name=$2; config=$3; shift 3
+  [ "$ONLY" != "  " ] && [[ "$ONLY" != *" $name "* ]] && return
   for tape in false true; do
     [ "$which" = taped ] && [ "$tape" = false ] && continue
     folder=$OUT/$name.tape_$tape

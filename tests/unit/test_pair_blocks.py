@@ -38,7 +38,7 @@ def pair_by_pair(x, v, w, radius, estar, gstar, image, pi, pj, history, law, for
                 d, n, overlap, radius[i], radius[j], v_ij, row(w, i), row(w, j), strain, False
             )
             rstar = radius[i] * radius[j] / (radius[i] + radius[j])
-            f, s, _, _ = contact_force(
+            f, s, _, _, _ = contact_force(
                 law, FORWARD, DT, overlap, n, rstar, 0.0, estar[0, 0], gstar[0, 0], vrel, vrel,
                 spin, row(history, k), ZERO,
             )  # fmt: skip
