@@ -188,9 +188,10 @@ def contact_force(
     across the contact normal `n_new` of the later positions (`unwind_shear`); mapping it
     onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
     the history as is. Returns (force on i, history, amount the Coulomb cap removed, normal
-    force magnitude, which `rolling_moment` limits by, and its elastic part). `small`: |spin dt| < SMALL_ANGLE
-    (see `cos_sin`). The shear increment reads the relative velocity `vrel`, the viscous
-    damping `vdamp` (the same, or from the velocity predictor's velocities). In fixed-point
+    force magnitude, which `rolling_moment` limits by, and its elastic part). `small`:
+    |spin dt| < SMALL_ANGLE (see `cos_sin`). The shear increment reads the relative velocity
+    `vrel`, the viscous damping `vdamp` (the same, or from the velocity predictor's
+    velocities). In fixed-point
     arithmetic the history is rounded onto its grid (`fixed.HISTORY_BITS`, from the binade
     of the elastic normal force, which the positions alone give) before the force is taken
     from it: the reversed step, undoing the step in floating point, rounds back onto the
@@ -224,8 +225,9 @@ def rolling_moment(
     i in the contact plane, (w_j - w_i)_t dt, and carried across steps as the shear history
     is (`spring`), then capped at the law's limit (Hanley 2020 §5.3: a limit destroys
     information as the Coulomb cap does) and, in fixed-point arithmetic, rounded onto its grid
-    as the shear history is, from the binade of the elastic normal force times R*. Returns (the moment on i, which is the new
-    history, and the amount the cap removed); j takes the opposite moment."""
+    as the shear history is, from the binade of the elastic normal force times R*. Returns
+    (the moment on i, which is the new history, and the amount the cap removed); j takes the
+    opposite moment."""
     kr = rolling_stiffness(law, overlap, rstar)
     rate = tangential(axpy(-1.0, w_i, w_j), n)
     moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)

@@ -25,12 +25,12 @@ from revdem_cli.kernels.wall_contacts import wall_loop
 
 
 @jit
-def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, events, step):
-    """Forces at the current positions (Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed),
-    the half kick h that follows them, and the stress a servo needs; the shear force and
-    rolling moment the step destroyed go into the event log at `step`. Damping (local,
-    viscous) reads the velocities p.v, p.omega, or with a velocity predictor its predicted
-    ones (Kolafa & Lisal 2011); the shear spring's increment always reads p.v, p.omega."""
+def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
+    """The plain arrays and settings the loops take, in their order: (the particles' part of
+    the pair loop's, the rest of it after the periodic images, the wall loop's, the
+    gather's). Damping (local, viscous) reads the velocities p.v, p.omega, or with a
+    velocity predictor its predicted ones (Kolafa & Lisal 2011); the shear spring's
+    increment always reads p.v, p.omega."""
     deforming = deforms(cell)
     predicted = p.v_pred.shape[0] > 0  # damping reads the velocity predictor's velocities
     v_damp = p.v_pred if predicted else p.v
@@ -115,6 +115,17 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
         fixed.v,
         fixed.omega,
         fixed.grid,
+    )
+    return particle_args, pair_args, wall_args, gather_args
+
+
+@jit
+def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, events, step):
+    """Forces at the current positions (Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed),
+    the half kick h that follows them, and the stress a servo needs; the shear force and
+    rolling moment the step destroyed go into the event log at `step`."""
+    particle_args, pair_args, wall_args, gather_args = loop_arguments(
+        p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h
     )
     n = p.x.shape[0]
     if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
