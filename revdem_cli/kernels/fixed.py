@@ -73,33 +73,46 @@ def snapped(vector, step):
     )
 
 
-@jit
-def in_range(n):
-    return abs(n) <= RANGE
+@inline
+def to_grid(y):
+    """`rounded(y)` as an integer (|y| <= RANGE): the conversion truncates, as np.trunc does."""
+    return np.int64(y + math.copysign(0.5, y))
 
 
-@jit
+@inline
 def moved_on_grid(n, steps):
     """n + round(steps), `steps` a value in grid steps, and whether it stayed in range: a value
-    that would leave it stays n (nothing wraps around)."""
-    increment = rounded(steps)
-    if abs(increment) > RANGE or abs(n + np.int64(increment)) > RANGE:
-        return n, False
-    return n + np.int64(increment), True
+    that would leave it stays n (nothing wraps around). Selections, not branches, so that a
+    loop over particles stays straight."""
+    fits = abs(steps) <= RANGE
+    moved = n + to_grid(steps if fits else 0.0)
+    fits = fits and abs(moved) <= RANGE
+    return (moved if fits else n), fits
 
 
-@jit
-def add_on_grid(total, value, factor, per_step):
+@inline
+def add_on_grid(total, value, factor, per_step, largest):
     """total + factor value on a grid of 1 / per_step: total a 3-tuple of integers, factor
     value rounded to the grid first (the steps are powers of two, so multiplying by per_step
-    divides by the step exactly). Returns (sum, whether it stayed in range)."""
-    n0 = rounded(factor * value[0] * per_step)
-    n1 = rounded(factor * value[1] * per_step)
-    n2 = rounded(factor * value[2] * per_step)
-    if max(abs(n0), abs(n1), abs(n2)) > RANGE:
-        return total, False
-    result = (total[0] + np.int64(n0), total[1] + np.int64(n1), total[2] + np.int64(n2))
-    return result, max(abs(result[0]), abs(result[1]), abs(result[2])) <= RANGE
+    divides by the step exactly). Returns (sum, the largest magnitude of a term so far in
+    grid steps, `largest` before), which `sum_in_range` judges once the sum is complete: a
+    term checked alone would put two branches into every term of the gather's sums."""
+    y0 = factor * value[0] * per_step
+    y1 = factor * value[1] * per_step
+    y2 = factor * value[2] * per_step
+    largest = max(largest, abs(y0), abs(y1), abs(y2))
+    fits = largest <= RANGE  # else the conversions below would be undefined: add nothing
+    n0 = to_grid(y0 if fits else 0.0)
+    n1 = to_grid(y1 if fits else 0.0)
+    n2 = to_grid(y2 if fits else 0.0)
+    return (total[0] + n0, total[1] + n1, total[2] + n2), largest
+
+
+@inline
+def sum_in_range(largest, terms):
+    """Whether a sum of `terms` terms on a grid, none larger than `largest` grid steps, stays
+    in range whatever their order: a sum that might not is taken to have left it."""
+    return largest * terms <= RANGE
 
 
 @inline
@@ -116,7 +129,7 @@ def kick_row(n, mirror, f, inv_m, q, h, step):
     ok = True
     for d in range(3):
         n[q, d], fine = moved_on_grid(n[q, d], kick_steps(h, f[q, d], inv_m[q], step))
-        ok = ok and fine
+        ok = ok & fine
         mirror[q, d] = n[q, d] * step
     return ok
 
@@ -144,7 +157,7 @@ def _drift(n, v, h, step, mid, in_cell):
         for d in range(3):
             size = step[d] * mid[d] if in_cell else step[d]
             n[q, d], fine = moved_on_grid(n[q, d], h * v[q, d] / size)
-            ok = ok and fine
+            ok = ok & fine
         if not ok:
             out += 1
             last = max(last, q)
