@@ -148,3 +148,29 @@ def test_an_overflow_names_the_quantity_that_left_its_grid():
     compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1)
     assert list(state.fixed.overflow) == [1 + fixed.OF_VELOCITY, 1]
     assert "the velocity of particle 1 left the range" in str(OffGrid(1, state.fixed))
+
+
+def test_a_shear_history_lies_on_the_grid_of_its_own_contact(tmp_path):
+    """In fixed-point arithmetic a shear history is a whole number of steps of 2^-40 of the
+    power of two at or below its contact's elastic normal force (kernels/fixed.py,
+    HISTORY_BITS), however large: the shear collision (Hanley 2020 Figure 5) stopped while
+    its spheres touch, its history read from the restart."""
+    from revdem_cli import laws
+    from revdem_cli.kernels.fixed import HISTORY_BITS
+    from revdem_cli.state import moduli
+
+    scenario, text = load_scenario(CONFIGS / "collision_shear.toml", [FIXED, "stages.0.steps=6000"])
+    run_scenario(scenario, text, ".toml", tmp_path, reverse=False)
+    with h5py.File(tmp_path / "collision_shear.restart.h5") as restart:
+        x = restart["particles/x"][:]
+        radius = restart["particles/radius"][:]
+        history = restart["pairs/history"][0]
+    overlap = radius.sum() - np.linalg.norm(x[1] - x[0])
+    assert overlap > 0.0 and np.abs(history).max() > 0.0
+    rstar = radius.prod() / radius.sum()
+    estar = float(moduli(scenario).estar[0, 0])
+    elastic = laws.evaluate(scenario.contact, "normal", "force", overlap, rstar, estar)[0]
+    step = 2.0 ** (np.floor(np.log2(elastic)) - HISTORY_BITS)
+    steps = history / step
+    assert np.all(steps == np.round(steps)), steps
+    assert np.abs(steps).max() > 2**20  # resolved far below the force it carries
