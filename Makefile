@@ -22,6 +22,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/fcc_hertz.py --scaling
 	$(BIN)/python benchmarks/crossover.py
+	NUMBA_NUM_THREADS=1 $(BIN)/python benchmarks/roofline.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check revdem_cli tests benchmarks

@@ -1,0 +1,233 @@
+"""Where a step of the fcc Hertz benchmark (benchmarks/fcc_hertz.py) spends its time, loop by
+loop, against the memory traffic each loop cannot avoid: a roofline of the stepping loop.
+
+Each loop of a forward step is timed alone on the benchmark's state (one thread, best of
+REPEATS): the pair loop, the gather (the net force of each sphere and its second half kick),
+the first half kick, the drift (in fixed-point arithmetic with the positions the integers
+give), and the check for a rebuild of the pair list; the rest of the step is what the whole
+step takes beyond them. Beside each loop, the bytes it must move at least, each array it
+reads or writes touched once (a pair's particles' rows counted once per particle, a store
+once), and the time those bytes take at the copy bandwidth measured here by numpy on one core
+(read + write); a loop at 1.0 runs at that bandwidth. A loop far below it is bound by its
+arithmetic or by the latency of its scattered reads, not by memory.
+
+    NUMBA_NUM_THREADS=1 python benchmarks/roofline.py [--n 24] [--out benchmarks/results]
+
+Results: OUT/roofline.json and OUT/roofline.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from fcc_hertz import REPEATS, scenario_data  # noqa: E402
+
+STEPS = 100
+"""Steps of the whole step's timing; each loop alone is timed over as many calls."""
+
+LOOPS = ("pair loop", "gather", "first half kick", "drift", "rebuild check", "rest of the step")
+
+
+def copy_bandwidth(megabytes: int = 512) -> float:
+    """Bytes per second one core copies between two arrays of `megabytes` (read + write)."""
+    a = np.ones(megabytes * 2**20 // 8)
+    b = np.empty_like(a)
+    best = min(_timed(lambda: np.copyto(b, a)) for _ in range(5))
+    return 2 * a.nbytes / best
+
+
+def _timed(call) -> float:
+    started = time.perf_counter()
+    call()
+    return time.perf_counter() - started
+
+
+def _best(call, times: int) -> float:
+    """Seconds per call, the best of REPEATS runs of `times` calls."""
+    return min(_timed(lambda: [call() for _ in range(times)]) for _ in range(REPEATS)) / times
+
+
+def traffic(state) -> dict[str, int]:
+    """The bytes each loop must move at least (see the module docstring): the arrays it
+    reads, and those it writes, each once (the pair arrays as far as the list goes)."""
+    p, pairs, fixed = state.particles, state.pairs, state.fixed
+    count = int(pairs.count[0])
+    listed = [a[:count] for a in (pairs.i, pairs.j, pairs.force, pairs.slots)]
+    i, j, force, slots = listed
+    shear = pairs.history.shape[0] > 0
+    history, moment, overlap, destroyed = (
+        a[:count] for a in (pairs.history, pairs.moment, pairs.overlap, pairs.destroyed)
+    )
+    pair_reads = [i, j, p.x, p.radius, p.material]
+    pair_writes = [force]
+    gather_reads = [pairs.first, pairs.start, slots, force, p.mass, p.inv_mass, p.v]
+    gather_writes = [p.f, p.v]
+    kick_reads, kick_writes = [p.f, p.inv_mass, p.v], [p.v]
+    drift_reads, drift_writes = [p.v, p.x], [p.x]
+    if shear:
+        pair_reads += [p.v, p.omega, history]
+        pair_writes += [history, moment, overlap, destroyed]
+        gather_reads += [moment, overlap, p.radius, p.inv_inertia, p.omega]
+        gather_writes += [p.torque, p.omega]
+        kick_reads += [p.torque, p.inv_inertia, p.omega]
+        kick_writes += [p.omega]
+    if fixed.v.shape[0] > 0:  # the integers read and written beside their images
+        spins = [fixed.omega] if shear else []
+        gather_reads += [fixed.v] + spins
+        gather_writes += [fixed.v] + spins
+        kick_reads += [fixed.v] + spins
+        kick_writes += [fixed.v] + spins
+        drift_reads, drift_writes = [p.v, fixed.x], [fixed.x, p.x]
+
+    def size(arrays: list) -> int:
+        return sum(a.nbytes for a in arrays)
+
+    return {
+        "pair loop": size(pair_reads) + size(pair_writes),
+        "gather": size(gather_reads) + size(gather_writes),
+        "first half kick": size(kick_reads) + size(kick_writes),
+        "drift": size(drift_reads) + size(drift_writes),
+        "rebuild check": size([p.x, pairs.x_built, p.v, p.f]),
+    }
+
+
+def measure(n: int, variant: str, arithmetic: str) -> dict:
+    """Each loop's seconds per step at n x n x n cells (see the module docstring)."""
+    from revdem_cli.config import Scenario
+    from revdem_cli.io.tape import no_tape
+    from revdem_cli.kernels.contact import FORWARD
+    from revdem_cli.kernels.forces import loop_arguments
+    from revdem_cli.kernels.gather import gather_loop
+    from revdem_cli.kernels.integrate import OK, advance, drift, kick_particles, needs_rebuild
+    from revdem_cli.kernels.pairs import pair_loop
+    from revdem_cli.stage import Model, stepping_bundles
+    from revdem_cli.state import empty_events, initial_state
+
+    scenario = Scenario.model_validate(scenario_data(n, variant, 10 * STEPS, arithmetic))
+    model, state = Model.of(scenario), initial_state(scenario)
+    obs, obs_steps = model.buffers(2)
+    events = empty_events()
+    bundles = stepping_bundles(state, model, model.dynamics, model.law)
+    p, pairs, walls, cell, fixed, law, moduli, dyn = bundles
+    dt, skin = scenario.integrator.dt, model.skin
+
+    def steps(count: int) -> None:
+        stepping = model.stepping(dt, 0, 10 * STEPS, 10 * STEPS)
+        stop = state.step + count
+        status, state.step, _, _ = advance(
+            *bundles, events, no_tape(), stepping, state.step, stop, stop, obs, obs_steps
+        )
+        if status != OK:
+            raise RuntimeError(f"the stepping loop stopped with status {status}")
+
+    steps(2)  # compile or load, and a first rebuild
+    step_s = min(_timed(lambda: steps(STEPS)) for _ in range(REPEATS)) / STEPS
+    particle_args, pair_args, _, gather_args = loop_arguments(
+        p, pairs, walls, cell, fixed, law, moduli, dyn, FORWARD, dt, 0.0
+    )
+    length = cell.length
+    image = (length[0], length[1], length[2], 1 / length[0], 1 / length[1], 1 / length[2])
+    count = len(p.x)
+    seconds = {
+        "pair loop": _best(lambda: pair_loop(count, *particle_args, image, *pair_args), STEPS),
+        "gather": _best(lambda: gather_loop(count, *gather_args), STEPS),
+        "first half kick": _best(lambda: kick_particles(p, fixed, law, 0.0), STEPS),
+        "drift": _best(lambda: drift(p, cell, fixed, 0.0, events, state.step), STEPS),
+        "rebuild check": _best(lambda: needs_rebuild(p, pairs, cell, dt, skin, 1), STEPS),
+    }
+    seconds["rest of the step"] = max(step_s - sum(seconds.values()), 0.0)
+    return {
+        "n": n,
+        "variant": variant,
+        "arithmetic": arithmetic,
+        "particles": count,
+        "pairs": int(pairs.count[0]),
+        "step_s": step_s,
+        "particle_steps_per_s": count / step_s,
+        "seconds": seconds,
+        "bytes": traffic(state),
+    }
+
+
+def in_process(n: int, variant: str, arithmetic: str) -> dict:
+    code = (
+        "import json, sys; sys.path.insert(0, 'benchmarks'); from roofline import measure; "
+        f"print(json.dumps(measure({n}, {variant!r}, {arithmetic!r})))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def figure(rows: list[dict], bandwidth: float, png: Path) -> Path:
+    """Each loop's time per particle-step, float and fixed point, beside the time its bytes
+    take at the copy bandwidth."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    for ax, variant in zip(axes, ("frictionless", "history"), strict=True):
+        chosen = [r for r in rows if r["variant"] == variant]
+        y = np.arange(len(LOOPS))
+        for k, row in enumerate(chosen):
+            ns = [1e9 * row["seconds"][loop] / row["particles"] for loop in LOOPS]
+            ax.barh(y + 0.38 * k - 0.19, ns, height=0.36, label=row["arithmetic"])
+        floor = [1e9 * chosen[0]["bytes"].get(loop, 0) / bandwidth / chosen[0]["particles"]
+                 for loop in LOOPS]  # fmt: skip
+        ax.scatter(floor, y - 0.19, marker="|", s=300, color="k", label="its bytes at copy speed")
+        ax.set_yticks(y, LOOPS)
+        ax.invert_yaxis()
+        ax.set_xlabel("ns per particle-step (one core)")
+        ax.set_title(f"fcc Hertz n = {chosen[0]['n']}, {variant}")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    return png
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--n", type=int, default=24)
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
+    arguments = parser.parse_args()
+    bandwidth = copy_bandwidth()
+    print(f"copy bandwidth, one core: {bandwidth / 1e9:.1f} GB/s")
+    rows = []
+    for variant in ("frictionless", "history"):
+        for arithmetic in ("float", "fixed"):
+            row = in_process(arguments.n, variant, arithmetic)
+            rows.append(row)
+            print(f"\n{variant}, {arithmetic}: {row['particle_steps_per_s']:.3g} particle-steps/s")
+            print(f"  {'loop':<18} {'ns/particle':>11} {'share':>6} {'bytes/particle':>14} "
+                  f"{'of bandwidth':>12}")  # fmt: skip
+            for loop in LOOPS:
+                seconds, moved = row["seconds"][loop], row["bytes"].get(loop)
+                ns = 1e9 * seconds / row["particles"]
+                share = seconds / row["step_s"]
+                if moved is None:
+                    print(f"  {loop:<18} {ns:11.1f} {share:6.1%}")
+                    continue
+                used = moved / seconds / bandwidth
+                print(f"  {loop:<18} {ns:11.1f} {share:6.1%} {moved / row['particles']:14.0f} "
+                      f"{used:12.2f}")  # fmt: skip
+    arguments.out.mkdir(parents=True, exist_ok=True)
+    result = {"copy_bandwidth_bytes_per_s": bandwidth, "rows": rows}
+    (arguments.out / "roofline.json").write_text(json.dumps(result, indent=2) + "\n")
+    print(figure(rows, bandwidth, arguments.out / "roofline.png"))
+
+
+if __name__ == "__main__":
+    main()
