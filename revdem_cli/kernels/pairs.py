@@ -30,6 +30,7 @@ from revdem_cli.kernels.contact import (
     FORWARD,
     NO_ROLLING,
     NO_SHEAR,
+    REVERSE,
     SMALL_ANGLE,
     contact_force,
     contact_velocity,
@@ -272,13 +273,17 @@ def undamped(law, tangential):
 
 @inline
 def contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predicted):
-    """`contacts`, compiled apart for the common cases (stepping forward without viscous
-    damping or rolling resistance, with and without shear), where the law's constants
-    remove the branches those cases never take from the vectorised loop: an elementwise
-    loop computes both sides of every branch in it. With shear, the block is done with
-    small spin corrections, and again with any where some angle is not small (rare:
-    |spin dt| >= 1e-3)."""
-    if mode == FORWARD and law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING:
+    """`contacts`, compiled apart for the common cases (stepping forward or reversed without
+    viscous damping or rolling resistance; forward with and without shear), where the law's
+    constants and the mode remove the branches those cases never take from the vectorised
+    loop: an elementwise loop computes both sides of every branch in it. Forward with shear,
+    the block is done with small spin corrections, and again with any where some angle is
+    not small (rare: |spin dt| >= 1e-3)."""
+    plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
+    if plain and mode == REVERSE:
+        reverse = undamped(law, law.tangential)
+        contacts(block, size, reverse, REVERSE, dt, strain, deforming, unwound, False, False)
+    elif plain and mode == FORWARD:
         if law.tangential == NO_SHEAR:
             frictionless = undamped(law, NO_SHEAR)
             contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True, False)
