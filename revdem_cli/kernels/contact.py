@@ -206,7 +206,8 @@ def contact_force(
     ks = shear_stiffness(law, overlap, rstar, gstar)
     shear = spring(mode, history, n, n_new, spin, dt, ks, vt, small)
     shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
-    shear = snapped(shear, law.history_grid * binade(elastic))
+    if law.history_grid != 0.0:  # fixed point (a constant in a build for floating point)
+        shear = snapped(shear, law.history_grid * binade(elastic))
     if law.beta_t > 0.0:
         damped = tangential(vdamp, n)
         shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), damped, shear)  # viscous
@@ -232,7 +233,9 @@ def rolling_moment(
     rate = tangential(axpy(-1.0, w_i, w_j), n)
     moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)
     moment, capped = coulomb_cap(moment, _rolling_limit(law.rolling, law, normal, rstar))
-    return snapped(moment, law.history_grid * binade(elastic * rstar)), capped
+    if law.history_grid != 0.0:
+        moment = snapped(moment, law.history_grid * binade(elastic * rstar))
+    return moment, capped
 
 
 @inline

@@ -54,9 +54,9 @@ def _gather_loop(
     In fixed-point arithmetic (fixed_v not empty) each term is rounded to the force or moment
     grid and summed as an integer, so the sum does not depend on the order of its terms,
     and the kick lands on the velocity grids; a sum leaves its grid when its largest term
-    times the number of terms would (`fixed.sum_in_range`). Returns (particles whose sum or velocity left
-    its grid, the last of them, what left it there: fixed.OF_FORCE, OF_MOMENT, OF_VELOCITY or
-    OF_ANGULAR_VELOCITY, the first of these in that order)."""
+    times the number of terms would (`fixed.sum_in_range`). Returns (particles whose sum or
+    velocity left its grid, the last of them, what left it there: fixed.OF_FORCE, OF_MOMENT,
+    OF_VELOCITY or OF_ANGULAR_VELOCITY, the first of these in that order)."""
     torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
     on_grid = fixed_v.shape[0] > 0

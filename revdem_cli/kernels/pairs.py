@@ -32,6 +32,7 @@ from revdem_cli.kernels.contact import (
     NO_SHEAR,
     REVERSE,
     SMALL_ANGLE,
+    STATIC,
     contact_force,
     contact_velocity,
     rolling_moment,
@@ -265,33 +266,43 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, pred
 
 
 @inline
-def undamped(law, tangential):
+def undamped(law, tangential, grid):
     """`law` without viscous damping or rolling resistance, with the tangential law
-    `tangential`."""
-    return ContactLaw(law.normal, tangential, NO_ROLLING, law.mu, 0.0, 0.0, *law[6:])
+    `tangential` and the histories' grid `grid`."""
+    return ContactLaw(law.normal, tangential, NO_ROLLING, law.mu, 0.0, 0.0, grid, *law[7:])
+
+
+@inline
+def plain_stage(block, size, law, mode, dt, strain, deforming, unwound):
+    """`contacts` of a law without viscous damping or rolling resistance (`undamped`), built
+    for each mode: reversed; forward without shear; forward with shear, the block done with
+    small spin corrections, and again with any where some angle is not small (rare:
+    |spin dt| >= 1e-3)."""
+    if mode == REVERSE:
+        contacts(block, size, law, REVERSE, dt, strain, deforming, unwound, False, False)
+    elif law.tangential == NO_SHEAR:
+        frictionless = undamped(law, NO_SHEAR, 0.0)
+        contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True, False)
+    else:
+        args = (block, size, law, FORWARD, dt, strain, deforming, False)
+        if contacts(*args, True, False) > 0:
+            contacts(*args, False, False)
 
 
 @inline
 def contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predicted):
     """`contacts`, compiled apart for the common cases (stepping forward or reversed without
-    viscous damping or rolling resistance; forward with and without shear), where the law's
-    constants and the mode remove the branches those cases never take from the vectorised
-    loop: an elementwise loop computes both sides of every branch in it. Forward with shear,
-    the block is done with small spin corrections, and again with any where some angle is
-    not small (rare: |spin dt| >= 1e-3)."""
+    viscous damping or rolling resistance, `plain_stage`), where the law's constants and the
+    mode remove the branches those cases never take from the vectorised loop: an elementwise
+    loop computes both sides of every branch in it. Floating point gets a build of its own,
+    whose histories' grid is the constant 0, so that it does not pay for their rounding."""
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
-    if plain and mode == REVERSE:
-        reverse = undamped(law, law.tangential)
-        contacts(block, size, reverse, REVERSE, dt, strain, deforming, unwound, False, False)
-    elif plain and mode == FORWARD:
-        if law.tangential == NO_SHEAR:
-            frictionless = undamped(law, NO_SHEAR)
-            contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True, False)
-        else:
-            forward = undamped(law, law.tangential)
-            args = (block, size, forward, FORWARD, dt, strain, deforming, False)
-            if contacts(*args, True, False) > 0:
-                contacts(*args, False, False)
+    if plain and mode != STATIC and law.history_grid == 0.0:
+        floating = undamped(law, law.tangential, 0.0)
+        plain_stage(block, size, floating, mode, dt, strain, deforming, unwound)
+    elif plain and mode != STATIC:
+        gridded = undamped(law, law.tangential, law.history_grid)
+        plain_stage(block, size, gridded, mode, dt, strain, deforming, unwound)
     else:
         contacts(block, size, law, mode, dt, strain, deforming, unwound, False, predicted)
 
