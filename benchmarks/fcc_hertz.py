@@ -151,17 +151,24 @@ def loop_seconds(state, model, steps: int) -> float:
     return seconds
 
 
-def in_process(n: int, variant: str, steps: int, threads: int, arithmetic: str = "float") -> dict:
-    """`measure` in a fresh process with `threads` threads."""
-    env = os.environ | {"NUMBA_NUM_THREADS": str(threads)}
+def measured_apart(module: str, *args, threads: int | None = None) -> dict:
+    """`measure(*args)` of benchmarks/`module`.py in a fresh process (its own memory, and
+    `threads` threads where given), its result read back as JSON."""
+    env = os.environ | ({"NUMBA_NUM_THREADS": str(threads)} if threads else {})
+    call = ", ".join(repr(a) for a in args)
     code = (
-        "import json, sys; sys.path.insert(0, 'benchmarks'); from fcc_hertz import measure; "
-        f"print(json.dumps(measure({n}, {variant!r}, {steps}, {arithmetic!r})))"
+        f"import json, sys; sys.path.insert(0, 'benchmarks'); from {module} import measure; "
+        f"print(json.dumps(measure({call})))"
     )
     done = subprocess.run(
         [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, check=True
     )
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def in_process(n: int, variant: str, steps: int, threads: int, arithmetic: str = "float") -> dict:
+    """`measure` in a fresh process with `threads` threads."""
+    return measured_apart("fcc_hertz", n, variant, steps, arithmetic, threads=threads)
 
 
 def startup_times() -> dict:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -30,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from fcc_hertz import REPEATS, scenario_data  # noqa: E402
+from fcc_hertz import REPEATS, measured_apart, scenario_data  # noqa: E402
 
 STEPS = 100
 """Steps of the whole step's timing; each loop alone is timed over as many calls."""
@@ -160,14 +159,7 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
 
 
 def in_process(n: int, variant: str, arithmetic: str) -> dict:
-    code = (
-        "import json, sys; sys.path.insert(0, 'benchmarks'); from roofline import measure; "
-        f"print(json.dumps(measure({n}, {variant!r}, {arithmetic!r})))"
-    )
-    done = subprocess.run(
-        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
-    )
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return measured_apart("roofline", n, variant, arithmetic)
 
 
 def figure(rows: list[dict], bandwidth: float, png: Path) -> Path:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -25,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from fcc_hertz import REPEATS, STEPS, _rss, scenario_data  # noqa: E402
+from fcc_hertz import REPEATS, STEPS, _rss, measured_apart, scenario_data  # noqa: E402
 
 
 def taped(n: int, variant: str, steps: int, tape: bool) -> dict:
@@ -104,14 +103,7 @@ def measure(n: int, variant: str, tape: bool) -> dict:
 
 
 def in_process(n: int, variant: str, tape: bool) -> dict:
-    code = (
-        "import json, sys; sys.path.insert(0, 'benchmarks'); from tape_cost import measure; "
-        f"print(json.dumps(measure({n}, {variant!r}, {tape})))"
-    )
-    done = subprocess.run(
-        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
-    )
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return measured_apart("tape_cost", n, variant, tape)
 
 
 def main() -> None:
