@@ -191,12 +191,11 @@ def contact_force(
     force magnitude, which `rolling_moment` limits by, and its elastic part). `small`:
     |spin dt| < SMALL_ANGLE (see `cos_sin`). The shear increment reads the relative velocity
     `vrel`, the viscous damping `vdamp` (the same, or from the velocity predictor's
-    velocities). In fixed-point
-    arithmetic the history is rounded onto its grid (`fixed.HISTORY_BITS`, from the binade
-    of the elastic normal force, which the positions alone give) before the force is taken
-    from it: the reversed step, undoing the step in floating point, rounds back onto the
-    history it started from unless the remap or turn carries its round-off across half a
-    grid step. The elastic normal force is returned last, for `rolling_moment`'s grid.
+    velocities). In fixed-point arithmetic the history is rounded onto its grid
+    (`fixed.HISTORY_BITS`, from the binade of the elastic normal force, which the positions
+    alone give) before the force is taken from it: the reversed step, undoing the step in
+    floating point, rounds back onto the history it started from unless the remap or turn
+    carries its round-off across half a grid step.
     """
     normal, elastic = normal_force(law, overlap, rstar, mstar, estar, vdamp, n)
     force = scaled(-normal, n)

@@ -62,7 +62,7 @@ def binade(x):
 def snapped(vector, step):
     """A 3-vector rounded to the grid of `step` (`rounded`), held as doubles: a multiple of a
     power of two below 2^52 steps is a double exactly; zero is +0.0, whatever the sign it was
-    rounded from. step = 0: floating-point arithmetic, the vector as it is."""
+    rounded from. step = 0 (from a force below the normal doubles): the vector as it is."""
     if step == 0.0:
         return vector
     per = 1.0 / step

@@ -245,21 +245,9 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, pred
             old = entries(block, ROLLING, k)
             n_new = entries(block, NORMAL_NEW, k) if unwound else ZERO
             rolling, capped = rolling_moment(
-                law,
-                mode,
-                dt,
-                overlap,
-                n,
-                rstar,
-                normal,
-                elastic,
-                w_i,
-                w_j,
-                spin,
-                old,
-                n_new,
+                law, mode, dt, overlap, n, rstar, normal, elastic, w_i, w_j, spin, old, n_new,
                 small,
-            )
+            )  # fmt: skip
             enter3(block, NEW_ROLLING, k, rolling if touching else ZERO)
             enter(block, ROLLED, k, capped if touching else 0.0)
     return large
