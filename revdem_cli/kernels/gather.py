@@ -132,11 +132,13 @@ def _gather_loop(
             else:
                 f = axpy(1.0, cell_of(wall_force, q, b), f)
                 t = axpy(1.0, cell_of(wall_torque, q, b), t)
-        partners = start[q + 1] - start[q] + first[q + 1] - first[q]
-        walls = wall_force.shape[1]
-        ok = fx.sum_in_range(largest_f, 1 + partners + walls)  # the force sum on its grid
-        turned = fx.sum_in_range(largest_t, partners * (2 if rolls else 1) + walls)
+        ok = True  # the force sum on its grid
+        turned = True  # the moment sum
         if on_grid:
+            partners = start[q + 1] - start[q] + first[q + 1] - first[q]
+            walls = wall_force.shape[1]
+            ok = fx.sum_in_range(largest_f, 1 + partners + walls)
+            turned = fx.sum_in_range(largest_t, partners * (2 if rolls else 1) + walls)
             f = (f_int[0] * f_step, f_int[1] * f_step, f_int[2] * f_step)
             t = (t_int[0] * t_step, t_int[1] * t_step, t_int[2] * t_step)
         for d in range(3):

@@ -59,7 +59,7 @@ def _scale_fixed(n, v, factor, step):
     not in floating point either)."""
     for q in numba.prange(n.shape[0]):
         for d in range(3):
-            n[q, d] = np.int64(fx.rounded(n[q, d] * factor))
+            n[q, d] = fx.to_grid(n[q, d] * factor)
             v[q, d] = n[q, d] * step
 
 

@@ -285,14 +285,14 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predic
     loop computes both sides of every branch in it. Floating point gets a build of its own,
     whose histories' grid is the constant 0, so that it does not pay for their rounding."""
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
-    if plain and mode != STATIC and law.history_grid == 0.0:
+    if not plain or mode == STATIC:
+        contacts(block, size, law, mode, dt, strain, deforming, unwound, False, predicted)
+    elif law.history_grid == 0.0:
         floating = undamped(law, law.tangential, 0.0)
         plain_stage(block, size, floating, mode, dt, strain, deforming, unwound)
-    elif plain and mode != STATIC:
+    else:
         gridded = undamped(law, law.tangential, law.history_grid)
         plain_stage(block, size, gridded, mode, dt, strain, deforming, unwound)
-    else:
-        contacts(block, size, law, mode, dt, strain, deforming, unwound, False, predicted)
 
 
 STREAMING = False

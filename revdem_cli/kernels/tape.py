@@ -146,7 +146,7 @@ def bits_of(amount):
 def rekicked(f, inv, q, h, step):
     """The increment, in grid steps, of the reversed step's half kick h f / m of one
     component, as `fixed.kick_row` takes it."""
-    return np.int64(fx.rounded(fx.kick_steps(h, f, inv[q], step)))
+    return fx.to_grid(fx.kick_steps(h, f, inv[q], step))
 
 
 @jit
