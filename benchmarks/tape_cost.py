@@ -38,7 +38,7 @@ def stepped(state, model, steps: int, recorder) -> float:
     `recorder` (`io.tape.Recorder`, its blocks written out as they fill) or without a tape."""
     from revdem_cli.io.tape import no_tape
     from revdem_cli.kernels.integrate import OK, TAPE_FULL, advance
-    from revdem_cli.stage import stepping_bundles
+    from revdem_cli.stage import stepping_bundles, write_out
     from revdem_cli.state import empty_events
 
     obs, obs_steps = model.buffers(2)
@@ -54,7 +54,7 @@ def stepped(state, model, steps: int, recorder) -> float:
             obs_steps,
         )  # fmt: skip
         if status == TAPE_FULL:
-            recorder.flush()
+            write_out(recorder, state, model, model.dynamics, model.law, events, (first, 1.0e-6))
         elif status != OK:
             raise RuntimeError(f"the stepping loop stopped with status {status}")
     if recorder:

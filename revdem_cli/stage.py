@@ -33,6 +33,7 @@ from revdem_cli.kernels.integrate import (
     TAPE_FULL,
     TAPE_MISMATCH,
     advance,
+    shadow_step,
 )
 from revdem_cli.kernels.observables import Layout, observe
 from revdem_cli.kernels.stress import particle_stress
@@ -311,7 +312,7 @@ def run_stage(
             )  # fmt: skip
             _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows], tape)
             if status == TAPE_FULL:
-                tape.flush()
+                write_out(tape, state, model, dyn, law, events, (clock.first_step, clock.dt))
                 continue
             if status == TAPE_EMPTY:
                 tape.load(state.step)
@@ -351,6 +352,20 @@ def run_stage(
             checkpoint(state, clock, events)
     if isinstance(tape, Recorder):
         tape.flush()
+
+
+def write_out(
+    tape: Recorder, state: State, model: Model, dyn: Dynamics, law: ContactLaw, events, clock
+) -> None:
+    """Append the block of a tape being recorded to its file, after the stepping loop said
+    TAPE_FULL; where the step just taken made more entries than the block had room for, its
+    entries are recorded again in the grown block (`Recorder.flush`). `clock`: the stage's
+    first step and time step."""
+    if tape.flush():
+        bundles = stepping_bundles(state, model, dyn, law)
+        shadow_step(
+            tape.bundle(state, events), *bundles, events, clock[1], state.step - 1, clock[0]
+        )
 
 
 def reversal_history(state: State, model: Model, clock: StageClock) -> None:

@@ -2,8 +2,11 @@
 compiled loop records into and replays from (`kernels.tape`).
 
 Entries go to disk in blocks, so the tape's memory does not grow with the run: the loop
-returns TAPE_FULL when its block has no room for one more step, and the block is appended
-to the file. Layout (HDF5, every dataset chunked, shuffled and deflated, h5py's gzip):
+returns TAPE_FULL when its block may have no room for one more step (it has less than the
+most entries a step has made so far), and the block is appended to the file. The block holds
+one entry a particle (at least MIN_ENTRIES) and grows only for a step that needs more: that
+step's entries are then recorded again (`Recorder.flush`). Layout (HDF5, every dataset
+chunked, shuffled and deflated, h5py's gzip):
 
     /entries/what    int8   (E,)  the array, an index into `kernels.tape.COMPARED`
     /entries/where   int64  (E,)  its place (pair arrays: (i N + j) 3 + axis)
@@ -31,19 +34,22 @@ from revdem_cli.kernels.tape import COMPARED, MECHANISMS, OFF, RECORD, REPLAY, T
 SCHEMA_VERSION = 1
 STEPS_PER_BLOCK = 4096
 MIN_ENTRIES = 1 << 16
+ENTRIES_PER_PARTICLE = 1
 CHUNK = 1 << 14
 FILTERS = dict(compression="gzip", compression_opts=4, shuffle=True)
 
 CHANGED = (
-    ("particles", ("x", "s", "v", "omega", "f", "torque", "v_drift")),
-    ("pairs", ("force", "history", "moment", "overlap", "destroyed", "rolling", "rolled",
-               "normal_new")),
+    ("particles", ("f", "torque", "v_drift")),
+    ("pairs", ("force", "history", "moment", "overlap", "destroyed", "rolling", "rolled")),
     ("walls", ("point", "force", "torque", "overlap", "history", "destroyed", "rolling",
-               "rolled", "normal_new")),
+               "rolled")),
     ("cell", ("length", "rate", "mid", "force", "stress")),
     ("fixed", ("x", "v", "omega", "length", "rate", "overflow")),
 )  # fmt: skip
-"""The arrays a step changes (with the event log): what the shadow reversal undoes."""
+"""The arrays a step changes (with the event log): what the shadow reversal undoes. Not the
+positions' and velocities' floating-point images, which `kernels.tape.restore` makes again
+from their integers, nor the normals the reversed step unwinds across (`normal_new`), which
+it writes before it reads them and no forward step reads."""
 
 COMPARED_ARRAYS = {
     "cell_edges": ("fixed", "length"),
@@ -97,7 +103,7 @@ def no_tape() -> Tape:
         OFF, bytes_, bytes_, longs, longs, _NOTHING8, _NOTHING8,
         np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
         np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
-        _NOTHING64, np.zeros(3, dtype=np.int64), 0,
+        _NOTHING64, np.zeros(4, dtype=np.int64),
     )  # fmt: skip
 
 
@@ -115,7 +121,7 @@ class _Buffers:
         self.bits = np.zeros((STEPS_PER_BLOCK, len(MECHANISMS)))
         self.contacts = np.zeros((STEPS_PER_BLOCK, len(MECHANISMS)), dtype=np.int64)
         self.offsets = np.zeros(STEPS_PER_BLOCK + 1, dtype=np.int64)
-        self.span = np.zeros(3, dtype=np.int64)
+        self.span = np.zeros(4, dtype=np.int64)
         self.causes = _NOTHING8
         self.wall_causes = _NOTHING8
 
@@ -124,9 +130,7 @@ class _Buffers:
         compared = _compared(state)
         self.kept = _like(self.kept, live)
         self.before = _like(self.before, compared)
-        bound = sum(a.shape[0] for a in compared)
-        if self.what.shape[0] < bound + MIN_ENTRIES:
-            self._entries(2 * bound + MIN_ENTRIES)
+        self.grow(max(MIN_ENTRIES, ENTRIES_PER_PARTICLE * state.particles.x.shape[0]))
         pairs = state.pairs.i.shape[0]
         if self.causes.shape[0] != 2 * pairs:
             self.causes = np.zeros(2 * pairs, dtype=np.uint8)
@@ -136,11 +140,14 @@ class _Buffers:
         return Tape(
             mode, live, self.kept, compared, self.before, self.causes, self.wall_causes,
             self.what, self.where, self.amount, self.counts, self.bits, self.contacts,
-            self.offsets, self.span, bound,
+            self.offsets, self.span,
         )  # fmt: skip
 
-    def _entries(self, capacity: int) -> None:
-        used = int(self.span[2])
+    def grow(self, capacity: int) -> None:
+        """Room for at least `capacity` entries, those held kept."""
+        if self.what.shape[0] >= capacity:
+            return
+        used = min(int(self.span[2]), self.what.shape[0])
         what = np.zeros(capacity, dtype=np.int8)
         where = np.zeros(capacity, dtype=np.int64)
         amount = np.zeros(capacity, dtype=np.int64)
@@ -178,7 +185,7 @@ class Recorder:
             self._create(stage, clock, state)
         else:
             self._truncate(step - self.first_step)
-        self.buffers.span[:] = (self.first_step + self.written_steps, 0, 0)
+        self.buffers.span[:] = (self.first_step + self.written_steps, 0, 0, 0)
 
     def _create(self, stage: str, clock: tuple[int, float, float], state) -> None:
         m = len(MECHANISMS)
@@ -220,11 +227,28 @@ class Recorder:
     def bundle(self, state, events) -> Tape:
         return self.buffers.bundle(state, events, RECORD)
 
-    def flush(self) -> None:
-        """Append the block recorded so far to the file and empty it."""
+    def flush(self) -> bool:
+        """Append the block recorded so far to the file and empty it. Returns whether its last
+        step made more entries than the block had room for: that step is then left out, the
+        block grown to twice the most a step has made, and the step's shadow must be taken
+        again (`kernels.integrate.shadow_step`) before stepping on."""
         b = self.buffers
         steps, entries = int(b.span[1]), int(b.span[2])
+        again = entries > b.what.shape[0]
+        if again:
+            steps -= 1
+            entries = int(b.offsets[steps])
+            b.bits[steps] = 0.0
+            b.contacts[steps] = 0
+        self._write(steps, entries)
+        if again:
+            b.grow(2 * int(b.span[3]))
+        return again
+
+    def _write(self, steps: int, entries: int) -> None:
+        b = self.buffers
         if steps == 0:
+            b.span[:3] = (self.first_step + self.written_steps, 0, 0)
             return
         with _open(self.path, "a") as f:
             _append(f["entries/what"], b.what[:entries])
@@ -239,7 +263,7 @@ class Recorder:
         b.bits[:steps] = 0.0
         b.contacts[:steps] = 0
         b.offsets[:] = 0
-        b.span[:] = (self.first_step + self.written_steps, 0, 0)
+        b.span[:3] = (self.first_step + self.written_steps, 0, 0)
 
     def destroyed_by(self, steps: np.ndarray) -> np.ndarray:
         """The bits recorded from the stage's start to each of `steps` (of the block being
@@ -296,6 +320,7 @@ class Replayer:
                 f"{self.path}: the information tape holds steps {self.first_step} to "
                 f"{self.first_step + self.steps - 1}, the reversal needs step {step - 1}"
             )
+        b.grow(int(self.starts[high + 1] - self.starts[high]))
         room = b.what.shape[0]
         low = high
         while (
@@ -305,14 +330,12 @@ class Replayer:
         ):
             low -= 1
         begin, end = int(self.starts[low]), int(self.starts[high + 1])
-        if end - begin > room:
-            raise RunFailed(f"{self.path}: step {step - 1} holds more entries than a step can make")
         with _open(self.path, "r") as f:
             b.what[: end - begin] = f["entries/what"][begin:end]
             b.where[: end - begin] = f["entries/where"][begin:end]
             b.amount[: end - begin] = f["entries/amount"][begin:end]
         b.offsets[: high - low + 2] = self.starts[low : high + 2] - begin
-        b.span[:] = (self.first_step + low, high - low + 1, end - begin)
+        b.span[:3] = (self.first_step + low, high - low + 1, end - begin)
 
 
 def _running(total: np.ndarray, bits: np.ndarray) -> np.ndarray:

@@ -270,7 +270,7 @@ def shadow_step(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt
     system = (p, pairs, walls, cell, fixed, law, moduli, dyn)
     reverse_step(*system, events, dt, step + 1, (step - first) * dt)
     settle(tape, *system, dt, step, True)
-    tp.restore(tape)
+    tp.restore(tape, p, cell, fixed)
 
 
 @jit
@@ -339,9 +339,11 @@ def advance(
     rows recorded are of the steps before), HALTED that `stepping.halt` asked for a stop
     (the state is at the whole step reached). With an information tape (`kernels.tape`)
     recording, each forward step records its entries, and TAPE_FULL says that the block
-    must be written out before the next; replaying, each reversed step applies them, and
-    TAPE_EMPTY says that the block holds no more, TAPE_MISMATCH that an entry's pair is not
-    in the list (the finding's particle and partner).
+    must be written out before the next (and where the step just taken made more entries
+    than the block had room for, that its shadow step be taken again, `shadow_step`);
+    replaying, each reversed step applies them, and TAPE_EMPTY says that the block holds
+    no more, TAPE_MISMATCH that an entry's pair is not in the list (the finding's particle
+    and partner).
     """
     dt, skin, limit = stepping.dt, stepping.skin, stepping.overlap_limit
     first, last, every = stepping.first_step, stepping.last_step, stepping.every
@@ -390,4 +392,6 @@ def advance(
             obs_steps[rows] = step
             observe(p, pairs, walls, cell, law, moduli, dyn, obs[rows])
             rows += 1
+        if tape.mode == tp.RECORD and tp.overflowed(tape):
+            return TAPE_FULL, step, rows, finding
     return OK, step, rows, finding

@@ -141,14 +141,14 @@ def enter3(block, r, k, vector):
 @inline
 def gather_pairs(
     block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material, estar, gstar,
-    image, pi, pj, history, rolling, normal_new, law,
+    image, pi, pj, history, rolling, normal_new, unwound, law,
 ):  # fmt: skip
     """Columns 0 to size - 1 of the block: what the contact stage needs of pairs first to
-    first + size - 1, from their particles and their history."""
+    first + size - 1, from their particles and their history (and `unwound`, the normals
+    the reversed step unwound them across)."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0  # the force depends on the relative velocity
     damped = law.beta_n > 0.0 or law.beta_t > 0.0
-    unwound = normal_new.shape[0] > 0
     for k in range(size):
         p = np.uint64(first + k)  # unsigned indices: numba skips the check for negative ones
         i = np.uint32(pi[p])
@@ -403,7 +403,7 @@ def _pair_loop(
     are `blocks`, each done block by block in its own: gather, contact stage, scatter.
     Returns the counts of `events.note_destroyed`."""
     strain = strain_rates(rate, length)
-    unwound = normal_new.shape[0] > 0
+    unwound = mode == REVERSE and normal_new.shape[0] > 0  # only a reversed step reads them
     streaming = n_pairs >= STREAM_FROM
     chunks = blocks.shape[0]
     slips = 0
@@ -421,7 +421,7 @@ def _pair_loop(
             size = min(BLOCK, end - first)
             gather_pairs(
                 block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material,
-                estar, gstar, image, pi, pj, history, rolling, normal_new, law,
+                estar, gstar, image, pi, pj, history, rolling, normal_new, unwound, law,
             )  # fmt: skip
             contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predicted)
             results = (force, history, moment, overlaps, destroyed, rolling, rolled, law, mode)

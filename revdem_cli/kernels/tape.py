@@ -113,8 +113,8 @@ Tape = namedtuple(
         "bits",  # bits of each step of the block by mechanism, (S, len(MECHANISMS))
         "contacts",  # contacts (or particles, or edges) with entries, same shape, int64
         "offsets",  # first entry of each step of the block, int64 (S + 1,)
-        "span",  # [first step of the block, steps in it, entries in it], int64 (3,)
-        "bound",  # entries one step can make at most: the room kept free for a step
+        "span",  # [first step of the block, steps in it, entries in it, the most entries a
+        # step has made], int64 (4,)
     ],
 )
 """Entries are labelled by the step whose state they restore: a forward step from n records
@@ -185,9 +185,17 @@ def put_back_histories(tape):
 
 
 @jit
-def restore(tape):
-    """The arrays a step changes back to `kept`: the shadow reversal undone."""
+def restore(tape, p, cell, fixed):
+    """The arrays a step changes back to `kept`: the shadow reversal undone; the positions'
+    and velocities' images, which are not kept, made again from their integers."""
     _copy(tape.live, tape.kept)
+    fx.mirror(p.x.shape[0], fixed.x, p.x, p.s, fixed.grid[fx.X : fx.Z + 1], cell.length)
+    v_step = fixed.grid[fx.VELOCITY]
+    w_step = fixed.grid[fx.ANGULAR_VELOCITY]
+    for q in range(p.v.shape[0]):
+        for d in range(3):
+            p.v[q, d] = fixed.v[q, d] * v_step
+            p.omega[q, d] = fixed.omega[q, d] * w_step
 
 
 @jit
@@ -293,9 +301,12 @@ def record(tape, p, pairs, walls, cell, fixed, h, first, damped):
     pass, or of the second, each in the order of COMPARED, appending each difference as an
     entry of the block's step being recorded and charging its bits; `h` is the reversed
     step's half kick, -dt/2; `damped`: forces read velocities, so that a force entry is
-    charged to damping rather than to round-off."""
+    charged to damping rather than to round-off. Entries past the block's room are counted
+    and applied but not written: the step is then taken again once the block has room
+    (`overflowed`)."""
     label = tape.span[1]
     used = tape.span[2]
+    room = tape.what.shape[0]
     n = p.x.shape[0]
     for what in range(0 if first else SECOND, SECOND if first else len(COMPARED)):
         values = tape.state[what]
@@ -319,9 +330,10 @@ def record(tape, p, pairs, walls, cell, fixed, h, first, damped):
             if keyed:
                 k = index // 3
                 where = (np.int64(pairs.i[k]) * n + pairs.j[k]) * 3 + index % 3
-            tape.what[used] = what
-            tape.where[used] = where
-            tape.amount[used] = amount
+            if used < room:
+                tape.what[used] = what
+                tape.where[used] = where
+                tape.amount[used] = amount
             used += 1
             mechanism = charged if charged >= 0 else causes[2 * (index // 3) + rolling]
             tape.bits[label, mechanism] += bits_of(amount)
@@ -340,6 +352,7 @@ def close_step(tape):
     """End the step being recorded: its entries counted, the next step's begun."""
     label = tape.span[1]
     tape.counts[label] = tape.span[2] - tape.offsets[label]
+    tape.span[3] = max(tape.span[3], tape.counts[label])
     tape.offsets[label + 1] = tape.span[2]
     tape.span[1] = label + 1
 
@@ -393,8 +406,15 @@ def unkick(p, fixed, h):
 
 @jit
 def has_room(tape):
-    """Whether the record block has room for one more step."""
-    return tape.span[1] < tape.counts.shape[0] and tape.span[2] + tape.bound <= tape.what.shape[0]
+    """Whether the record block has room for one more step: for its label, and for as many
+    entries as the most a step has made so far."""
+    return tape.span[1] < tape.counts.shape[0] and tape.span[2] + tape.span[3] <= tape.what.shape[0]
+
+
+@jit
+def overflowed(tape):
+    """Whether the step just recorded made more entries than the block had room for."""
+    return tape.span[2] > tape.what.shape[0]
 
 
 @jit

@@ -214,6 +214,29 @@ def test_a_tape_in_small_blocks_streams_to_disk_and_back(tmp_path, monkeypatch):
     assert taped.comparison["bitwise_identical"]
 
 
+def test_a_step_with_more_entries_than_the_block_holds_is_recorded_again(tmp_path, monkeypatch):
+    """A block with room for 2 entries: the first step that makes more overflows it, is
+    left out of the block written, and is recorded again once the block has grown; the tape
+    is the one a block with room to spare records, entry for entry, and still exact."""
+    roomy = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path / "roomy")
+    monkeypatch.setattr(tape_file, "MIN_ENTRIES", 2)
+    monkeypatch.setattr(tape_file, "ENTRIES_PER_PARTICLE", 0)
+    flushes = []
+    flush = tape_file.Recorder.flush
+    monkeypatch.setattr(
+        tape_file.Recorder, "flush", lambda r: flushes.append(flush(r)) or flushes[-1]
+    )
+    cramped = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path / "cramped")
+    assert cramped.comparison["bitwise_identical"]
+    assert any(flushes)  # a step was recorded again
+    name = "collision_shear.tape.h5"
+    one, other = (
+        _entries(roomy.outputs.restart.with_name(name)),
+        _entries(cramped.outputs.restart.with_name(name)),
+    )
+    assert all(np.array_equal(one[key], other[key]) for key in one)
+
+
 def test_the_tape_needs_fixed_point_arithmetic_and_velocity_verlet():
     with pytest.raises(InputError, match="reversal.tape: needs integrator.arithmetic = 'fixed'"):
         _shear_collision(0.3).changed({"reversal.tape": True})
