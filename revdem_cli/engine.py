@@ -19,9 +19,10 @@ from revdem_cli.errors import InputError, RunFailed
 from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
-from revdem_cli.io.tape import Recorder, Replayer, combined
+from revdem_cli.io.tape import Recorder, Replayer, combined, recorded
 from revdem_cli.io.tape import summary as tape_summary
 from revdem_cli.kernels.events import COLUMNS, KINDS
+from revdem_cli.kernels.tape import MECHANISMS
 from revdem_cli.stage import (
     Model,
     Progress,
@@ -370,7 +371,7 @@ def _reverse(
     tapes = []
     with writer:
         while True:
-            tape = _replayer(start, source, clock)
+            tape = _replayer(scenario, start, source, clock)
             _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress)
             tapes += [tape] if tape else []
             if not start.previous or stop != clock.first_step:
@@ -394,12 +395,24 @@ def _reverse(
     return outputs
 
 
-def _replayer(start: Restart, source: str, clock: StageClock) -> Replayer | None:
-    """The information tape a restart names, to replay, or None."""
+def _replayer(
+    scenario: Scenario, start: Restart, source: str, clock: StageClock
+) -> Replayer | None:
+    """The information tape a restart names, to replay, or None. Its bits at the stage's
+    first step are those the forward run wrote there, at the end of the stage before: that
+    stage's tape's, beside the restart, where every stage is reversed, else NaN."""
     if not start.tape:
         return None
+    index = [stage.name for stage in scenario.stages].index(clock.stage.name)
+    before = None
+    if index > 0:
+        before = np.full(len(MECHANISMS), np.nan)
+        if start.previous:  # every stage reversed: the stage before has a tape
+            earlier = stage_paths(Path(source).parent, scenario.name, index - 1, scenario)
+            before = recorded(earlier["tape"])
     path = Path(source).parent / start.tape
-    return Replayer(path, clock.stage.name, clock.first_step, len(start.state.particles.x))
+    particles = len(start.state.particles.x)
+    return Replayer(path, clock.stage.name, clock.first_step, particles, before)
 
 
 def _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress) -> None:

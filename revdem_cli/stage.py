@@ -509,11 +509,13 @@ def _write_observables(
     tape: Recorder | Replayer | None = None,
 ) -> None:
     """Complete observables rows and write them; with a tape, the bits it recorded from the
-    stage's start (going forward; NaN going backward, where they are given back, and in a
-    stage without a tape)."""
+    stage's start to each row's step: going forward those recorded so far, going backward
+    those the forward run recorded there (the bits the reversal has yet to give back), so
+    that a reversed row is the forward row of its step to the last digit. NaN in a stage
+    without a tape."""
     model.complete(rows)
     if model.layout.taped:
         at = model.layout.column("bits_destroyed")
-        bits = tape.destroyed_by(steps) if isinstance(tape, Recorder) else np.nan
+        bits = tape.destroyed_by(steps) if tape is not None else np.nan
         rows[:, at : at + len(MECHANISMS)] = bits
     writer.observables(steps, clock.time(steps), rows)

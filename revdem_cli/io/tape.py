@@ -275,9 +275,13 @@ class Recorder:
 
 
 class Replayer:
-    """Gives the reversed run the tape's entries, a block at a time from the end."""
+    """Gives the reversed run the tape's entries, a block at a time from the end, and the bits
+    the forward run recorded up to each step (`destroyed_by`)."""
 
-    def __init__(self, path: Path, stage: str, first_step: int, particles: int):
+    def __init__(self, path: Path, stage: str, first_step: int, particles: int, before=None):
+        """`before`: the bits the forward run wrote at the stage's first step where a stage
+        before it ended there (that stage's, by mechanism: `recorded`, or NaN without a
+        tape); None for the run's first stage, whose first step holds zero."""
         self.path = Path(path)
         with _open(self.path, "r") as f:
             attrs = dict(f.attrs)
@@ -299,9 +303,12 @@ class Replayer:
                     f"{stage} from step {first_step} with {particles}"
                 )
             counts = f["steps/count"][:]
+            bits = f["steps/bits"][:]
         self.first_step = first_step
         self.starts = np.concatenate(([0], np.cumsum(counts)))
         self.buffers = _Buffers()
+        self.running = _running(np.zeros(len(MECHANISMS)), bits)  # as `Recorder` sums them
+        self.before = before
 
     @property
     def steps(self) -> int:
@@ -309,6 +316,18 @@ class Replayer:
 
     def bundle(self, state, events) -> Tape:
         return self.buffers.bundle(state, events, REPLAY)
+
+    def destroyed_by(self, steps: np.ndarray) -> np.ndarray:
+        """The bits the forward run recorded from the stage's start to each of `steps`, by
+        mechanism, (len(steps), len(MECHANISMS)): those the reversal has yet to give back,
+        the same to the last digit as the forward run's `Recorder.destroyed_by` there. At
+        the stage's first step, where the stage before ended, `before` where given (the
+        forward run's row there is that stage's)."""
+        labels = np.clip(np.asarray(steps) - self.first_step, 0, self.steps)
+        bits = self.running[labels]
+        if self.before is not None:
+            bits[labels == 0] = self.before
+        return bits
 
     def load(self, step: int) -> None:
         """Fill the block with the entries of the steps up to `step` - 1 (the next the
@@ -343,6 +362,13 @@ def _running(total: np.ndarray, bits: np.ndarray) -> np.ndarray:
     same order however the rows came in blocks, so that a run resumed from a checkpoint
     reports the bits of an uninterrupted one to the last digit."""
     return np.cumsum(np.vstack((total, bits)), axis=0)
+
+
+def recorded(path: Path) -> np.ndarray:
+    """The bits a tape recorded over its whole stage, by mechanism, summed as `Recorder`
+    sums them (its rows of the stage's last step)."""
+    with _open(Path(path), "r") as f:
+        return _running(np.zeros(len(MECHANISMS)), f["steps/bits"][:])[-1]
 
 
 def state_bytes(state) -> int:

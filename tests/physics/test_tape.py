@@ -13,7 +13,7 @@ from revdem_cli import api as revdem
 from revdem_cli.errors import InputError, RunFailed
 from revdem_cli.io import tape as tape_file
 from revdem_cli.io.tape import summary
-from revdem_cli.kernels.tape import COMPARED, ordered, unordered
+from revdem_cli.kernels.tape import COMPARED, MECHANISMS, ordered, unordered
 from tests.conftest import FLOOR, PLANE, SPHERE, crashed_after
 
 
@@ -117,7 +117,45 @@ def test_the_tape_reverses_a_run_that_destroys_information_to_its_own_integers(t
     bits = bits[np.isfinite(bits).all(axis=1)]  # NaN before the stage with the tape
     assert bits[-1].sum() == pytest.approx(recorded["bits_destroyed"], rel=1e-12)
     assert np.all(np.diff(bits, axis=0) >= 0.0)  # summed as the run goes
-    assert np.isnan(taped.observable("bits_destroyed", "reverse")[1]).all()
+    _assert_reversed_rows_are_the_forward_ones(tmp_path / "taped", make().name)
+
+
+def _bits_rows(trajectory) -> dict[int, np.ndarray]:
+    """The bits_destroyed row of each step of a trajectory's observables."""
+    from revdem_cli.io.h5md import open_trajectory
+
+    with open_trajectory(trajectory) as f:
+        steps = f["observables/bits_destroyed/step"][:]
+        values = f["observables/bits_destroyed/value"][: len(steps)]
+    return dict(zip(steps.tolist(), values, strict=True))
+
+
+def _assert_reversed_rows_are_the_forward_ones(out, name: str) -> dict[int, np.ndarray]:
+    """Every reversed row of bits_destroyed in the folder `out` is the forward row of its
+    step, to the last digit (NaN where the forward row is, before the stage with the tape);
+    the reversed rows."""
+    from revdem_cli.engine import output_paths
+
+    paths = output_paths(out, name)
+    forward, reverse = _bits_rows(paths["forward"]), _bits_rows(paths["reverse"])
+    assert reverse and set(reverse) <= set(forward)
+    for step, row in reverse.items():
+        assert np.array_equal(row.view(np.int64), forward[step].view(np.int64)), step
+    return reverse
+
+
+def test_a_reversed_run_gives_back_the_bits_the_forward_run_recorded(tmp_path):
+    """Going backward, bits_destroyed holds the bits the forward run recorded from the
+    stage's start to each step, those the reversal has yet to give back: the forward row of
+    the step, bit for bit, falling to zero at the stage's start."""
+    taped = revdem.run(_fixed(_resting({"contact": {"normal_damping": 0.3}}), True), tmp_path)
+    assert taped.comparison["bitwise_identical"]
+    reverse = _assert_reversed_rows_are_the_forward_ones(tmp_path, "resting")
+    assert len(reverse) == len(_bits_rows(taped.trajectory()))  # the whole stage back
+    rows = np.array([reverse[step] for step in sorted(reverse)])
+    assert np.isfinite(rows).all()
+    assert rows[:, MECHANISMS.index("damping")].any()
+    assert np.all(rows[0] == 0.0)  # the stage's start: nothing recorded yet
 
 
 def _entries(path):
@@ -268,6 +306,7 @@ def test_a_taped_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path
     for name in a:
         assert np.array_equal(a[name], b[name]), name
     assert whole.comparison["bitwise_identical"]
+    _assert_reversed_rows_are_the_forward_ones(tmp_path / "cut", "resting")
 
 
 def test_observing_a_state_leaves_the_stress_a_servo_reads():
@@ -318,6 +357,8 @@ def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
     assert verdict["information_tapes"][2]["by_mechanism"]["damping"]["bits"] > 0.0
     total = sum(tape["bits_destroyed"] for tape in verdict["information_tapes"])
     assert verdict["information_tape"]["bits_destroyed"] == pytest.approx(total)
+    reverse = _assert_reversed_rows_are_the_forward_ones(tmp_path, "resting")  # a stage's end,
+    assert reverse[1000].sum() > 0.0  # where the row is the stage's that ended there
     with pytest.raises(InputError, match="reversal.all_stages: needs reversal.tape = true"):
         experiment.changed({"reversal.tape": False})
 
@@ -331,3 +372,4 @@ def test_a_reversal_of_every_stage_resumes_in_an_earlier_stage(tmp_path):
     resumed = revdem.resume(tmp_path)
     assert resumed.comparison["bitwise_identical"]
     assert resumed.comparison["frames_compared"] == 31
+    _assert_reversed_rows_are_the_forward_ones(tmp_path, "resting")
