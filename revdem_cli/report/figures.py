@@ -286,11 +286,38 @@ def contact_normals_figure(forward: Path, reverse: Path | None, png: Path) -> Pa
     return _save(fig, png)
 
 
+def information_by_step(forward: Path) -> tuple[list, np.ndarray, np.ndarray, np.ndarray, list]:
+    """The information tapes beside a forward trajectory (`engine.stage_paths`), end to end
+    in stage order: those of every stage with `[reversal] all_stages`, else the last
+    stage's, each where it is there. Returns the stages read, each (name, first step,
+    first time in s), then as `io.tape.by_step` their steps, times (s), bits of each step
+    by mechanism, and the mechanisms' names. InputError where none is there."""
+    from revdem_cli.engine import stage_paths
+    from revdem_cli.io import stored_scenario
+    from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.io.tape import by_step
+
+    with open_trajectory(forward) as f:
+        scenario = stored_scenario(f["parameters/revdem"].attrs["scenario_json"], forward)
+    last = len(scenario.stages) - 1
+    indices = range(last + 1) if scenario.reversal.all_stages else [last]
+    paths = [stage_paths(Path(forward).parent, scenario.name, k, scenario)["tape"] for k in indices]
+    present = [(k, path) for k, path in zip(indices, paths, strict=True) if path.exists()]
+    parts = [(k, by_step(path)) for k, path in present or [(last, paths[-1])]]
+    stages = [(scenario.stages[k].name, int(part[0][0]), float(part[1][0])) for k, part in parts
+              if len(part[0])]  # fmt: skip
+    steps, times, bits = (np.concatenate([part[i] for _, part in parts]) for i in range(3))
+    return stages, steps, times, bits, parts[-1][1][3]
+
+
 def information_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
-    """The information the run destroyed, from its tape (`io.tape`): the bits recorded, summed
-    from the start of the reversed stage, and per step (averaged over a hundredth of the
-    stage), by mechanism, against time, or in a cell with a strain-rate axis against the
-    compression along it (mm)."""
+    """The information the run destroyed, from its tapes (`io.tape`; every stage's with
+    `[reversal] all_stages`, `information_by_step`): the bits recorded, summed from the start
+    of the first stage taped on through the later ones, and per step (averaged over a
+    hundredth of the steps), by mechanism, against time, each stage's start marked by a
+    thin vertical line with its name where there are several. With one stage, in a cell
+    with a strain-rate axis, against the compression along it (mm) instead: over several
+    stages the cell may move otherwise from stage to stage, so they stay against time."""
     import json
 
     import matplotlib
@@ -299,20 +326,24 @@ def information_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     import matplotlib.pyplot as plt
 
     from revdem_cli.io.h5md import open_trajectory
-    from revdem_cli.io.tape import by_step
 
-    with open_trajectory(forward) as f:
-        scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])
-    steps, times, bits, names = by_step(Path(forward).with_name(f"{scenario['name']}.tape.h5"))
+    stages, steps, times, bits, names = information_by_step(forward)
     x, xlabel = times * 1e3, "time (ms)"
-    motion = scenario["stages"][-1].get("cell") or {}
-    axis = next((k for k, a in enumerate("xyz") if (motion.get(a) or {}).get("strain_rate")), None)
-    if axis is not None:
+    starts = [first_time * 1e3 for _, _, first_time in stages]
+    if len(stages) == 1:
         with open_trajectory(forward) as f:
-            at = f["observables/cell_length/step"][:]
-            length = f["observables/cell_length/value"][:, axis]
-        edge = np.interp(steps, at, length)
-        x, xlabel = (edge[0] - edge) * 1e3, f"compression along {'xyz'[axis]} (mm)"
+            scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])
+        stage = next(s for s in scenario["stages"] if s["name"] == stages[0][0])
+        motion = stage.get("cell") or {}
+        axis = next(
+            (k for k, a in enumerate("xyz") if (motion.get(a) or {}).get("strain_rate")), None
+        )
+        if axis is not None:
+            with open_trajectory(forward) as f:
+                at = f["observables/cell_length/step"][:]
+                length = f["observables/cell_length/value"][:, axis]
+            edge = np.interp(steps, at, length)
+            x, xlabel = (edge[0] - edge) * 1e3, f"compression along {'xyz'[axis]} (mm)"
     window = max(1, len(steps) // 100)
     kernel = np.ones(window) / window
     fig, (total, rate) = plt.subplots(2, 1, figsize=(6, 6.5), dpi=120, sharex=True)
@@ -327,6 +358,12 @@ def information_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
         ax.set_yscale("symlog", linthresh=1.0)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
+    if len(stages) > 1:
+        for (name, _, _), start in zip(stages, starts, strict=True):
+            for ax in (total, rate):
+                ax.axvline(start, color="0.4", lw=0.6)
+            total.text(start, 0.98, f" {name}", transform=total.get_xaxis_transform(),
+                       rotation=90, va="top", ha="left", fontsize=7, color="0.3")  # fmt: skip
     rate.set_xlabel(xlabel)
     return _save(fig, png)
 

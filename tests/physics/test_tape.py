@@ -373,3 +373,21 @@ def test_a_reversal_of_every_stage_resumes_in_an_earlier_stage(tmp_path):
     assert resumed.comparison["bitwise_identical"]
     assert resumed.comparison["frames_compared"] == 31
     _assert_reversed_rows_are_the_forward_ones(tmp_path, "resting")
+
+
+def test_the_information_figure_reads_the_tape_of_every_stage(tmp_path):
+    """With every stage reversed each stage leaves its own tape: the figure `information`
+    reads them end to end, from step 0 to the run's last, each stage's start marked."""
+    from revdem_cli.report.figures import information_by_step
+
+    experiment = _three_stages().changed({"output.figures": ["information"]})
+    result = revdem.run(experiment, tmp_path, reverse=False)
+    assert result.outputs.figures == (tmp_path / "resting.information.png",)
+    assert result.outputs.figures[0].read_bytes()[:4] == b"\x89PNG"
+    stages, steps, times, bits, names = information_by_step(result.trajectory())
+    tapes = ["resting.stage-0.tape.h5", "resting.stage-1.tape.h5", "resting.tape.h5"]
+    assert len(steps) == len(bits) == sum(summary(tmp_path / tape)["steps"] for tape in tapes)
+    assert steps[0] == 0 and np.all(np.diff(steps) == 1) and np.all(np.diff(times) > 0.0)
+    assert [stage[:2] for stage in stages] == [("press", 0), ("free", 1000), ("held", 2000)]
+    damping = names.index("damping")
+    assert bits[:1000, damping].any() and bits[2000:, damping].any()  # local, then viscous
