@@ -303,11 +303,13 @@ class Replayer:
                     f"{stage} from step {first_step} with {particles}"
                 )
             counts = f["steps/count"][:]
-            bits = f["steps/bits"][:]
+            self.sums = [np.zeros(len(MECHANISMS))]  # the bits before every STEPS_PER_BLOCK-th
+            for start in range(0, counts.shape[0], STEPS_PER_BLOCK):  # step, by mechanism
+                block = f["steps/bits"][start : start + STEPS_PER_BLOCK]
+                self.sums.append(_running(self.sums[-1], block)[-1])
         self.first_step = first_step
         self.starts = np.concatenate(([0], np.cumsum(counts)))
         self.buffers = _Buffers()
-        self.running = _running(np.zeros(len(MECHANISMS)), bits)  # as `Recorder` sums them
         self.before = before
 
     @property
@@ -324,7 +326,13 @@ class Replayer:
         the stage's first step, where the stage before ended, `before` where given (the
         forward run's row there is that stage's)."""
         labels = np.clip(np.asarray(steps) - self.first_step, 0, self.steps)
-        bits = self.running[labels]
+        bits = np.zeros((labels.shape[0], len(MECHANISMS)))
+        blocks = labels // STEPS_PER_BLOCK
+        with _open(self.path, "r") as f:
+            for k in np.unique(blocks):  # summed on from the block's first step, as forward
+                start = k * STEPS_PER_BLOCK
+                block = f["steps/bits"][start : start + STEPS_PER_BLOCK]
+                bits[blocks == k] = _running(self.sums[k], block)[labels[blocks == k] - start]
         if self.before is not None:
             bits[labels == 0] = self.before
         return bits
