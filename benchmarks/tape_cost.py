@@ -38,7 +38,7 @@ def stepped(state, model, steps: int, recorder) -> float:
     `recorder` (`io.tape.Recorder`, its blocks written out as they fill) or without a tape."""
     from revdem_cli.io.tape import no_tape
     from revdem_cli.kernels.integrate import OK, TAPE_FULL, advance
-    from revdem_cli.stage import stepping_bundles, write_out
+    from revdem_cli.stage import stepping_bundles
     from revdem_cli.state import empty_events
 
     obs, obs_steps = model.buffers(2)
@@ -46,7 +46,7 @@ def stepped(state, model, steps: int, recorder) -> float:
     stepping = model.stepping(1.0e-6, first, first + steps, steps)
     events = empty_events()
     started = time.perf_counter()
-    while state.step != first + steps:
+    while state.step != first + steps or recorder and recorder.retaking:
         tape = recorder.bundle(state, events) if recorder else no_tape()
         bundles = stepping_bundles(state, model, model.dynamics, model.law)
         status, state.step, _, _ = advance(
@@ -54,7 +54,7 @@ def stepped(state, model, steps: int, recorder) -> float:
             obs_steps,
         )  # fmt: skip
         if status == TAPE_FULL:
-            write_out(recorder, state, model, model.dynamics, model.law, events, (first, 1.0e-6))
+            recorder.flush()
         elif status != OK:
             raise RuntimeError(f"the stepping loop stopped with status {status}")
     if recorder:

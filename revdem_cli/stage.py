@@ -33,7 +33,6 @@ from revdem_cli.kernels.integrate import (
     TAPE_FULL,
     TAPE_MISMATCH,
     advance,
-    shadow_step,
 )
 from revdem_cli.kernels.observables import Layout, observe
 from revdem_cli.kernels.stress import particle_stress
@@ -304,7 +303,7 @@ def run_stage(
         pauses = sorted(set(frames) | set(range(frames[0], frames[-1], every)))
     frame_steps = set(frames)
     for target in [s for s in pauses if (s - state.step) * direction > 0]:
-        while state.step != target:
+        while state.step != target or isinstance(tape, Recorder) and tape.retaking:
             logs = (events, tape.bundle(state, events) if tape else no_tape())
             status, state.step, rows, finding = stepper.advance(
                 advance, (*stepping_bundles(state, model, dyn, law), *logs), stepping,
@@ -312,7 +311,7 @@ def run_stage(
             )  # fmt: skip
             _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows], tape)
             if status == TAPE_FULL:
-                write_out(tape, state, model, dyn, law, events, (clock.first_step, clock.dt))
+                tape.flush()
                 continue
             if status == TAPE_EMPTY:
                 tape.load(state.step)
@@ -352,20 +351,6 @@ def run_stage(
             checkpoint(state, clock, events)
     if isinstance(tape, Recorder):
         tape.flush()
-
-
-def write_out(
-    tape: Recorder, state: State, model: Model, dyn: Dynamics, law: ContactLaw, events, clock
-) -> None:
-    """Append the block of a tape being recorded to its file, after the stepping loop said
-    TAPE_FULL; where the step just taken made more entries than the block had room for, its
-    entries are recorded again in the grown block (`Recorder.flush`). `clock`: the stage's
-    first step and time step."""
-    if tape.flush():
-        bundles = stepping_bundles(state, model, dyn, law)
-        shadow_step(
-            tape.bundle(state, events), *bundles, events, clock[1], state.step - 1, clock[0]
-        )
 
 
 def reversal_history(state: State, model: Model, clock: StageClock) -> None:

@@ -103,7 +103,7 @@ def no_tape() -> Tape:
         OFF, bytes_, bytes_, longs, longs, _NOTHING8, _NOTHING8,
         np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
         np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
-        _NOTHING64, np.zeros(4, dtype=np.int64),
+        _NOTHING64, np.zeros(5, dtype=np.int64),
     )  # fmt: skip
 
 
@@ -121,7 +121,7 @@ class _Buffers:
         self.bits = np.zeros((STEPS_PER_BLOCK, len(MECHANISMS)))
         self.contacts = np.zeros((STEPS_PER_BLOCK, len(MECHANISMS)), dtype=np.int64)
         self.offsets = np.zeros(STEPS_PER_BLOCK + 1, dtype=np.int64)
-        self.span = np.zeros(4, dtype=np.int64)
+        self.span = np.zeros(5, dtype=np.int64)
         self.causes = _NOTHING8
         self.wall_causes = _NOTHING8
 
@@ -185,7 +185,7 @@ class Recorder:
             self._create(stage, clock, state)
         else:
             self._truncate(step - self.first_step)
-        self.buffers.span[:] = (self.first_step + self.written_steps, 0, 0, 0)
+        self.buffers.span[:] = (self.first_step + self.written_steps, 0, 0, 0, 0)
 
     def _create(self, stage: str, clock: tuple[int, float, float], state) -> None:
         m = len(MECHANISMS)
@@ -227,11 +227,11 @@ class Recorder:
     def bundle(self, state, events) -> Tape:
         return self.buffers.bundle(state, events, RECORD)
 
-    def flush(self) -> bool:
-        """Append the block recorded so far to the file and empty it. Returns whether its last
-        step made more entries than the block had room for: that step is then left out, the
-        block grown to twice the most a step has made, and the step's shadow must be taken
-        again (`kernels.integrate.shadow_step`) before stepping on."""
+    def flush(self) -> None:
+        """Append the block recorded so far to the file and empty it. Where its last step made
+        more entries than the block had room for, that step is left out, the block grown to
+        twice the most a step has made, and the stepping loop, called next, records the
+        step again before it steps on (`retaking`)."""
         b = self.buffers
         steps, entries = int(b.span[1]), int(b.span[2])
         again = entries > b.what.shape[0]
@@ -243,7 +243,12 @@ class Recorder:
         self._write(steps, entries)
         if again:
             b.grow(2 * int(b.span[3]))
-        return again
+            b.span[4] = 1
+
+    @property
+    def retaking(self) -> bool:
+        """Whether the stepping loop has a step to record again before it steps on."""
+        return bool(self.buffers.span[4])
 
     def _write(self, steps: int, entries: int) -> None:
         b = self.buffers

@@ -339,8 +339,9 @@ def advance(
     rows recorded are of the steps before), HALTED that `stepping.halt` asked for a stop
     (the state is at the whole step reached). With an information tape (`kernels.tape`)
     recording, each forward step records its entries, and TAPE_FULL says that the block
-    must be written out before the next (and where the step just taken made more entries
-    than the block had room for, that its shadow step be taken again, `shadow_step`);
+    must be written out before the next (where the step just taken made more entries than
+    the block had room for, `io.tape.Recorder.flush` leaves it out and asks for it again:
+    the loop then takes its `shadow_step` again first, even where `step` is `until`);
     replaying, each reversed step applies them, and TAPE_EMPTY says that the block holds
     no more, TAPE_MISMATCH that an entry's pair is not in the list (the finding's particle
     and partner).
@@ -350,6 +351,10 @@ def advance(
     direction = 1 if stop > step else -1
     rows = 0
     finding = Finding(HEALTHY, -1, -1, 0.0)
+    if tape.mode == tp.RECORD and tape.span[4] != 0:  # the step before, recorded again
+        tape.span[4] = 0
+        system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
+        shadow_step(tape, *system, dt, step - 1, first)
     while step != until:
         if stepping.halt[0] != 0:
             return HALTED, step, rows, finding

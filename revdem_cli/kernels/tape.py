@@ -114,7 +114,7 @@ Tape = namedtuple(
         "contacts",  # contacts (or particles, or edges) with entries, same shape, int64
         "offsets",  # first entry of each step of the block, int64 (S + 1,)
         "span",  # [first step of the block, steps in it, entries in it, the most entries a
-        # step has made], int64 (4,)
+        # step has made, 1 where the step before the block is to be recorded again], int64 (5,)
     ],
 )
 """Entries are labelled by the step whose state they restore: a forward step from n records
