@@ -176,6 +176,14 @@ def normal_force(law, overlap, rstar, mstar, estar, vrel, n):
 
 
 @inline
+def history_step(law, scale):
+    """The grid step of a history in fixed-point arithmetic (`fixed.HISTORY_BITS`): of the
+    binade of `scale`, the contact's elastic normal force for its shear history, that times
+    R* for its rolling one; 0 in floating point."""
+    return law.history_grid * binade(scale)
+
+
+@inline
 def contact_force(
     law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, vdamp, spin, history, n_new,
     small=False,
@@ -206,7 +214,7 @@ def contact_force(
     shear = spring(mode, history, n, n_new, spin, dt, ks, vt, small)
     shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
     if law.history_grid != 0.0:  # fixed point (a constant in a build for floating point)
-        shear = snapped(shear, law.history_grid * binade(elastic))
+        shear = snapped(shear, history_step(law, elastic))
     if law.beta_t > 0.0:
         damped = tangential(vdamp, n)
         shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), damped, shear)  # viscous
@@ -233,7 +241,7 @@ def rolling_moment(
     moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)
     moment, capped = coulomb_cap(moment, _rolling_limit(law.rolling, law, normal, rstar))
     if law.history_grid != 0.0:
-        moment = snapped(moment, law.history_grid * binade(elastic * rstar))
+        moment = snapped(moment, history_step(law, elastic * rstar))
     return moment, capped
 
 

@@ -239,7 +239,7 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
     h = -0.5 * dt
     damped = dyn.local_damping > 0.0 or law.beta_n > 0.0 or law.beta_t > 0.0
     if recording:
-        touched = tp.record(tape, p, pairs, walls, cell, fixed, h, True, damped)
+        touched = tp.record(tape, p, pairs, walls, cell, fixed, law, moduli.estar, h, True, damped)
     else:
         touched, missing = tp.replay(tape, p, pairs, cell, fixed, step, h, True)
         if missing >= 0:
@@ -253,7 +253,7 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
         compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, STATIC, dt, h, scratch, step)
         tp.put_back_histories(tape)
     if recording:
-        tp.record(tape, p, pairs, walls, cell, fixed, h, False, damped)
+        tp.record(tape, p, pairs, walls, cell, fixed, law, moduli.estar, h, False, damped)
         tp.close_step(tape)
     else:
         tp.replay(tape, p, pairs, cell, fixed, step, h, False)

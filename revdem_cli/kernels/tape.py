@@ -29,7 +29,10 @@ sum is taken in a fixed order (on integer grids).
 Entries of the pair arrays are keyed by the pair (i, j), not by its slot, since the
 reversed run builds its own list at other steps. Each entry also counts as
 log2(1 + 2|amount|) bits, the bits that tell an integer from the others of at most its
-size, charged to the mechanism that made it (`MECHANISMS`).
+size, charged to the mechanism that made it (`MECHANISMS`); a history's amount counted in
+steps of its contact's own grid (`contact.history_step`), not in doubles, since the forward
+run holds it on that grid: a history a grid step off costs log2 3 bits, not the 12 or more
+of the doubles between.
 """
 
 from collections import namedtuple
@@ -38,6 +41,7 @@ import numpy as np
 
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import inline, jit
+from revdem_cli.kernels.contact import history_step, normal_law
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -140,6 +144,37 @@ def unordered(number):
 def bits_of(amount):
     """log2(1 + 2|amount|): the bits that tell an integer from the others of at most its size."""
     return np.log2(1.0 + 2.0 * abs(float(amount)))
+
+
+@inline
+def grid_bits(was, now, step):
+    """log2(1 + 2|was - now| / step): the bits of a history entry (the doubles' bits `was`
+    and `now`) on its contact's grid of `step`; with no grid (step 0, a contact apart), as
+    `bits_of` counts doubles."""
+    if step == 0.0:
+        return bits_of(ordered(was) - ordered(now))
+    apart = abs(np.int64(was).view(np.float64) - np.int64(now).view(np.float64))
+    return np.log2(1.0 + 2.0 * apart / step)
+
+
+@inline
+def contact_grid(what, index, p, pairs, walls, law, estar):
+    """The grid step of the history entry at flat `index` of array `what` (SHEAR, ROLLING,
+    WALL_SHEAR or WALL_ROLLING), from its contact's overlap as the reversed step left it."""
+    c = index // 3
+    if what == SHEAR or what == ROLLING:
+        i, j = pairs.i[c], pairs.j[c]
+        rstar = p.radius[i] * p.radius[j] / (p.radius[i] + p.radius[j])
+        overlap = pairs.overlap[c]
+        modulus = estar[p.material[i], p.material[j]]
+    else:
+        count = walls.overlap.shape[1]
+        q, b = c // count, c % count
+        rstar = p.radius[q]
+        overlap = walls.overlap[q, b]
+        modulus = estar[p.material[q], walls.material[b]]
+    elastic = normal_law(law, overlap, rstar, modulus)[0] if overlap > 0.0 else 0.0
+    return history_step(law, elastic * (rstar if what == ROLLING or what == WALL_ROLLING else 1.0))
 
 
 @inline
@@ -296,12 +331,13 @@ def _slot(first, partners, i, j):
 
 
 @jit
-def record(tape, p, pairs, walls, cell, fixed, h, first, damped):
+def record(tape, p, pairs, walls, cell, fixed, law, estar, h, first, damped):
     """Settle the shadow reversal's state S'_n onto `before` (S_n): the arrays of the `first`
     pass, or of the second, each in the order of COMPARED, appending each difference as an
     entry of the block's step being recorded and charging its bits; `h` is the reversed
     step's half kick, -dt/2; `damped`: forces read velocities, so that a force entry is
-    charged to damping rather than to round-off. Entries past the block's room are counted
+    charged to damping rather than to round-off; `law` and `estar` (moduli.estar): what a
+    history's grid is found from. Entries past the block's room are counted
     and applied but not written: the step is then taken again once the block has room
     (`overflowed`)."""
     label = tape.span[1]
@@ -336,7 +372,11 @@ def record(tape, p, pairs, walls, cell, fixed, h, first, damped):
                 tape.amount[used] = amount
             used += 1
             mechanism = charged if charged >= 0 else causes[2 * (index // 3) + rolling]
-            tape.bits[label, mechanism] += bits_of(amount)
+            if charged < 0:  # a history, on its contact's grid
+                step = contact_grid(what, index, p, pairs, walls, law, estar)
+                tape.bits[label, mechanism] += grid_bits(was[index], values[index], step)
+            else:
+                tape.bits[label, mechanism] += bits_of(amount)
             if index // 3 != counted:
                 tape.contacts[label, mechanism] += 1
                 counted = index // 3
