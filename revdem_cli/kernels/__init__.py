@@ -84,6 +84,14 @@ inline = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", fo
 alwaysinline): a loop over a block of pairs that calls it stays one loop body, which LLVM
 can vectorise."""
 
+inline_arrays = partial(
+    numba.njit, cache=True, fastmath=False, error_model="numpy", inline="always"
+)
+"""Compiled helper that takes arrays, inlined by numba itself before compiling its caller:
+an LLVM-inlined call (`inline`) still takes and gives back a reference to each array it is
+passed, which numba does not prune where the helper branches; in a loop over entries that
+costs more than the work (the information tape's `_apply`: 6 ms a step of 91 000 entries)."""
+
 pjit = partial(
     numba.njit, cache=True, fastmath=False, error_model="numpy", parallel=True, nogil=True
 )

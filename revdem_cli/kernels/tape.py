@@ -40,7 +40,7 @@ from collections import namedtuple
 import numpy as np
 
 from revdem_cli.kernels import fixed as fx
-from revdem_cli.kernels import inline, jit
+from revdem_cli.kernels import inline, inline_arrays, jit
 from revdem_cli.kernels.contact import history_step, normal_law
 
 OFF, RECORD, REPLAY = range(3)
@@ -123,9 +123,9 @@ Tape = namedtuple(
     ],
 )
 """Entries are labelled by the step whose state they restore: a forward step from n records
-label n, and the reversed step to n applies it. The helpers of one entry are inlined: a
-compiled call that receives the bundles pays a reference-count update for each of their
-arrays, which would cost more than the entry."""
+label n, and the reversed step to n applies it. The helpers of one entry take no bundle, and
+those that take arrays are inlined by numba (`inline_arrays`): a compiled call pays a
+reference-count update for each array it receives, which would cost more than the entry."""
 
 
 @inline
@@ -159,26 +159,14 @@ def grid_bits(was, now, step):
 
 
 @inline
-def contact_grid(what, index, p, pairs, walls, law, estar):
-    """The grid step of the history entry at flat `index` of array `what` (SHEAR, ROLLING,
-    WALL_SHEAR or WALL_ROLLING), from its contact's overlap as the reversed step left it."""
-    c = index // 3
-    if what == SHEAR or what == ROLLING:
-        i, j = pairs.i[c], pairs.j[c]
-        rstar = p.radius[i] * p.radius[j] / (p.radius[i] + p.radius[j])
-        overlap = pairs.overlap[c]
-        modulus = estar[p.material[i], p.material[j]]
-    else:
-        count = walls.overlap.shape[1]
-        q, b = c // count, c % count
-        rstar = p.radius[q]
-        overlap = walls.overlap[q, b]
-        modulus = estar[p.material[q], walls.material[b]]
+def contact_grid(law, rolling, overlap, rstar, modulus):
+    """The grid step of a contact's shear history (or with `rolling` its rolling one) from its
+    overlap, R* and E*: scalars, so that one entry's work takes no array (see `Tape`)."""
     elastic = normal_law(law, overlap, rstar, modulus)[0] if overlap > 0.0 else 0.0
-    return history_step(law, elastic * (rstar if what == ROLLING or what == WALL_ROLLING else 1.0))
+    return history_step(law, elastic * (rstar if rolling else 1.0))
 
 
-@inline
+@inline_arrays
 def rekicked(f, inv, q, h, step):
     """The increment, in grid steps, of the reversed step's half kick h f / m of one
     component, as `fixed.kick_row` takes it."""
@@ -294,35 +282,44 @@ def _targets(what, p, fixed):
     return p.f, p.inv_mass, fixed.v, p.v, fixed.grid[fx.VELOCITY]
 
 
-@inline
+@inline_arrays
 def _apply(values, what, index, amount, h, forces, inverse, ints, images, step, x, s, length,
            grid):  # fmt: skip
     """Add `amount` to `values` (array `what`, flat) at `index` (doubles: in their order), with
     what follows from it: a force or moment kicks its velocity again (`_targets`), a
     velocity, angular velocity or position refreshes its image (positions: x, and in a
     deforming cell s, with the cell's `length` and the position `grid`). Plain arrays: one
-    entry's work takes no bundle."""
+    entry's work takes no bundle. `values` is a view of `forces` (or of `ints`) where the
+    entry is one of theirs: every value is carried from where it is made, never read back
+    through the other view, so that no reordering of loads and stores can matter."""
     q, axis = index // 3, index % 3
     if what == FORCE or what == MOMENT:
         wrong = forces[q, axis]
-        values[index] = unordered(ordered(values[index]) + amount)
-        again = rekicked(forces[q, axis], inverse, q, h, step)
-        ints[q, axis] += again - rekicked(wrong, inverse, q, h, step)
-        images[q, axis] = ints[q, axis] * step
+        bits = unordered(ordered(values[index]) + amount)
+        values[index] = bits
+        right = np.int64(bits).view(np.float64)
+        moved = (
+            ints[q, axis]
+            + rekicked(right, inverse, q, h, step)
+            - rekicked(wrong, inverse, q, h, step)
+        )
+        ints[q, axis] = moved
+        images[q, axis] = moved * step
     elif _in_order(what):
         values[index] = unordered(ordered(values[index]) + amount)
     else:
-        values[index] += amount
+        moved = values[index] + amount
+        values[index] = moved
         if what == VELOCITY or what == ANGULAR_VELOCITY:
-            images[q, axis] = ints[q, axis] * step
+            images[q, axis] = moved * step
         elif what == POSITION and s.shape[0] > 0:
-            s[q, axis] = values[index] * grid[axis]
+            s[q, axis] = moved * grid[axis]
             x[q, axis] = s[q, axis] * length[axis]
         elif what == POSITION:
-            x[q, axis] = values[index] * grid[axis]
+            x[q, axis] = moved * grid[axis]
 
 
-@inline
+@inline_arrays
 def _slot(first, partners, i, j):
     """The slot of pair (i, j) in the list, -1 if it is not listed."""
     for k in range(first[i], first[i + 1]):
@@ -345,6 +342,8 @@ def record(tape, p, pairs, walls, cell, fixed, law, estar, h, first, damped):
     used = tape.span[2]
     room = tape.what.shape[0]
     n = p.x.shape[0]
+    radius, material = p.radius, p.material
+    walls_each = walls.overlap.shape[1]
     for what in range(0 if first else SECOND, SECOND if first else len(COMPARED)):
         values = tape.state[what]
         was = tape.before[what]
@@ -356,6 +355,7 @@ def record(tape, p, pairs, walls, cell, fixed, law, estar, h, first, damped):
         rolling = 1 if what == ROLLING or what == WALL_ROLLING else 0
         in_order = _in_order(what)
         counted = -1  # the last contact (or particle, or edge) charged with an entry
+        spacing = 0.0  # its history's grid step (the components of one contact come together)
         for index in range(size):
             if values[index] == was[index]:
                 continue
@@ -373,14 +373,25 @@ def record(tape, p, pairs, walls, cell, fixed, law, estar, h, first, damped):
                 tape.amount[used] = amount
             used += 1
             mechanism = charged if charged >= 0 else causes[2 * (index // 3) + rolling]
-            if charged < 0:  # a history, on its contact's grid
-                step = contact_grid(what, index, p, pairs, walls, law, estar)
-                tape.bits[label, mechanism] += grid_bits(was[index], values[index], step)
-            else:
-                tape.bits[label, mechanism] += bits_of(amount)
             if index // 3 != counted:
                 tape.contacts[label, mechanism] += 1
                 counted = index // 3
+                if charged < 0 and what <= ROLLING:  # a history, on its contact's grid
+                    c = index // 3
+                    i, j = pairs.i[c], pairs.j[c]
+                    rstar = radius[i] * radius[j] / (radius[i] + radius[j])
+                    modulus = estar[material[i], material[j]]
+                    spacing = contact_grid(law, rolling == 1, pairs.overlap[c], rstar, modulus)
+                elif charged < 0:
+                    q, b = index // 3 // walls_each, index // 3 % walls_each
+                    modulus = estar[material[q], walls.material[b]]
+                    spacing = contact_grid(
+                        law, rolling == 1, walls.overlap[q, b], radius[q], modulus
+                    )
+            if charged < 0:
+                tape.bits[label, mechanism] += grid_bits(was[index], values[index], spacing)
+            else:
+                tape.bits[label, mechanism] += bits_of(amount)
             _apply(values, what, index, amount, h, forces, inverse, ints, images, step, p.x, p.s,
                    cell.length, fixed.grid)  # fmt: skip
     recorded = used - tape.span[2]
