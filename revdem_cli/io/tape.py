@@ -310,10 +310,7 @@ class Replayer:
                     f"{stage} from step {first_step} with {particles}"
                 )
             counts = f["steps/count"][:]
-            self.sums = [np.zeros(len(MECHANISMS))]  # the bits before every STEPS_PER_BLOCK-th
-            for start in range(0, counts.shape[0], STEPS_PER_BLOCK):  # step, by mechanism
-                block = f["steps/bits"][start : start + STEPS_PER_BLOCK]
-                self.sums.append(_running(self.sums[-1], block)[-1])
+            self.sums = _block_sums(f["steps/bits"])
         self.first_step = first_step
         self.starts = np.concatenate(([0], np.cumsum(counts)))
         self.buffers = _Buffers()
@@ -379,11 +376,21 @@ def _running(total: np.ndarray, bits: np.ndarray) -> np.ndarray:
     return np.cumsum(np.vstack((total, bits)), axis=0)
 
 
+def _block_sums(bits) -> list[np.ndarray]:
+    """The bits recorded before every STEPS_PER_BLOCK-th step of a tape's /steps/bits, and
+    over all its steps last, by mechanism: summed as `Recorder` sums them (`_running`), a
+    block in memory at a time."""
+    sums = [np.zeros(len(MECHANISMS))]
+    for start in range(0, bits.shape[0], STEPS_PER_BLOCK):
+        sums.append(_running(sums[-1], bits[start : start + STEPS_PER_BLOCK])[-1])
+    return sums
+
+
 def recorded(path: Path) -> np.ndarray:
     """The bits a tape recorded over its whole stage, by mechanism, summed as `Recorder`
     sums them (its rows of the stage's last step)."""
     with _open(Path(path), "r") as f:
-        return _running(np.zeros(len(MECHANISMS)), f["steps/bits"][:])[-1]
+        return _block_sums(f["steps/bits"])[-1]
 
 
 def state_bytes(state) -> int:
