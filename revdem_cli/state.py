@@ -74,9 +74,10 @@ def moduli(scenario: Scenario) -> Moduli:
 
 def contact_law(scenario: Scenario) -> ContactLaw:
     """The compiled record of the scenario's contact: its laws by number, the Coulomb and
-    viscous coefficients, the histories' grid in fixed-point arithmetic, and every law's
-    parameters."""
+    viscous coefficients, the histories' and the forces' grids in fixed-point arithmetic,
+    and every law's parameters."""
     spec = scenario.contact
+    on_grid = scenario.integrator.arithmetic == "fixed"
     return ContactLaw(
         laws.number("normal", spec.model),
         laws.number("tangential", spec.tangential),
@@ -84,7 +85,8 @@ def contact_law(scenario: Scenario) -> ContactLaw:
         math.inf if spec.friction is None else float(spec.friction),
         spec.normal_damping,
         spec.tangential_damping,
-        2.0**-fixed.HISTORY_BITS if scenario.integrator.arithmetic == "fixed" else 0.0,
+        2.0**-fixed.HISTORY_BITS if on_grid else 0.0,
+        float(fixed_grid(scenario)[fixed.FORCE]) if on_grid else 0.0,
         *laws.parameters(spec),
     )
 

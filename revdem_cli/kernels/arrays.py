@@ -127,6 +127,7 @@ CONTACT = (
     "beta_n",  # normal viscous damping, fraction of critical
     "beta_t",  # tangential viscous damping, fraction of critical
     "history_grid",  # fixed-point arithmetic: 2^-fixed.HISTORY_BITS; 0 in floating point
+    "force_grid",  # fixed-point arithmetic: the force grid's step, N; 0 in floating point
 )
 ContactLaw = namedtuple("ContactLaw", CONTACT + PARAMETERS)
 """The compiled record of a contact: the fields of CONTACT, then every law's coefficients by

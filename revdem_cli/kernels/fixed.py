@@ -90,29 +90,65 @@ def moved_on_grid(n, steps):
     return (moved if fits else n), fits
 
 
+OUT = 2.0**62
+"""RANGE + 1 grid steps: a pair's force clamped here (`snapped_in_range`) is out of range,
+and a sum judged by `sum_in_range` stays below it."""
+
+
 @inline
-def add_on_grid(total, value, factor, per_step, largest):
+def snapped_in_range(vector, step):
+    """A 3-vector rounded to the grid of `step` (`rounded`), held as doubles, each component
+    clamped to +-OUT grid steps (NaN to OUT): the pair loop stores each pair's force so, once
+    a pair, and the gather converts it to integers exactly, with no rounding and no
+    undefined conversion, and sees a force beyond the range as a sum out of range."""
+    per = 1.0 / step
+    y0 = rounded(vector[0] * per)
+    y1 = rounded(vector[1] * per)
+    y2 = rounded(vector[2] * per)
+    return (
+        (y0 if abs(y0) < OUT else math.copysign(OUT, y0)) * step + 0.0,
+        (y1 if abs(y1) < OUT else math.copysign(OUT, y1)) * step + 0.0,
+        (y2 if abs(y2) < OUT else math.copysign(OUT, y2)) * step + 0.0,
+    )
+
+
+@inline
+def add_on_grid(total, value, factor, per_step, bound):
     """total + factor value on a grid of 1 / per_step: total a 3-tuple of integers, factor
     value rounded to the grid first (the steps are powers of two, so multiplying by per_step
-    divides by the step exactly). Returns (sum, the largest magnitude of a term so far in
-    grid steps, `largest` before), which `sum_in_range` judges once the sum is complete: a
-    term checked alone would put two branches into every term of the gather's sums."""
+    divides by the step exactly). Returns (sum, `bound` OR the term's magnitudes in grid
+    steps), which `sum_in_range` judges once the sum is complete: an OR of magnitudes is at
+    least the largest and below twice it, and takes one integer operation a term, where
+    judging each partial sum would put two branches into every term of the gather's sums. A
+    term beyond the range adds nothing and sets the bound to OUT."""
     y0 = factor * value[0] * per_step
     y1 = factor * value[1] * per_step
     y2 = factor * value[2] * per_step
-    largest = max(largest, abs(y0), abs(y1), abs(y2))
-    fits = largest <= RANGE  # else the conversions below would be undefined: add nothing
+    fits = (abs(y0) < OUT) & (abs(y1) < OUT) & (abs(y2) < OUT)  # else undefined conversions
     n0 = to_grid(y0 if fits else 0.0)
     n1 = to_grid(y1 if fits else 0.0)
     n2 = to_grid(y2 if fits else 0.0)
-    return (total[0] + n0, total[1] + n1, total[2] + n2), largest
+    bound |= abs(n0) | abs(n1) | abs(n2) | (0 if fits else np.int64(OUT))
+    return (total[0] + n0, total[1] + n1, total[2] + n2), bound
 
 
 @inline
-def sum_in_range(largest, terms):
-    """Whether a sum of `terms` terms on a grid, none larger than `largest` grid steps, stays
-    in range whatever their order: a sum that might not is taken to have left it."""
-    return largest * terms <= RANGE
+def add_snapped(total, value, factor, per_step, bound):
+    """`add_on_grid` of a value already on the grid and in range (`snapped_in_range`) and
+    factor +-1: value times per_step is an integer, converted exactly."""
+    n0 = np.int64(factor * value[0] * per_step)
+    n1 = np.int64(factor * value[1] * per_step)
+    n2 = np.int64(factor * value[2] * per_step)
+    bound |= abs(n0) | abs(n1) | abs(n2)
+    return (total[0] + n0, total[1] + n1, total[2] + n2), bound
+
+
+@inline
+def sum_in_range(bound, terms):
+    """Whether a sum of `terms` terms on a grid, none larger than `bound` grid steps, stays
+    in range whatever their order: a sum that might not is taken to have left it (the
+    product in doubles rounds, monotonically: below OUT, the exact one is at most RANGE)."""
+    return np.float64(bound) * terms < OUT
 
 
 @inline

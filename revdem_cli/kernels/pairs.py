@@ -37,6 +37,7 @@ from revdem_cli.kernels.contact import (
     contact_velocity,
     rolling_moment,
 )
+from revdem_cli.kernels.fixed import snapped_in_range
 from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
 
 STREAM_FROM = 200_000
@@ -295,6 +296,15 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predic
         plain_stage(block, size, gridded, mode, dt, strain, deforming, unwound)
 
 
+@inline
+def snap_forces(block, size, step):
+    """Fixed-point arithmetic: the block's forces on the force grid of `step`
+    (`fixed.snapped_in_range`), once a pair, so that the gather sums each exactly as an
+    integer for both its particles."""
+    for k in range(size):
+        enter3(block, FORCE, k, snapped_in_range(entries(block, FORCE, k), step))
+
+
 STREAMING = False
 """Whether `scatter_pairs` streams (see STREAM_FROM); its streaming build has it True. A
 constant, not an argument: numba optimises the helper before inlining it, and LLVM merges
@@ -424,6 +434,8 @@ def _pair_loop(
                 estar, gstar, image, pi, pj, history, rolling, normal_new, unwound, law,
             )  # fmt: skip
             contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predicted)
+            if law.force_grid != 0.0:
+                snap_forces(block, size, law.force_grid)
             results = (force, history, moment, overlaps, destroyed, rolling, rolled, law, mode)
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)

@@ -150,6 +150,60 @@ def test_an_overflow_names_the_quantity_that_left_its_grid():
     assert "the velocity of particle 1 left the range" in str(OffGrid(1, state.fixed))
 
 
+def _three_touching(**changes):
+    """Three spheres in a bent row, each touching the next: pair forces with three
+    components, in fixed-point arithmetic."""
+    from tests.conftest import two_spheres
+
+    sphere = {"material": "sphere", "radius": 0.005, "velocity": [0.0, 0.0, 0.0]}
+    rows = ([0.0, 0.0, 0.0], [0.0099, 0.0005, 0.0002], [0.0195, 0.001, -0.0003])
+    particles = [sphere | {"position": list(x)} for x in rows]
+    integrator = {"dt": 1e-7, "arithmetic": "fixed"}
+    return two_spheres(particles=particles, integrator=integrator, **changes)
+
+
+def test_a_pair_force_is_rounded_once_and_summed_exactly():
+    """The pair loop rounds each pair's force to the force grid once (fixed.snapped_in_range)
+    and the gather sums those integers exactly: each sphere's net force is the sum of its
+    pairs' forces, in whole grid steps."""
+    from revdem_cli.kernels import fixed
+    from revdem_cli.state import initial_state
+
+    state = initial_state(_three_touching())  # its forces found, as at a run's start
+    pairs, step = state.pairs, state.fixed.grid[fixed.FORCE]
+    count = int(pairs.count[0])
+    steps = pairs.force[:count] / step
+    assert np.count_nonzero(steps.any(axis=1)) == 2  # 0 and 1, 1 and 2 touch
+    np.testing.assert_array_equal(steps, np.round(steps))
+    net = np.zeros((3, 3), dtype=np.int64)
+    for k in range(count):  # the force on i from j, and its reaction on j
+        net[pairs.i[k]] += steps[k].astype(np.int64)
+        net[pairs.j[k]] -= steps[k].astype(np.int64)
+    np.testing.assert_array_equal(state.particles.f / step, net)
+
+
+def test_a_pair_force_beyond_its_grid_is_reported_as_the_force():
+    """A pair's force more than 2^62 force-grid steps is held at the end of the range, never
+    converted past it, and the sums it enters are reported out of range, as the force on the
+    last particle they act on."""
+    from revdem_cli.kernels import fixed
+    from revdem_cli.kernels.contact import FORWARD
+    from revdem_cli.kernels.forces import compute_forces
+    from revdem_cli.stage import Model, stepping_bundles
+    from revdem_cli.state import OffGrid, empty_events, initial_state
+
+    scenario = _three_touching()
+    model, state = Model.of(scenario), initial_state(scenario)
+    assert state.fixed.overflow[0] == 0
+    fine = state.fixed.grid[fixed.FORCE] * 2.0**-40  # every force now ~2^70 steps
+    state.fixed.grid[fixed.FORCE] = fine
+    law = model.law._replace(force_grid=fine)
+    bundles = stepping_bundles(state, model, model.dynamics, law)
+    compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1)
+    assert list(state.fixed.overflow) == [1 + fixed.OF_FORCE, 2]
+    assert "the force of particle 2 left the range" in str(OffGrid(1, state.fixed))
+
+
 def test_a_shear_history_lies_on_the_grid_of_its_own_contact(tmp_path):
     """In fixed-point arithmetic a shear history is a whole number of steps of 2^-40 of the
     power of two at or below its contact's elastic normal force (kernels/fixed.py,
