@@ -96,6 +96,12 @@ and a sum judged by `sum_in_range` stays below it."""
 
 
 @inline
+def in_range(y):
+    """y in grid steps, held to +-OUT (NaN to OUT), where its conversion is defined."""
+    return y if abs(y) < OUT else math.copysign(OUT, y)
+
+
+@inline
 def snapped_in_range(vector, step):
     """A 3-vector rounded to the grid of `step` (`rounded`), held as doubles, each component
     clamped to +-OUT grid steps (NaN to OUT): the pair loop stores each pair's force so, once
@@ -105,11 +111,7 @@ def snapped_in_range(vector, step):
     y0 = rounded(vector[0] * per)
     y1 = rounded(vector[1] * per)
     y2 = rounded(vector[2] * per)
-    return (
-        (y0 if abs(y0) < OUT else math.copysign(OUT, y0)) * step + 0.0,
-        (y1 if abs(y1) < OUT else math.copysign(OUT, y1)) * step + 0.0,
-        (y2 if abs(y2) < OUT else math.copysign(OUT, y2)) * step + 0.0,
-    )
+    return (in_range(y0) * step + 0.0, in_range(y1) * step + 0.0, in_range(y2) * step + 0.0)
 
 
 @inline
@@ -120,15 +122,13 @@ def add_on_grid(total, value, factor, per_step, bound):
     steps), which `sum_in_range` judges once the sum is complete: an OR of magnitudes is at
     least the largest and below twice it, and takes one integer operation a term, where
     judging each partial sum would put two branches into every term of the gather's sums. A
-    term beyond the range adds nothing and sets the bound to OUT."""
-    y0 = factor * value[0] * per_step
-    y1 = factor * value[1] * per_step
-    y2 = factor * value[2] * per_step
-    fits = (abs(y0) < OUT) & (abs(y1) < OUT) & (abs(y2) < OUT)  # else undefined conversions
-    n0 = to_grid(y0 if fits else 0.0)
-    n1 = to_grid(y1 if fits else 0.0)
-    n2 = to_grid(y2 if fits else 0.0)
-    bound |= abs(n0) | abs(n1) | abs(n2) | (0 if fits else np.int64(OUT))
+    term beyond the range is held at its end (`in_range`), which sets the bound to OUT: a
+    selection of each value: one of the whole term made the history gather take 15 % longer."""
+    scale = factor * per_step
+    n0 = to_grid(in_range(value[0] * scale))
+    n1 = to_grid(in_range(value[1] * scale))
+    n2 = to_grid(in_range(value[2] * scale))
+    bound |= abs(n0) | abs(n1) | abs(n2)
     return (total[0] + n0, total[1] + n1, total[2] + n2), bound
 
 
