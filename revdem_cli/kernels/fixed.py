@@ -19,7 +19,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, inline, jit
+from revdem_cli.kernels import by_size, inline, inline_arrays, jit
 
 RANGE = 2**62 - 1
 """Largest magnitude of a value on a grid, in grid steps: the sum of two such values still
@@ -91,7 +91,7 @@ def moved_on_grid(n, steps):
 
 
 OUT = 2.0**62
-"""RANGE + 1 grid steps: a pair's force clamped here (`snapped_in_range`) is out of range,
+"""RANGE + 1 grid steps: a term held here (`in_range`, `snapped_in_range`) is out of range,
 and a sum judged by `sum_in_range` stays below it."""
 
 
@@ -115,40 +115,41 @@ def snapped_in_range(vector, step):
 
 
 @inline
-def add_on_grid(total, value, factor, per_step, bound):
+def add_on_grid(total, value, factor, per_step, largest):
     """total + factor value on a grid of 1 / per_step: total a 3-tuple of integers, factor
     value rounded to the grid first (the steps are powers of two, so multiplying by per_step
-    divides by the step exactly). Returns (sum, `bound` OR the term's magnitudes in grid
-    steps), which `sum_in_range` judges once the sum is complete: an OR of magnitudes is at
-    least the largest and below twice it, and takes one integer operation a term, where
-    judging each partial sum would put two branches into every term of the gather's sums. A
-    term beyond the range is held at its end (`in_range`), which sets the bound to OUT: a
-    selection of each value: one of the whole term made the history gather take 15 % longer."""
+    divides by the step exactly). Returns (sum, the largest magnitude of a term so far in
+    grid steps, before rounding, `largest` before), which `sum_in_range` judges once the sum
+    is complete, where judging each partial sum would put two branches into every term of
+    the gather's sums. A term beyond the range is held at its end value by value
+    (`in_range`), which the largest then reports: a selection of the whole term, which each
+    conversion waited for, made the history gather take 15 % longer."""
     scale = factor * per_step
-    n0 = to_grid(in_range(value[0] * scale))
-    n1 = to_grid(in_range(value[1] * scale))
-    n2 = to_grid(in_range(value[2] * scale))
-    bound |= abs(n0) | abs(n1) | abs(n2)
-    return (total[0] + n0, total[1] + n1, total[2] + n2), bound
+    y0 = in_range(value[0] * scale)
+    y1 = in_range(value[1] * scale)
+    y2 = in_range(value[2] * scale)
+    largest = max(largest, max(abs(y0), max(abs(y1), abs(y2))))
+    return (total[0] + to_grid(y0), total[1] + to_grid(y1), total[2] + to_grid(y2)), largest
 
 
 @inline
-def add_snapped(total, value, factor, per_step, bound):
+def add_snapped(total, value, factor, per_step, largest):
     """`add_on_grid` of a value already on the grid and in range (`snapped_in_range`) and
     factor +-1: value times per_step is an integer, converted exactly."""
-    n0 = np.int64(factor * value[0] * per_step)
-    n1 = np.int64(factor * value[1] * per_step)
-    n2 = np.int64(factor * value[2] * per_step)
-    bound |= abs(n0) | abs(n1) | abs(n2)
-    return (total[0] + n0, total[1] + n1, total[2] + n2), bound
+    y0 = factor * value[0] * per_step
+    y1 = factor * value[1] * per_step
+    y2 = factor * value[2] * per_step
+    largest = max(largest, max(abs(y0), max(abs(y1), abs(y2))))
+    return (total[0] + np.int64(y0), total[1] + np.int64(y1), total[2] + np.int64(y2)), largest
 
 
 @inline
-def sum_in_range(bound, terms):
-    """Whether a sum of `terms` terms on a grid, none larger than `bound` grid steps, stays
-    in range whatever their order: a sum that might not is taken to have left it (the
-    product in doubles rounds, monotonically: below OUT, the exact one is at most RANGE)."""
-    return np.float64(bound) * terms < OUT
+def sum_in_range(largest, terms):
+    """Whether a sum of `terms` terms on a grid, none larger than `largest` grid steps before
+    rounding (half a step more after), stays in range whatever their order: a sum that might
+    not is taken to have left it (the product in doubles rounds, monotonically: below OUT,
+    the exact one is at most RANGE)."""
+    return (largest + 0.5) * terms < OUT
 
 
 @inline
@@ -158,7 +159,7 @@ def kick_steps(h, f, inv_m, step):
     return h * f * inv_m * (1.0 / step)
 
 
-@jit
+@inline_arrays
 def kick_row(n, mirror, f, inv_m, q, h, step):
     """The half kick of particle q on its grid, n += round(h f / m / step), mirror = n step;
     whether it stayed in range."""

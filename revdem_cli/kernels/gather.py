@@ -55,10 +55,10 @@ def _gather_loop(
     grid and summed as an integer, so the sum does not depend on the order of its terms,
     and the kick lands on the velocity grids; the pair loop has already rounded each pair's
     force (`fixed.snapped_in_range`), once for its two particles, so its terms convert
-    exactly. A sum leaves its grid when the OR of its terms' magnitudes times the number of
-    terms would (`fixed.sum_in_range`). Returns (particles whose sum or
-    velocity left its grid, the last of them, what left it there: fixed.OF_FORCE, OF_MOMENT,
-    OF_VELOCITY or OF_ANGULAR_VELOCITY, the first of these in that order)."""
+    exactly. A sum leaves its grid when its largest term times the number of terms would
+    (`fixed.sum_in_range`). Returns (particles whose sum or velocity left its grid, the last
+    of them, what left it there: fixed.OF_FORCE, OF_MOMENT, OF_VELOCITY or
+    OF_ANGULAR_VELOCITY, the first of these in that order)."""
     torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
     on_grid = fixed_v.shape[0] > 0
@@ -81,53 +81,55 @@ def _gather_loop(
         t_int = (np.int64(0), np.int64(0), np.int64(0))
         f = ZERO if on_grid else weight
         t = ZERO
-        bound_f = np.int64(0)  # a bound on the force sum's terms, in grid steps
-        bound_t = np.int64(0)  # on the moment sum's
+        largest_f = 0.0  # the largest term of the force sum on its grid, in grid steps
+        largest_t = 0.0  # of the moment sum
         if on_grid:
-            f_int, bound_f = fx.add_on_grid(f_int, weight, 1.0, per_f, bound_f)
+            f_int, largest_f = fx.add_on_grid(f_int, weight, 1.0, per_f, largest_f)
         # the two partner loops are written out: one helper for both, returning the four
         # sums, made this loop 1.4 to 2.6 times slower (n = 24 fcc, float and fixed point)
         for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
             k = np.uint32(slots[s])  # unsigned, as in `gather_pairs`
             if on_grid:
-                f_int, bound_f = fx.add_snapped(f_int, row(pair_force, k), -1.0, per_f, bound_f)
+                f_int, largest_f = fx.add_snapped(f_int, row(pair_force, k), -1.0, per_f, largest_f)
             else:
                 f = axpy(-1.0, row(pair_force, k), f)
             if torques:  # Hanley 2020 Eq 5: the lever arm r - overlap / 2 times n x f
                 arm = radius[q] - 0.5 * overlaps[k]
                 if on_grid:
-                    t_int, bound_t = fx.add_on_grid(t_int, row(moment, k), arm, per_t, bound_t)
+                    t_int, largest_t = fx.add_on_grid(t_int, row(moment, k), arm, per_t, largest_t)
                 else:
                     t = axpy(arm, row(moment, k), t)
             if rolls:  # the opposite of the rolling moment on p
                 if on_grid:
-                    t_int, bound_t = fx.add_on_grid(t_int, row(rolling, k), -1.0, per_t, bound_t)
+                    t_int, largest_t = fx.add_on_grid(
+                        t_int, row(rolling, k), -1.0, per_t, largest_t
+                    )
                 else:
                     t = axpy(-1.0, row(rolling, k), t)
         for kk in range(first[q], first[q + 1]):  # partners j > q
             k = np.uint64(kk)
             if on_grid:
-                f_int, bound_f = fx.add_snapped(f_int, row(pair_force, k), 1.0, per_f, bound_f)
+                f_int, largest_f = fx.add_snapped(f_int, row(pair_force, k), 1.0, per_f, largest_f)
             else:
                 f = axpy(1.0, row(pair_force, k), f)
             if torques:
                 arm = radius[q] - 0.5 * overlaps[k]
                 if on_grid:
-                    t_int, bound_t = fx.add_on_grid(t_int, row(moment, k), arm, per_t, bound_t)
+                    t_int, largest_t = fx.add_on_grid(t_int, row(moment, k), arm, per_t, largest_t)
                 else:
                     t = axpy(arm, row(moment, k), t)
             if rolls:
                 if on_grid:
-                    t_int, bound_t = fx.add_on_grid(t_int, row(rolling, k), 1.0, per_t, bound_t)
+                    t_int, largest_t = fx.add_on_grid(t_int, row(rolling, k), 1.0, per_t, largest_t)
                 else:
                     t = axpy(1.0, row(rolling, k), t)
         for b in range(wall_force.shape[1]):
             if on_grid:
-                f_int, bound_f = fx.add_on_grid(
-                    f_int, cell_of(wall_force, q, b), 1.0, per_f, bound_f
+                f_int, largest_f = fx.add_on_grid(
+                    f_int, cell_of(wall_force, q, b), 1.0, per_f, largest_f
                 )
-                t_int, bound_t = fx.add_on_grid(
-                    t_int, cell_of(wall_torque, q, b), 1.0, per_t, bound_t
+                t_int, largest_t = fx.add_on_grid(
+                    t_int, cell_of(wall_torque, q, b), 1.0, per_t, largest_t
                 )
             else:
                 f = axpy(1.0, cell_of(wall_force, q, b), f)
@@ -137,8 +139,8 @@ def _gather_loop(
         if on_grid:
             partners = start[q + 1] - start[q] + first[q + 1] - first[q]
             walls = wall_force.shape[1]
-            ok = fx.sum_in_range(bound_f, 1 + partners + walls)
-            turned = fx.sum_in_range(bound_t, partners * (2 if rolls else 1) + walls)
+            ok = fx.sum_in_range(largest_f, 1 + partners + walls)
+            turned = fx.sum_in_range(largest_t, partners * (2 if rolls else 1) + walls)
             f = (f_int[0] * f_step, f_int[1] * f_step, f_int[2] * f_step)
             t = (t_int[0] * t_step, t_int[1] * t_step, t_int[2] * t_step)
         for d in range(3):
