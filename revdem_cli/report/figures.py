@@ -310,6 +310,20 @@ def information_by_step(forward: Path) -> tuple[list, np.ndarray, np.ndarray, np
     return stages, steps, times, bits, parts[-1][1][3]
 
 
+def moving_mean(values: np.ndarray, window: int, cuts) -> np.ndarray:
+    """The mean of the `window` values around each (fewer at an end), within each stretch
+    between the indices `cuts` (the stages' starts), so that no stage's values run into
+    another's and a stretch's ends are not pulled towards zero."""
+    kernel = np.ones(window)
+    means = []
+    for part in np.split(values, cuts):
+        if len(part):
+            width = min(window, len(part))
+            sums = np.convolve(part, kernel[:width], mode="same")
+            means.append(sums / np.convolve(np.ones(len(part)), kernel[:width], mode="same"))
+    return np.concatenate(means) if means else values
+
+
 def information_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     """The information the run destroyed, from its tapes (`io.tape`; every stage's with
     `[reversal] all_stages`, `information_by_step`): the bits recorded, summed from the start
@@ -345,13 +359,13 @@ def information_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
             edge = np.interp(steps, at, length)
             x, xlabel = (edge[0] - edge) * 1e3, f"compression along {'xyz'[axis]} (mm)"
     window = max(1, len(steps) // 100)
-    kernel = np.ones(window) / window
+    cuts = np.searchsorted(steps, [first for _, first, _ in stages[1:]])
     fig, (total, rate) = plt.subplots(2, 1, figsize=(6, 6.5), dpi=120, sharex=True)
     for k, name in enumerate(names):
         if bits[:, k].sum() == 0.0:
             continue
         total.plot(x, np.cumsum(bits[:, k]), label=name)
-        rate.plot(x, np.convolve(bits[:, k], kernel, mode="same"), label=name, lw=1)
+        rate.plot(x, moving_mean(bits[:, k], window, cuts), label=name, lw=1)
     total.set_ylabel("bits destroyed since the start")
     rate.set_ylabel(f"bits per step (mean of {window})")
     for ax in (total, rate):

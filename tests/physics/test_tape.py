@@ -379,6 +379,18 @@ def test_a_reversal_of_every_stage_resumes_in_an_earlier_stage(tmp_path):
     _assert_reversed_rows_are_the_forward_ones(tmp_path, "resting")
 
 
+def test_the_information_figure_averages_each_stage_apart():
+    """The figure's bits a step are a moving mean within each stage: a stage that destroys
+    nothing stays at zero beside one that destroys much, and a steady rate stays steady up
+    to its stage's ends, a stage shorter than the window included."""
+    from revdem_cli.report.figures import moving_mean
+
+    values = np.r_[np.zeros(100), np.full(100, 10.0), np.full(7, 3.0)]
+    np.testing.assert_allclose(moving_mean(values, 20, [100, 200]), values, rtol=1e-12, atol=0)
+    smeared = moving_mean(values, 20, [])  # one stretch: the jump spreads over the window
+    assert smeared[95] > 0.0 and smeared[105] < 10.0
+
+
 def test_the_information_figure_reads_the_tape_of_every_stage(tmp_path):
     """With every stage reversed each stage leaves its own tape: the figure `information`
     reads them end to end, from step 0 to the run's last, each stage's start marked."""
