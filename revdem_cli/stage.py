@@ -304,7 +304,7 @@ def run_stage(
     frame_steps = set(frames)
     for target in [s for s in pauses if (s - state.step) * direction > 0]:
         while state.step != target or isinstance(tape, Recorder) and tape.retaking:
-            logs = (events, tape.bundle(state, events) if tape else no_tape())
+            logs = (events, tape.bundle(state, events, law, dyn) if tape else no_tape())
             status, state.step, rows, finding = stepper.advance(
                 advance, (*stepping_bundles(state, model, dyn, law), *logs), stepping,
                 state.step, target, buffer, buffer_steps,

@@ -29,7 +29,18 @@ import h5py
 import numpy as np
 
 from revdem_cli.errors import InputError, RunFailed
-from revdem_cli.kernels.tape import COMPARED, MECHANISMS, OFF, RECORD, REPLAY, Tape
+from revdem_cli.kernels.tape import (
+    COMPARED,
+    MECHANISMS,
+    OFF,
+    POSITION,
+    RECORD,
+    REPLAY,
+    ROLLING,
+    SHEAR,
+    Tape,
+    predictable,
+)
 
 SCHEMA_VERSION = 1
 STEPS_PER_BLOCK = 4096
@@ -74,6 +85,11 @@ COMPARED_ARRAYS = {
 assert tuple(COMPARED_ARRAYS) == COMPARED
 
 
+_NOTHING8 = np.zeros(0, dtype=np.uint8)
+_NOTHING64 = np.zeros(0, dtype=np.int64)
+_NO_ROWS = np.zeros((0, 3))
+
+
 def _flat(array: np.ndarray, dtype) -> np.ndarray:
     """`array` as a flat view of `dtype` (never a copy)."""
     if not array.flags.c_contiguous:
@@ -86,15 +102,15 @@ def _changed(state, events) -> tuple:
     return tuple(_flat(a, np.int64) for a in arrays + [events])
 
 
-def _compared(state) -> tuple:
+def _compared(state, predicting: bool) -> tuple:
+    """The compared arrays as int64 views; predicting, only those `kernels.tape.predict`
+    reads of the state before a step (the positions and the pairs' histories), the rest
+    empty."""
+    read = (POSITION, SHEAR, ROLLING) if predicting else range(len(COMPARED))
     return tuple(
-        _flat(getattr(getattr(state, bundle), name), np.int64)
-        for bundle, name in COMPARED_ARRAYS.values()
+        _flat(getattr(getattr(state, bundle), name), np.int64) if k in read else _NOTHING64
+        for k, (bundle, name) in enumerate(COMPARED_ARRAYS.values())
     )
-
-
-_NOTHING8 = np.zeros(0, dtype=np.uint8)
-_NOTHING64 = np.zeros(0, dtype=np.int64)
 
 
 def no_tape() -> Tape:
@@ -105,7 +121,8 @@ def no_tape() -> Tape:
         OFF, changed, changed, compared, compared, _NOTHING8, _NOTHING8,
         np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
         np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
-        _NOTHING64, np.zeros(5, dtype=np.int64),
+        _NOTHING64, np.zeros(5, dtype=np.int64), 0, (_NO_ROWS, _NO_ROWS),
+        (_NOTHING64, _NOTHING64), np.zeros(0),
     )  # fmt: skip
 
 
@@ -126,10 +143,20 @@ class _Buffers:
         self.span = np.zeros(5, dtype=np.int64)
         self.causes = _NOTHING8
         self.wall_causes = _NOTHING8
+        self.earlier: tuple = (_NO_ROWS, _NO_ROWS)
+        self.earlier_overlap = np.zeros(0)
 
-    def bundle(self, state, events, mode: int) -> Tape:
+    def bundle(self, state, events, mode: int, predicting: bool = False) -> Tape:
+        """The tape of the stepping loop's next call; `predicting`: recording by
+        `kernels.tape.predict`, which needs no copies of the arrays a step changes and of the
+        compared ones only its own, but the histories the reversal would find."""
         live = _changed(state, events)
-        compared = _compared(state)
+        compared = _compared(state, predicting)
+        if predicting:
+            live = tuple(_NOTHING64 for _ in live)
+            pairs = state.pairs
+            self.earlier = _like(self.earlier, (pairs.history, pairs.rolling))
+            self.earlier_overlap = _like((self.earlier_overlap,), (pairs.overlap,))[0]
         self.kept = _like(self.kept, live)
         self.before = _like(self.before, compared)
         self.grow(max(MIN_ENTRIES, ENTRIES_PER_PARTICLE * state.particles.x.shape[0]))
@@ -139,10 +166,13 @@ class _Buffers:
         contacts = state.walls.overlap.size
         if self.wall_causes.shape[0] != 2 * contacts:
             self.wall_causes = np.zeros(2 * contacts, dtype=np.uint8)
+        earlier = self.earlier if predicting else (_NO_ROWS, _NO_ROWS)
         return Tape(
             mode, live, self.kept, compared, self.before, self.causes, self.wall_causes,
             self.what, self.where, self.amount, self.counts, self.bits, self.contacts,
-            self.offsets, self.span,
+            self.offsets, self.span, int(predicting), earlier,
+            tuple(_flat(e, np.int64) for e in earlier),
+            self.earlier_overlap if predicting else np.zeros(0),
         )  # fmt: skip
 
     def grow(self, capacity: int) -> None:
@@ -226,8 +256,11 @@ class Recorder:
                 f[f"entries/{name}"].resize((entries,))
         self.written_steps, self.written_entries = steps, entries
 
-    def bundle(self, state, events) -> Tape:
-        return self.buffers.bundle(state, events, RECORD)
+    def bundle(self, state, events, law, dyn) -> Tape:
+        """The tape the stepping loop records into, under the stage's contact law and
+        dynamics: by prediction where they allow it (`kernels.tape.predictable`)."""
+        predicting = predictable(state.particles, state.walls, state.cell, law, dyn)
+        return self.buffers.bundle(state, events, RECORD, predicting)
 
     def flush(self) -> None:
         """Append the block recorded so far to the file and empty it. Where its last step made
@@ -320,7 +353,9 @@ class Replayer:
     def steps(self) -> int:
         return self.starts.shape[0] - 1
 
-    def bundle(self, state, events) -> Tape:
+    def bundle(self, state, events, law=None, dyn=None) -> Tape:
+        """The tape the stepping loop replays from (`law` and `dyn` are `Recorder.bundle`'s,
+        which a replay does not need)."""
         return self.buffers.bundle(state, events, REPLAY)
 
     def destroyed_by(self, steps: np.ndarray) -> np.ndarray:

@@ -23,6 +23,8 @@ NO_ROLLING = NONE  # ContactLaw.rolling without rolling resistance
 FORWARD = 0  # shear history advanced by the step (Eq 7-10)
 REVERSE = 1  # shear history mapped back (the inverse of Eq 7-10)
 STATIC = 2  # shear history used as it is: forces of a state that is not stepping
+SETTLED = 3  # STATIC, the history neither capped nor rounded again: the forces of histories
+# the information tape settled, as the forward step found them from those very histories
 
 _normal_force = dispatch("normal", "force")
 _shear_stiffness = dispatch("tangential", "stiffness")
@@ -149,7 +151,7 @@ def spring_unwound(history, n, spin, dt, k, rate):
 def spring(mode, history, n, n_new, spin, dt, k, rate, small=False):
     """A spring's new history: FORWARD `spring_forward`; REVERSE, `history` unwound across the
     normal `n_new` of the later positions (`spring_unwound`) and mapped onto this contact
-    plane (`unmap`, the inverse of Eq 7-8); STATIC, the history as is."""
+    plane (`unmap`, the inverse of Eq 7-8); STATIC and SETTLED, the history as is."""
     if mode == FORWARD:
         return spring_forward(history, n, spin, dt, k, rate, small)
     if mode == REVERSE:
@@ -195,9 +197,10 @@ def contact_force(
     (Eq 10), cap at mu |f_n|. REVERSE: `history` is the shear force with Eq 10 and 9 undone
     across the contact normal `n_new` of the later positions (`unwind_shear`); mapping it
     onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
-    the history as is. Returns (force on i, history, amount the Coulomb cap removed, normal
-    force magnitude, which `rolling_moment` limits by, and its elastic part). `small`:
-    |spin dt| < SMALL_ANGLE (see `cos_sin`). The shear increment reads the relative velocity
+    the history as is, capped (and rounded) again; SETTLED: the history as is, neither.
+    Returns (force on i, history, amount the Coulomb cap removed, normal force magnitude,
+    which `rolling_moment` limits by, and its elastic part). `small`: |spin dt| <
+    SMALL_ANGLE (see `cos_sin`). The shear increment reads the relative velocity
     `vrel`, the viscous damping `vdamp` (the same, or from the velocity predictor's
     velocities). In fixed-point arithmetic the history is rounded onto its grid
     (`fixed.HISTORY_BITS`, from the binade of the elastic normal force, which the positions
@@ -212,9 +215,11 @@ def contact_force(
     vt = tangential(vrel, n)
     ks = shear_stiffness(law, overlap, rstar, gstar)
     shear = spring(mode, history, n, n_new, spin, dt, ks, vt, small)
-    shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
-    if law.history_grid != 0.0:  # fixed point (a constant in a build for floating point)
-        shear = snapped(shear, history_step(law, elastic))
+    slip = 0.0
+    if mode != SETTLED:
+        shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
+        if law.history_grid != 0.0:  # fixed point (a constant in a build for floating point)
+            shear = snapped(shear, history_step(law, elastic))
     if law.beta_t > 0.0:
         damped = tangential(vdamp, n)
         shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), damped, shear)  # viscous
@@ -239,6 +244,8 @@ def rolling_moment(
     kr = rolling_stiffness(law, overlap, rstar)
     rate = tangential(axpy(-1.0, w_i, w_j), n)
     moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)
+    if mode == SETTLED:
+        return moment, 0.0
     moment, capped = coulomb_cap(moment, _rolling_limit(law.rolling, law, normal, rstar))
     if law.history_grid != 0.0:
         moment = snapped(moment, history_step(law, elastic * rstar))

@@ -7,7 +7,7 @@ from revdem_cli.kernels import by_size, jit
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import tape as tp
 from revdem_cli.kernels.cell import kick_cell, move_cell
-from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE, STATIC
+from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE, SETTLED
 from revdem_cli.kernels.events import (
     COLUMNS,
     KINDS,
@@ -232,10 +232,10 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
     tape (`kernels.tape`), recording the entries (going forward, in the reversed step's
     shadow) or replaying them (going backward), in two passes: first the cell, positions
     and histories; where one changed, the forces are found again from them (the positions'
-    images refreshed, the half kick taken back and given again, the histories kept as
-    settled), so that a force entry holds only what reads velocities; then the forces and
-    velocities. Returns -1, or replaying, the pair i N + j of an entry that is not in the
-    list."""
+    images refreshed, the half kick taken back and given again, the histories taken as
+    settled, neither capped nor rounded again: SETTLED), so that a force entry holds only
+    what reads velocities; then the forces and velocities. Returns -1, or replaying, the
+    pair i N + j of an entry that is not in the list."""
     h = -0.5 * dt
     damped = dyn.local_damping > 0.0 or law.beta_n > 0.0 or law.beta_t > 0.0
     if recording:
@@ -247,11 +247,10 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
     if touched > 0:
         if p.s.shape[0] > 0:  # the cell's edges may have moved under the cell coordinates
             fx.mirror(p.x.shape[0], fixed.x, p.x, p.s, fixed.grid[fx.X : fx.Z + 1], cell.length)
-        tp.hold_histories(tape)
         tp.unkick(p, fixed, h)
         scratch = np.zeros((len(KINDS), len(COLUMNS)))  # logged once, by the step itself
-        compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, STATIC, dt, h, scratch, step)
-        tp.put_back_histories(tape)
+        compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, SETTLED, dt, h, scratch,
+                       step)  # fmt: skip
     if recording:
         tp.record(tape, p, pairs, walls, cell, fixed, law, moduli.estar, h, False, damped)
         tp.close_step(tape)
@@ -261,12 +260,17 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
 
 
 @jit
-def shadow_step(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, first):
+def record_step(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, first):
     """Record the tape entries of the forward step just taken from `step`: the reversed step
     from step + 1 taken in place, its state settled onto the state before the forward
-    step, then undone."""
-    tp.hold(tape)
+    step, then undone (the shadow reversal); or, where that reversal would find all but the
+    pairs' histories again (`tape.predictable`), those predicted (`tape.predict`)."""
     tp.classify(tape, pairs, walls)
+    if tape.predicting:
+        tp.predict(tape, p, pairs, walls, cell, fixed, law, moduli, dt)
+        tp.close_step(tape)
+        return
+    tp.hold(tape)
     system = (p, pairs, walls, cell, fixed, law, moduli, dyn)
     reverse_step(*system, events, dt, step + 1, (step - first) * dt)
     settle(tape, *system, dt, step, True)
@@ -341,7 +345,7 @@ def advance(
     recording, each forward step records its entries, and TAPE_FULL says that the block
     must be written out before the next (where the step just taken made more entries than
     the block had room for, `io.tape.Recorder.flush` leaves it out and asks for it again:
-    the loop then takes its `shadow_step` again first, even where `step` is `until`);
+    the loop then takes its `record_step` again first, even where `step` is `until`);
     replaying, each reversed step applies them, and TAPE_EMPTY says that the block holds
     no more, TAPE_MISMATCH that an entry's pair is not in the list (the finding's particle
     and partner).
@@ -354,7 +358,7 @@ def advance(
     if tape.mode == tp.RECORD and tape.span[4] != 0:  # the step before, recorded again
         tape.span[4] = 0
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
-        shadow_step(tape, *system, dt, step - 1, first)
+        record_step(tape, *system, dt, step - 1, first)
     while step != until:
         if stepping.halt[0] != 0:
             return HALTED, step, rows, finding
@@ -376,7 +380,7 @@ def advance(
                 tp.keep(tape)
             forward_step(*system, dt, step, elapsed)
             if tape.mode == tp.RECORD:
-                shadow_step(tape, *system, dt, step, first)
+                record_step(tape, *system, dt, step, first)
         else:
             reverse_step(*system, dt, step, elapsed)
             if tape.mode == tp.REPLAY:

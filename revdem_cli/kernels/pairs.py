@@ -31,6 +31,7 @@ from revdem_cli.kernels.contact import (
     NO_ROLLING,
     NO_SHEAR,
     REVERSE,
+    SETTLED,
     SMALL_ANGLE,
     STATIC,
     contact_force,
@@ -286,7 +287,7 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predic
     loop computes both sides of every branch in it. Floating point gets a build of its own,
     whose histories' grid is the constant 0, so that it does not pay for their rounding."""
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
-    if not plain or mode == STATIC:
+    if not plain or mode == STATIC or mode == SETTLED:
         contacts(block, size, law, mode, dt, strain, deforming, unwound, False, predicted)
     elif law.history_grid == 0.0:
         floating = undamped(law, law.tangential, 0.0)

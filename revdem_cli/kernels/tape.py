@@ -26,6 +26,15 @@ same function (`settle`), so it reaches S_n bit for bit; the shadow reversal is 
 one bit for bit because every per-contact value depends only on its own pair and every
 sum is taken in a fixed order (on integer grids).
 
+Where the reversal finds every array but the pairs' histories again (`predictable`: no
+damping, drag, moving cell or wall contact with history), the shadow reversal is not taken:
+the forward step predicts the histories the reversed step would find (`predict`: unwound at
+the later positions, mapped back and capped at the earlier ones, pair by pair, with the
+same functions the reversed step calls), and settles those alone, entry for entry what the
+shadow reversal records. A settled history gives the force the forward step found from it
+(the reversal finds forces from settled histories taking them as they are, `SETTLED`), so
+that no force or velocity entry follows.
+
 Entries of the pair arrays are keyed by the pair (i, j), not by its slot, since the
 reversed run builds its own list at other steps. Each entry also counts as
 log2(1 + 2|amount|) bits, the bits that tell an integer from the others of at most its
@@ -37,11 +46,24 @@ of the doubles between.
 
 from collections import namedtuple
 
+import numba
 import numpy as np
 
+from revdem_cli.kernels import by_size, inline, inline_arrays, jit
 from revdem_cli.kernels import fixed as fx
-from revdem_cli.kernels import inline, inline_arrays, jit
-from revdem_cli.kernels.contact import history_step, normal_law
+from revdem_cli.kernels.cell import deforms, images, nearest_image, strain_rates
+from revdem_cli.kernels.contact import (
+    NO_ROLLING,
+    NO_SHEAR,
+    REVERSE,
+    contact_force,
+    history_step,
+    normal_law,
+    rolling_moment,
+)
+from revdem_cli.kernels.pairs import pair_overlap
+from revdem_cli.kernels.unwind import unwound_pair
+from revdem_cli.kernels.vectors import ZERO, axpy, put, row, scaled
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -120,6 +142,11 @@ Tape = namedtuple(
         "offsets",  # first entry of each step of the block, int64 (S + 1,)
         "span",  # [first step of the block, steps in it, entries in it, the most entries a
         # step has made, 1 where the step before the block is to be recorded again], int64 (5,)
+        "predicting",  # 1 where the forward step predicts the reversal's histories itself
+        # (`predictable`), with no shadow reversal
+        "earlier",  # predicting: the histories the reversal finds, shear and rolling, (P, 3)
+        "earlier_bits",  # the same as int64 views, (3 P,)
+        "earlier_overlap",  # predicting: each pair's overlap at the earlier positions, (P,)
     ],
 )
 """Entries are labelled by the step whose state they restore: a forward step from n records
@@ -193,19 +220,6 @@ def keep(tape):
 def hold(tape):
     """`kept` <- the arrays a step changes (S_{n+1}), before the shadow reversal."""
     _copy(tape.kept, tape.live)
-
-
-@jit
-def hold_histories(tape):
-    """`before`'s histories <- the histories now: those settled, kept while the forces are
-    found again (which caps them again, and may move a capped one by a double)."""
-    _copy(tape.before[SHEAR:SECOND], tape.state[SHEAR:SECOND])
-
-
-@jit
-def put_back_histories(tape):
-    """The histories back to those `hold_histories` kept."""
-    _copy(tape.state[SHEAR:SECOND], tape.before[SHEAR:SECOND])
 
 
 @jit
@@ -329,74 +343,170 @@ def _slot(first, partners, i, j):
 
 
 @jit
+def _settled(tape, what, values, was, overlaps, used, p, pairs, walls, cell, fixed, law, estar, h,
+             damped):  # fmt: skip
+    """Settle the array `what` of the reversal's state, `values`, onto `was`, the forward
+    run's, as `record` does, a pair's history on the grid of its contact at `overlaps`;
+    returns the entries counted, `used` with them."""
+    label = tape.span[1]
+    room = tape.what.shape[0]
+    n = p.x.shape[0]
+    radius, material = p.radius, p.material
+    walls_each = walls.overlap.shape[1]
+    forces, inverse, ints, mirrors, step = _targets(what, p, fixed)
+    keyed = what == SHEAR or what == ROLLING
+    size = min(3 * pairs.count[0], values.shape[0]) if keyed else values.shape[0]
+    charged = _charged(what, damped)
+    causes = tape.wall_causes if what >= WALL_SHEAR else tape.causes
+    rolling = 1 if what == ROLLING or what == WALL_ROLLING else 0
+    in_order = _in_order(what)
+    counted = -1  # the last contact (or particle, or edge) charged with an entry
+    spacing = 0.0  # its history's grid step (the components of one contact come together)
+    for index in range(size):
+        if values[index] == was[index]:
+            continue
+        if in_order:
+            amount = ordered(was[index]) - ordered(values[index])
+        else:
+            amount = was[index] - values[index]
+        where = index
+        if keyed:
+            k = index // 3
+            where = (np.int64(pairs.i[k]) * n + pairs.j[k]) * 3 + index % 3
+        if used < room:
+            tape.what[used] = what
+            tape.where[used] = where
+            tape.amount[used] = amount
+        used += 1
+        mechanism = charged if charged >= 0 else causes[2 * (index // 3) + rolling]
+        if index // 3 != counted:
+            tape.contacts[label, mechanism] += 1
+            counted = index // 3
+            if charged < 0 and what <= ROLLING:  # a history, on its contact's grid
+                c = index // 3
+                i, j = pairs.i[c], pairs.j[c]
+                rstar = radius[i] * radius[j] / (radius[i] + radius[j])
+                modulus = estar[material[i], material[j]]
+                spacing = contact_grid(law, rolling == 1, overlaps[c], rstar, modulus)
+            elif charged < 0:
+                q, b = index // 3 // walls_each, index // 3 % walls_each
+                modulus = estar[material[q], walls.material[b]]
+                spacing = contact_grid(law, rolling == 1, walls.overlap[q, b], radius[q], modulus)
+        if charged < 0:
+            tape.bits[label, mechanism] += grid_bits(was[index], values[index], spacing)
+        else:
+            tape.bits[label, mechanism] += bits_of(amount)
+        _apply(values, what, index, amount, h, forces, inverse, ints, mirrors, step, p.x, p.s,
+               cell.length, fixed.grid)  # fmt: skip
+    return used
+
+
+@jit
 def record(tape, p, pairs, walls, cell, fixed, law, estar, h, first, damped):
     """Settle the shadow reversal's state S'_n onto `before` (S_n): the arrays of the `first`
     pass, or of the second, each in the order of COMPARED, appending each difference as an
     entry of the block's step being recorded and charging its bits; `h` is the reversed
     step's half kick, -dt/2; `damped`: forces read velocities, so that a force entry is
     charged to damping rather than to round-off; `law` and `estar` (moduli.estar): what a
-    history's grid is found from. Entries past the block's room are counted
-    and applied but not written: the step is then taken again once the block has room
-    (`overflowed`)."""
-    label = tape.span[1]
+    history's grid is found from (at the reversal's overlaps). Entries past the block's room
+    are counted and applied but not written: the step is then taken again once the block has
+    room (`overflowed`). Returns the entries counted."""
     used = tape.span[2]
-    room = tape.what.shape[0]
-    n = p.x.shape[0]
-    radius, material = p.radius, p.material
-    walls_each = walls.overlap.shape[1]
     for what in range(0 if first else SECOND, SECOND if first else len(COMPARED)):
-        values = tape.state[what]
-        was = tape.before[what]
-        forces, inverse, ints, images, step = _targets(what, p, fixed)
-        keyed = what == SHEAR or what == ROLLING
-        size = min(3 * pairs.count[0], values.shape[0]) if keyed else values.shape[0]
-        charged = _charged(what, damped)
-        causes = tape.wall_causes if what >= WALL_SHEAR else tape.causes
-        rolling = 1 if what == ROLLING or what == WALL_ROLLING else 0
-        in_order = _in_order(what)
-        counted = -1  # the last contact (or particle, or edge) charged with an entry
-        spacing = 0.0  # its history's grid step (the components of one contact come together)
-        for index in range(size):
-            if values[index] == was[index]:
-                continue
-            if in_order:
-                amount = ordered(was[index]) - ordered(values[index])
-            else:
-                amount = was[index] - values[index]
-            where = index
-            if keyed:
-                k = index // 3
-                where = (np.int64(pairs.i[k]) * n + pairs.j[k]) * 3 + index % 3
-            if used < room:
-                tape.what[used] = what
-                tape.where[used] = where
-                tape.amount[used] = amount
-            used += 1
-            mechanism = charged if charged >= 0 else causes[2 * (index // 3) + rolling]
-            if index // 3 != counted:
-                tape.contacts[label, mechanism] += 1
-                counted = index // 3
-                if charged < 0 and what <= ROLLING:  # a history, on its contact's grid
-                    c = index // 3
-                    i, j = pairs.i[c], pairs.j[c]
-                    rstar = radius[i] * radius[j] / (radius[i] + radius[j])
-                    modulus = estar[material[i], material[j]]
-                    spacing = contact_grid(law, rolling == 1, pairs.overlap[c], rstar, modulus)
-                elif charged < 0:
-                    q, b = index // 3 // walls_each, index // 3 % walls_each
-                    modulus = estar[material[q], walls.material[b]]
-                    spacing = contact_grid(
-                        law, rolling == 1, walls.overlap[q, b], radius[q], modulus
-                    )
-            if charged < 0:
-                tape.bits[label, mechanism] += grid_bits(was[index], values[index], spacing)
-            else:
-                tape.bits[label, mechanism] += bits_of(amount)
-            _apply(values, what, index, amount, h, forces, inverse, ints, images, step, p.x, p.s,
-                   cell.length, fixed.grid)  # fmt: skip
+        used = _settled(tape, what, tape.state[what], tape.before[what], pairs.overlap, used, p,
+                        pairs, walls, cell, fixed, law, estar, h, damped)  # fmt: skip
     recorded = used - tape.span[2]
     tape.span[2] = used
     return recorded
+
+
+@jit
+def predictable(p, walls, cell, law, dyn):
+    """Whether the reversal of a forward step finds every array but the pairs' histories
+    again, so that those are all the tape holds and the forward step can predict them
+    itself (`predict`): fixed-point positions and velocities (the tape's arithmetic), no
+    velocity read by a force (local or viscous damping) nor drag, a cell that does not
+    move, and no wall contact with a history."""
+    quiet = dyn.local_damping == 0.0 and law.beta_n == 0.0 and law.beta_t == 0.0
+    walled = walls.kind.shape[0] > 0 and law.tangential != NO_SHEAR
+    return quiet and dyn.drag == 1.0 and not deforms(cell) and not walled
+
+
+def _earlier_histories(
+    x, v, w, earlier_ints, grid, radius, material, estar, gstar, image, strain, deforming, pi, pj,
+    n_pairs, history, rolling, law, dt, shear_out, rolling_out, overlap_out,
+):  # fmt: skip
+    """The histories the reversed step from the later positions x (the half-step velocities
+    v, w) finds for every pair at the earlier positions, the integers `earlier_ints` on their
+    `grid`: unwound there (`unwind.unwound_pair`), mapped back and capped at the earlier
+    positions as the reversed pair loop does (`contact.contact_force`, `rolling_moment`),
+    zero for a pair apart there; and each pair's overlap there."""
+    rolls = law.rolling != NO_ROLLING
+    for k in numba.prange(n_pairs):
+        i, j = pi[k], pj[k]
+        moment = row(rolling, k) if rolls else ZERO
+        shear, moment, n_new = unwound_pair(
+            x, v, w, radius, material, gstar, image, strain, deforming, i, j, row(history, k),
+            moment, law, dt,
+        )  # fmt: skip
+        x_i = (earlier_ints[3 * i] * grid[0], earlier_ints[3 * i + 1] * grid[1],
+               earlier_ints[3 * i + 2] * grid[2])  # fmt: skip
+        x_j = (earlier_ints[3 * j] * grid[0], earlier_ints[3 * j + 1] * grid[1],
+               earlier_ints[3 * j + 2] * grid[2])  # fmt: skip
+        d = nearest_image(axpy(-1.0, x_i, x_j), image)
+        r_i, r_j = radius[i], radius[j]
+        reach = r_i + r_j
+        overlap, dist = pair_overlap(d, reach)
+        n = scaled(1.0 / dist, d)
+        rstar = r_i * r_j / reach
+        a, b = material[i], material[j]
+        _, shear, _, normal, elastic = contact_force(
+            law, REVERSE, dt, overlap, n, rstar, 0.0, estar[a, b], gstar[a, b], ZERO, ZERO, 0.0,
+            shear, n_new,
+        )  # fmt: skip
+        touching = overlap > 0.0
+        put(shear_out, k, shear if touching else ZERO)
+        if rolls:
+            moment = rolling_moment(
+                law, REVERSE, dt, overlap, n, rstar, normal, elastic, ZERO, ZERO, 0.0, moment,
+                n_new,
+            )[0]  # fmt: skip
+            put(rolling_out, k, moment if touching else ZERO)
+        overlap_out[k] = overlap
+
+
+earlier_histories = by_size(_earlier_histories)
+
+
+@jit
+def predict(tape, p, pairs, walls, cell, fixed, law, moduli, dt):
+    """Record the entries of the forward step just taken (S_n to S_{n+1}) of a run whose
+    reversal finds all but the pairs' histories again (`predictable`): the histories the
+    reversed step would find (`earlier_histories`, at the half-step velocities, the half
+    kick taken back and given again on its grid) settled onto those of S_n, with no
+    shadow reversal. What it records is what the shadow reversal would, entry for entry."""
+    if law.tangential == NO_SHEAR:
+        return
+    h = 0.5 * dt
+    fx.kick(p.v.shape[0], fixed.v, p.v, p.f, p.inv_mass, -h, fixed.grid[fx.VELOCITY])
+    fx.kick(p.v.shape[0], fixed.omega, p.omega, p.torque, p.inv_inertia, -h,
+            fixed.grid[fx.ANGULAR_VELOCITY])  # fmt: skip
+    shear, moment = tape.earlier
+    earlier_histories(
+        p.x.shape[0], p.x, p.v, p.omega, tape.before[POSITION], fixed.grid[fx.X : fx.Z + 1],
+        p.radius, p.material, moduli.estar, moduli.gstar, images(cell),
+        strain_rates(cell.rate, cell.length), deforms(cell), pairs.i, pairs.j, pairs.count[0],
+        pairs.history, pairs.rolling, law, dt, shear, moment, tape.earlier_overlap,
+    )  # fmt: skip
+    fx.kick(p.v.shape[0], fixed.v, p.v, p.f, p.inv_mass, h, fixed.grid[fx.VELOCITY])
+    fx.kick(p.v.shape[0], fixed.omega, p.omega, p.torque, p.inv_inertia, h,
+            fixed.grid[fx.ANGULAR_VELOCITY])  # fmt: skip
+    used = tape.span[2]
+    for what in (SHEAR, ROLLING):
+        used = _settled(tape, what, tape.earlier_bits[what - SHEAR], tape.before[what],
+                        tape.earlier_overlap, used, p, pairs, walls, cell, fixed, law,
+                        moduli.estar, -h, False)  # fmt: skip
+    tape.span[2] = used
 
 
 @jit

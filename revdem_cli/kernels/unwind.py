@@ -4,12 +4,36 @@ every pair and wall contact."""
 
 import numba
 
-from revdem_cli.kernels import by_size, jit
+from revdem_cli.kernels import by_size, inline_arrays, jit
 from revdem_cli.kernels.cell import deforms, images, strain_rates
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, unwind_rolling, unwind_shear
 from revdem_cli.kernels.pairs import pair_velocity, separation
 from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, norm, place, put, row, scaled
 from revdem_cli.kernels.wall_contacts import wall_kinematics
+
+
+@inline_arrays
+def unwound_pair(x, v, w, radius, material, gstar, image, strain, deforming, i, j, shear,
+                 moment, law, dt):  # fmt: skip
+    """Pair (i, j) at the later positions x, with the half-step velocities v, w: its shear
+    history `shear` with Eq 10 and 9 undone, its rolling history `moment` likewise (ZERO
+    without a rolling law), and its contact normal there, across which they were unwound."""
+    d = separation(x, i, j, image)
+    dist = norm(d)
+    overlap = radius[i] + radius[j] - dist
+    n = scaled(1.0 / dist, d)
+    w_i = row(w, i)
+    w_j = row(w, j)
+    v_ij = axpy(-1.0, row(v, i), row(v, j))
+    vrel, spin = pair_velocity(
+        d, n, overlap, radius[i], radius[j], v_ij, w_i, w_j, strain, deforming
+    )
+    rstar = radius[i] * radius[j] / (radius[i] + radius[j])
+    gs = gstar[material[i], material[j]]
+    shear = unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, shear)
+    if law.rolling != NO_ROLLING:
+        moment = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, moment)
+    return shear, moment, n
 
 
 def _unwind_pair_loop(
@@ -36,24 +60,14 @@ def _unwind_pair_loop(
     rolls = law.rolling != NO_ROLLING
     strain = strain_rates(rate, length)
     for k in numba.prange(n_pairs):
-        i = pi[k]
-        j = pj[k]
-        d = separation(x, i, j, image)
-        dist = norm(d)
-        overlap = radius[i] + radius[j] - dist
-        n = scaled(1.0 / dist, d)
-        w_i = row(w, i)
-        w_j = row(w, j)
-        v_ij = axpy(-1.0, row(v, i), row(v, j))
-        vrel, spin = pair_velocity(
-            d, n, overlap, radius[i], radius[j], v_ij, w_i, w_j, strain, deforming
-        )
-        rstar = radius[i] * radius[j] / (radius[i] + radius[j])
-        gs = gstar[material[i], material[j]]
-        put(history, k, unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, row(history, k)))
+        moment = row(rolling, k) if rolls else ZERO
+        shear, moment, n = unwound_pair(
+            x, v, w, radius, material, gstar, image, strain, deforming, pi[k], pj[k],
+            row(history, k), moment, law, dt,
+        )  # fmt: skip
+        put(history, k, shear)
         if rolls:
-            turned = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, row(rolling, k))
-            put(rolling, k, turned)
+            put(rolling, k, moment)
         put(normal_new, k, n)
 
 
