@@ -140,11 +140,11 @@ def spring_forward(history, n, spin, dt, k, rate, small=False):
 
 
 @inline
-def spring_unwound(history, n, spin, dt, k, rate):
+def spring_unwound(history, n, spin, dt, k, rate, small=False):
     """`spring_forward` undone, but for its remap: the reversed step at the later positions
     undoes the increment of Eq 10 and the turn of Eq 9; `unmap` undoes Eq 7-8 once the
-    particles have moved back."""
-    return rotate_about(axpy(-k * dt, rate, history), n, -spin * dt)
+    particles have moved back. `small`: as `spring_forward`'s."""
+    return rotate_about(axpy(-k * dt, rate, history), n, -spin * dt, small)
 
 
 @inline
@@ -266,18 +266,21 @@ def contact_energy(law, overlap, rstar, estar, gstar, shear, rolling):
 
 
 @inline
-def unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, history):
-    """Reversed step, at the later positions: undo Eq 10 and Eq 9 of the shear history."""
+def unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, history, small=False):
+    """Reversed step, at the later positions: undo Eq 10 and Eq 9 of the shear history.
+    `small`: |spin dt| < SMALL_ANGLE (see `cos_sin`)."""
     if overlap <= 0.0:
         return (0.0, 0.0, 0.0)
     ks = shear_stiffness(law, overlap, rstar, gstar)
-    return spring_unwound(history, n, spin, dt, ks, tangential(vrel, n))
+    return spring_unwound(history, n, spin, dt, ks, tangential(vrel, n), small)
 
 
 @inline
-def unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, history):
-    """Reversed step, at the later positions: undo the rolling spring's increment and turn."""
+def unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, history, small=False):
+    """Reversed step, at the later positions: undo the rolling spring's increment and turn
+    (`small` as `unwind_shear`'s)."""
     if overlap <= 0.0:
         return (0.0, 0.0, 0.0)
     kr = rolling_stiffness(law, overlap, rstar)
-    return spring_unwound(history, n, spin, dt, kr, tangential(axpy(-1.0, w_i, w_j), n))
+    rate = tangential(axpy(-1.0, w_i, w_j), n)
+    return spring_unwound(history, n, spin, dt, kr, rate, small)

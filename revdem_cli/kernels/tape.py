@@ -51,19 +51,19 @@ import numpy as np
 
 from revdem_cli.kernels import by_size, inline, inline_arrays, jit
 from revdem_cli.kernels import fixed as fx
+from revdem_cli.kernels import pairs as pl
 from revdem_cli.kernels.cell import deforms, images, nearest_image, strain_rates
 from revdem_cli.kernels.contact import (
     NO_ROLLING,
     NO_SHEAR,
     REVERSE,
-    contact_force,
+    SMALL_ANGLE,
     history_step,
     normal_law,
-    rolling_moment,
 )
-from revdem_cli.kernels.pairs import pair_overlap
-from revdem_cli.kernels.unwind import unwound_pair
-from revdem_cli.kernels.vectors import ZERO, axpy, put, row, scaled
+from revdem_cli.kernels.pairs import enter3, entries, entry
+from revdem_cli.kernels.unwind import unwind_contact
+from revdem_cli.kernels.vectors import ZERO, axpy, dot, put
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -432,47 +432,70 @@ def predictable(p, walls, cell, law, dyn):
     return quiet and dyn.drag == 1.0 and not deforms(cell) and not walled
 
 
+@inline
+def _unwound_columns(block, size, law, dt, strain, deforming, small):
+    """Columns 0 to size - 1 of a pair loop's block, gathered at the later positions: each
+    pair's histories unwound there (`unwind.unwind_contact`, as the reversed step's first
+    half does them) into the NEW_SHEAR and NEW_ROLLING rows, the normal into NORMAL_NEW;
+    the rows read are left as they were. Returns how many angles were not `small`."""
+    large = 0
+    for k in range(size):
+        w_i = entries(block, pl.OMEGA_I, k)
+        w_j = entries(block, pl.OMEGA_J, k)
+        shear, moment, n = unwind_contact(
+            entries(block, pl.SEPARATION, k), entry(block, pl.RADIUS_I, k),
+            entry(block, pl.RADIUS_J, k), entries(block, pl.VELOCITY, k), w_i, w_j,
+            entry(block, pl.G_STAR, k), entries(block, pl.SHEAR, k),
+            entries(block, pl.ROLLING, k) if law.rolling != NO_ROLLING else ZERO, law, dt,
+            strain, deforming, small,
+        )  # fmt: skip
+        large += abs(0.5 * (dot(w_i, n) + dot(w_j, n)) * dt) >= SMALL_ANGLE
+        enter3(block, pl.NEW_SHEAR, k, shear)
+        enter3(block, pl.NEW_ROLLING, k, moment)
+        enter3(block, pl.NORMAL_NEW, k, n)
+    return large
+
+
 def _earlier_histories(
-    x, v, w, earlier_ints, grid, radius, material, estar, gstar, image, strain, deforming, pi, pj,
-    n_pairs, history, rolling, law, dt, shear_out, rolling_out, overlap_out,
+    x, v, w, radius, mass, material, estar, gstar, image, rate, length, deforming, pi, pj,
+    n_pairs, history, rolling, law, dt, earlier_ints, grid, shear_out, rolling_out, overlap_out,
+    blocks,
 ):  # fmt: skip
     """The histories the reversed step from the later positions x (the half-step velocities
     v, w) finds for every pair at the earlier positions, the integers `earlier_ints` on their
-    `grid`: unwound there (`unwind.unwound_pair`), mapped back and capped at the earlier
-    positions as the reversed pair loop does (`contact.contact_force`, `rolling_moment`),
-    zero for a pair apart there; and each pair's overlap there."""
+    `grid`, and each pair's overlap there: block by block as the pair loop works, the
+    histories unwound at the later positions (`_unwound_columns`), then mapped back and
+    capped at the earlier positions by the reversed pair loop's own contact stage
+    (`pairs.contact_stage`), zero for a pair apart there."""
+    strain = strain_rates(rate, length)
+    chunks = blocks.shape[0]
     rolls = law.rolling != NO_ROLLING
-    for k in numba.prange(n_pairs):
-        i, j = pi[k], pj[k]
-        moment = row(rolling, k) if rolls else ZERO
-        shear, moment, n_new = unwound_pair(
-            x, v, w, radius, material, gstar, image, strain, deforming, i, j, row(history, k),
-            moment, law, dt,
-        )  # fmt: skip
-        x_i = (earlier_ints[3 * i] * grid[0], earlier_ints[3 * i + 1] * grid[1],
-               earlier_ints[3 * i + 2] * grid[2])  # fmt: skip
-        x_j = (earlier_ints[3 * j] * grid[0], earlier_ints[3 * j + 1] * grid[1],
-               earlier_ints[3 * j + 2] * grid[2])  # fmt: skip
-        d = nearest_image(axpy(-1.0, x_i, x_j), image)
-        r_i, r_j = radius[i], radius[j]
-        reach = r_i + r_j
-        overlap, dist = pair_overlap(d, reach)
-        n = scaled(1.0 / dist, d)
-        rstar = r_i * r_j / reach
-        a, b = material[i], material[j]
-        _, shear, _, normal, elastic = contact_force(
-            law, REVERSE, dt, overlap, n, rstar, 0.0, estar[a, b], gstar[a, b], ZERO, ZERO, 0.0,
-            shear, n_new,
-        )  # fmt: skip
-        touching = overlap > 0.0
-        put(shear_out, k, shear if touching else ZERO)
-        if rolls:
-            moment = rolling_moment(
-                law, REVERSE, dt, overlap, n, rstar, normal, elastic, ZERO, ZERO, 0.0, moment,
-                n_new,
-            )[0]  # fmt: skip
-            put(rolling_out, k, moment if touching else ZERO)
-        overlap_out[k] = overlap
+    for c in numba.prange(chunks):
+        block = blocks[c]
+        end = (c + 1) * n_pairs // chunks
+        for first in range(c * n_pairs // chunks, end, pl.BLOCK):
+            size = min(pl.BLOCK, end - first)
+            pl.gather_pairs(
+                block, first, size, x, v, w, v, w, False, radius, mass, material, estar, gstar,
+                image, pi, pj, history, rolling, history, False, law,
+            )  # fmt: skip
+            if _unwound_columns(block, size, law, dt, strain, deforming, True) > 0:
+                _unwound_columns(block, size, law, dt, strain, deforming, False)
+            for k in range(size):
+                i, j = pi[first + k], pj[first + k]
+                x_i = (earlier_ints[3 * i] * grid[0], earlier_ints[3 * i + 1] * grid[1],
+                       earlier_ints[3 * i + 2] * grid[2])  # fmt: skip
+                x_j = (earlier_ints[3 * j] * grid[0], earlier_ints[3 * j + 1] * grid[1],
+                       earlier_ints[3 * j + 2] * grid[2])  # fmt: skip
+                enter3(block, pl.SEPARATION, k, nearest_image(axpy(-1.0, x_i, x_j), image))
+                enter3(block, pl.SHEAR, k, entries(block, pl.NEW_SHEAR, k))
+                enter3(block, pl.ROLLING, k, entries(block, pl.NEW_ROLLING, k))
+            pl.contact_stage(block, size, law, REVERSE, dt, strain, deforming, True, False)
+            for k in range(size):
+                put(shear_out, first + k, entries(block, pl.NEW_SHEAR, k))
+                if rolls:
+                    put(rolling_out, first + k, entries(block, pl.NEW_ROLLING, k))
+                overlap_out[first + k] = entry(block, pl.OVERLAP, k)
 
 
 earlier_histories = by_size(_earlier_histories)
@@ -493,10 +516,10 @@ def predict(tape, p, pairs, walls, cell, fixed, law, moduli, dt):
             fixed.grid[fx.ANGULAR_VELOCITY])  # fmt: skip
     shear, moment = tape.earlier
     earlier_histories(
-        p.x.shape[0], p.x, p.v, p.omega, tape.before[POSITION], fixed.grid[fx.X : fx.Z + 1],
-        p.radius, p.material, moduli.estar, moduli.gstar, images(cell),
-        strain_rates(cell.rate, cell.length), deforms(cell), pairs.i, pairs.j, pairs.count[0],
-        pairs.history, pairs.rolling, law, dt, shear, moment, tape.earlier_overlap,
+        p.x.shape[0], p.x, p.v, p.omega, p.radius, p.mass, p.material, moduli.estar,
+        moduli.gstar, images(cell), cell.rate, cell.length, deforms(cell), pairs.i, pairs.j,
+        pairs.count[0], pairs.history, pairs.rolling, law, dt, tape.before[POSITION],
+        fixed.grid[fx.X : fx.Z + 1], shear, moment, tape.earlier_overlap, pairs.blocks,
     )  # fmt: skip
     fx.kick(p.v.shape[0], fixed.v, p.v, p.f, p.inv_mass, h, fixed.grid[fx.VELOCITY])
     fx.kick(p.v.shape[0], fixed.omega, p.omega, p.torque, p.inv_inertia, h,

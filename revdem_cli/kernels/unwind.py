@@ -4,7 +4,7 @@ every pair and wall contact."""
 
 import numba
 
-from revdem_cli.kernels import by_size, inline_arrays, jit
+from revdem_cli.kernels import by_size, inline, jit
 from revdem_cli.kernels.cell import deforms, images, strain_rates
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, unwind_rolling, unwind_shear
 from revdem_cli.kernels.pairs import pair_velocity, separation
@@ -12,27 +12,22 @@ from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, norm, place, put, ro
 from revdem_cli.kernels.wall_contacts import wall_kinematics
 
 
-@inline_arrays
-def unwound_pair(x, v, w, radius, material, gstar, image, strain, deforming, i, j, shear,
-                 moment, law, dt):  # fmt: skip
-    """Pair (i, j) at the later positions x, with the half-step velocities v, w: its shear
-    history `shear` with Eq 10 and 9 undone, its rolling history `moment` likewise (ZERO
-    without a rolling law), and its contact normal there, across which they were unwound."""
-    d = separation(x, i, j, image)
+@inline
+def unwind_contact(d, r_i, r_j, v_ij, w_i, w_j, gs, shear, moment, law, dt, strain, deforming,
+                   small=False):  # fmt: skip
+    """A pair at the later positions, separation d, radii r_i, r_j, its centres' relative
+    half-step velocity v_ij = v_j - v_i and spins w_i, w_j, G* gs: its shear history `shear`
+    with Eq 10 and 9 undone, its rolling history `moment` likewise (as it is without a
+    rolling law), and its contact normal there, across which they were unwound. `small`:
+    |spin dt| < SMALL_ANGLE (see `contact.cos_sin`)."""
     dist = norm(d)
-    overlap = radius[i] + radius[j] - dist
+    overlap = r_i + r_j - dist
     n = scaled(1.0 / dist, d)
-    w_i = row(w, i)
-    w_j = row(w, j)
-    v_ij = axpy(-1.0, row(v, i), row(v, j))
-    vrel, spin = pair_velocity(
-        d, n, overlap, radius[i], radius[j], v_ij, w_i, w_j, strain, deforming
-    )
-    rstar = radius[i] * radius[j] / (radius[i] + radius[j])
-    gs = gstar[material[i], material[j]]
-    shear = unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, shear)
+    vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
+    rstar = r_i * r_j / (r_i + r_j)
+    shear = unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, shear, small)
     if law.rolling != NO_ROLLING:
-        moment = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, moment)
+        moment = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, moment, small)
     return shear, moment, n
 
 
@@ -60,10 +55,12 @@ def _unwind_pair_loop(
     rolls = law.rolling != NO_ROLLING
     strain = strain_rates(rate, length)
     for k in numba.prange(n_pairs):
-        moment = row(rolling, k) if rolls else ZERO
-        shear, moment, n = unwound_pair(
-            x, v, w, radius, material, gstar, image, strain, deforming, pi[k], pj[k],
-            row(history, k), moment, law, dt,
+        i = pi[k]
+        j = pj[k]
+        shear, moment, n = unwind_contact(
+            separation(x, i, j, image), radius[i], radius[j], axpy(-1.0, row(v, i), row(v, j)),
+            row(w, i), row(w, j), gstar[material[i], material[j]], row(history, k),
+            row(rolling, k) if rolls else ZERO, law, dt, strain, deforming,
         )  # fmt: skip
         put(history, k, shear)
         if rolls:
