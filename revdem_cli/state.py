@@ -211,6 +211,13 @@ def rolls(scenario: Scenario) -> bool:
     return scenario.contact.rolling != "none"
 
 
+def turns(scenario: Scenario) -> bool:
+    """Whether the pairs' histories turn with their contact planes by a rotation
+    (`contact.turn_onto`), keeping the normals they turn from: fixed-point arithmetic with a
+    tangential law."""
+    return scenario.integrator.arithmetic == "fixed" and scenario.contact.tangential != "none"
+
+
 def pair_capacity(needed: int) -> int:
     """Room for a list of `needed` pairs: a sixteenth more, so that a few new contacts fit
     (a list that outgrows it grows by a quarter)."""
@@ -218,11 +225,12 @@ def pair_capacity(needed: int) -> int:
 
 
 def empty_pairs(
-    n_particles: int, capacity: int, shear: bool, reversing: bool, rolling: bool
+    n_particles: int, capacity: int, shear: bool, reversing: bool, rolling: bool, turning: bool
 ) -> Pairs:
     """A pair list with room for `capacity` pairs; shear state only with a tangential law,
-    rolling state only with a rolling law, and the unwinding normal only in a reversed run
-    with a tangential law."""
+    rolling state only with a rolling law, the unwinding normal only in a reversed run with a
+    tangential law, and the normals the histories turn from only where they are `turning`
+    (fixed point with a tangential law, `turns`)."""
     per_shear = count_if(shear, capacity)
     per_rolling = count_if(rolling, capacity)
     return Pairs(
@@ -237,6 +245,7 @@ def empty_pairs(
         rolling=np.zeros((per_rolling, 3)),
         rolled=np.zeros(per_rolling),
         normal_new=np.zeros((per_shear if reversing else 0, 3)),
+        normal=np.zeros((per_shear if turning else 0, 3)),
         first=np.zeros(n_particles + 1, dtype=np.int64),
         start=np.zeros(n_particles + 1, dtype=np.int64),
         slots=np.zeros(capacity, dtype=np.int32),
@@ -258,6 +267,7 @@ def grown(pairs: Pairs, capacity: int) -> Pairs:
         shear=pairs.history.shape[0] > 0,
         reversing=pairs.normal_new.shape[0] > 0,
         rolling=pairs.rolling.shape[0] > 0,
+        turning=pairs.normal.shape[0] > 0,
     )
     n = int(pairs.count[0])
     for name in ("i", "j", "force") + PAIR_HISTORY:
@@ -437,7 +447,9 @@ def initial_state(scenario: Scenario) -> State:
     needed = build_pairs(p.x, p.radius, skin, cell_now.periodic, cell_now.length, nothing, nothing)
     state = State(
         p,
-        empty_pairs(len(p.x), pair_capacity(needed), shear, taped, rolls(scenario)),
+        empty_pairs(
+            len(p.x), pair_capacity(needed), shear, taped, rolls(scenario), turns(scenario)
+        ),
         wall_arrays(scenario, len(p.x), taped),
         cell_now,
         integers,

@@ -33,6 +33,7 @@ from revdem_cli.state import (
     empty_pairs,
     pair_capacity,
     rolls,
+    turns,
     wall_arrays,
 )
 
@@ -247,7 +248,9 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         getattr(cell, name)[...] = read(f"cell/{name}")
     integers = Fixed(*(read(f"fixed/{name}") for name in Fixed._fields))
     n = f["pairs/i"].shape[0]
-    pairs: Pairs = empty_pairs(n_particles, pair_capacity(n), shear, reversing, rolls(scenario))
+    pairs: Pairs = empty_pairs(
+        n_particles, pair_capacity(n), shear, reversing, rolls(scenario), turns(scenario)
+    )
     for name in PAIR_FIELDS:
         if getattr(pairs, name).shape[0] > 0:
             getattr(pairs, name)[:n] = read(f"pairs/{name}")

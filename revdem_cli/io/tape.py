@@ -55,7 +55,8 @@ for files 6 % smaller. Tapes written with gzip read as well."""
 
 CHANGED = (
     ("particles", ("f", "torque", "v_drift")),
-    ("pairs", ("force", "history", "moment", "overlap", "destroyed", "rolling", "rolled")),
+    ("pairs", ("force", "history", "moment", "overlap", "destroyed", "rolling", "rolled",
+               "normal")),
     ("walls", ("point", "force", "torque", "overlap", "history", "destroyed", "rolling",
                "rolled")),
     ("cell", ("length", "rate", "mid", "force", "stress")),

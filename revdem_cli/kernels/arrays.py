@@ -50,6 +50,8 @@ Pairs = namedtuple(
         "rolling",  # rolling moment on i: the rolling history, N m, (P, 3)
         "rolled",  # rolling moment destroyed this step: its limit or separation, N m, (P,)
         "normal_new",  # reversed step: the contact normal the unwound history lies across
+        "normal",  # fixed point with shear: each pair's contact normal at the current positions
+        # (zero apart), which the next forward step turns its histories from, (P, 3)
         "first",  # the pairs (q, j) of particle q are slots first[q] to first[q + 1], (N + 1,)
         "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, (N + 1,)
         "slots",  # the slots of the pairs (p, q) of each particle q, ascending in p, int32 (P,)
@@ -62,7 +64,8 @@ Pairs = namedtuple(
 )
 """history, moment, overlap and destroyed have length P with a tangential law, else 0;
 rolling and rolled length P with a rolling law, else 0; normal_new has length P in a
-reversed run with a tangential law, else 0."""
+reversed run with a tangential law, else 0; normal length P in fixed point with a tangential
+law, else 0."""
 
 Walls = namedtuple(
     "Walls",

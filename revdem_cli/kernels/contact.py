@@ -130,32 +130,51 @@ def contact_velocity(n, arm_i, arm_j, v_ij, w_i, w_j):
 
 
 @inline
-def spring_forward(history, n, spin, dt, k, rate, small=False):
+def turn_onto(history, a, b):
+    """`history` turned by the rotation that takes the unit normal a onto b, about a x b
+    (Rodrigues' formula with the axis's length sin(angle)): c h + (a x b) x h +
+    (a x b)((a x b) . h) / (1 + c), c = a . b. Its inverse is the turn from b onto a, so a
+    history carried across the contact plane's rotation this way keeps what rounding put
+    across the plane, which the remap of Eq 7-8 projects out; the two agree to the square
+    of the angle. Zero where a is (a contact apart before, whose history is zero)."""
+    axis = cross(a, b)
+    c = dot(a, b)
+    return axpy(
+        dot(axis, history) / (1.0 + c), axis, axpy(1.0, cross(axis, history), scaled(c, history))
+    )
+
+
+@inline
+def spring_forward(history, n, n_then, spin, dt, k, rate, small=False, turned=False):
     """A spring with history, shear or rolling, one step on: remapped onto the new contact
-    plane (Hanley 2020 Eq 7-8), turned with the contact's spin (Eq 9), then k dt `rate`
-    added (Eq 10: `rate` the tangential velocity, or angular velocity, of j relative to i).
-    `small`: |spin dt| < SMALL_ANGLE (see `cos_sin`)."""
-    rotated = rotate_about(remap(history, n), n, spin * dt, small)  # Eq 7-9
+    plane (Hanley 2020 Eq 7-8; `turned`: turned onto it from the normal `n_then` of the
+    earlier positions, `turn_onto`), turned with the contact's spin (Eq 9), then k dt
+    `rate` added (Eq 10: `rate` the tangential velocity, or angular velocity, of j relative
+    to i). `small`: |spin dt| < SMALL_ANGLE (see `cos_sin`)."""
+    carried = turn_onto(history, n_then, n) if turned else remap(history, n)  # Eq 7-8
+    rotated = rotate_about(carried, n, spin * dt, small)  # Eq 9
     return axpy(k * dt, rate, rotated)  # Eq 10
 
 
 @inline
 def spring_unwound(history, n, spin, dt, k, rate, small=False):
     """`spring_forward` undone, but for its remap: the reversed step at the later positions
-    undoes the increment of Eq 10 and the turn of Eq 9; `unmap` undoes Eq 7-8 once the
-    particles have moved back. `small`: as `spring_forward`'s."""
+    undoes the increment of Eq 10 and the turn of Eq 9; `unmap` (or `turn_onto`) undoes Eq
+    7-8 once the particles have moved back. `small`: as `spring_forward`'s."""
     return rotate_about(axpy(-k * dt, rate, history), n, -spin * dt, small)
 
 
 @inline
-def spring(mode, history, n, n_new, spin, dt, k, rate, small=False):
-    """A spring's new history: FORWARD `spring_forward`; REVERSE, `history` unwound across the
-    normal `n_new` of the later positions (`spring_unwound`) and mapped onto this contact
-    plane (`unmap`, the inverse of Eq 7-8); STATIC and SETTLED, the history as is."""
+def spring(mode, history, n, n_then, spin, dt, k, rate, small=False, turned=False):
+    """A spring's new history: FORWARD `spring_forward` (`n_then`, the normal of the earlier
+    positions, read where `turned`); REVERSE, `history` unwound across the normal `n_then`
+    of the later positions (`spring_unwound`) and mapped onto this contact plane (`unmap`,
+    the inverse of Eq 7-8, or where `turned` the turn back, `turn_onto`); STATIC and
+    SETTLED, the history as is."""
     if mode == FORWARD:
-        return spring_forward(history, n, spin, dt, k, rate, small)
+        return spring_forward(history, n, n_then, spin, dt, k, rate, small, turned)
     if mode == REVERSE:
-        return unmap(history, n_new, n)
+        return turn_onto(history, n_then, n) if turned else unmap(history, n_then, n)
     return history
 
 
@@ -187,16 +206,18 @@ def history_step(law, scale):
 
 @inline
 def contact_force(
-    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, vdamp, spin, history, n_new,
-    small=False,
+    law, mode, dt, overlap, n, rstar, mstar, estar, gstar, vrel, vdamp, spin, history, n_then,
+    small=False, turned=False,
 ):  # fmt: skip
     """Force on i at one contact in overlap > 0, and the new shear history.
 
-    FORWARD: remap the history onto the new contact plane (Eq 7-8), correct for spin (Eq 9),
-    add the increment -k_s dU_s with dU_s = -v_t dt, the displacement of i relative to j
-    (Eq 10), cap at mu |f_n|. REVERSE: `history` is the shear force with Eq 10 and 9 undone
-    across the contact normal `n_new` of the later positions (`unwind_shear`); mapping it
-    onto this contact plane (`unmap`) inverts Eq 7-8; it is capped the same way. STATIC:
+    FORWARD: remap the history onto the new contact plane (Eq 7-8; `turned`: turn it there
+    from the normal `n_then` of the earlier positions, `turn_onto`), correct for spin (Eq
+    9), add the increment -k_s dU_s with dU_s = -v_t dt, the displacement of i relative to
+    j (Eq 10), cap at mu |f_n|. REVERSE: `history` is the shear force with Eq 10 and 9
+    undone across the contact normal `n_then` of the later positions (`unwind_shear`);
+    mapping it onto this contact plane (`unmap`, or turning it back) inverts Eq 7-8; it is
+    capped the same way. STATIC:
     the history as is, capped (and rounded) again; SETTLED: the history as is, neither.
     Returns (force on i, history, amount the Coulomb cap removed, normal force magnitude,
     which `rolling_moment` limits by, and its elastic part). `small`: |spin dt| <
@@ -214,7 +235,7 @@ def contact_force(
         return force, history, 0.0, normal, elastic
     vt = tangential(vrel, n)
     ks = shear_stiffness(law, overlap, rstar, gstar)
-    shear = spring(mode, history, n, n_new, spin, dt, ks, vt, small)
+    shear = spring(mode, history, n, n_then, spin, dt, ks, vt, small, turned)
     slip = 0.0
     if mode != SETTLED:
         shear, slip = coulomb_cap(shear, law.mu * max(normal, 0.0))
@@ -229,8 +250,8 @@ def contact_force(
 
 @inline
 def rolling_moment(
-    law, mode, dt, overlap, n, rstar, normal, elastic, w_i, w_j, spin, history, n_new,
-    small=False,
+    law, mode, dt, overlap, n, rstar, normal, elastic, w_i, w_j, spin, history, n_then,
+    small=False, turned=False,
 ):  # fmt: skip
     """Rolling resistance moment on i at one contact in overlap > 0 whose normal force is
     `normal` and its elastic part `elastic` (`contact_force`'s), and its new history:
@@ -243,7 +264,7 @@ def rolling_moment(
     opposite moment."""
     kr = rolling_stiffness(law, overlap, rstar)
     rate = tangential(axpy(-1.0, w_i, w_j), n)
-    moment = spring(mode, history, n, n_new, spin, dt, kr, rate, small)
+    moment = spring(mode, history, n, n_then, spin, dt, kr, rate, small, turned)
     if mode == SETTLED:
         return moment, 0.0
     moment, capped = coulomb_cap(moment, _rolling_limit(law.rolling, law, normal, rstar))

@@ -17,9 +17,10 @@ reference-count update per array, which would dominate the cost per item.
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import deforms, holds_stress, images, servo_forces
+from revdem_cli.kernels.contact import REVERSE
 from revdem_cli.kernels.events import note_destroyed
 from revdem_cli.kernels.gather import gather_loop
-from revdem_cli.kernels.pairs import pair_loop
+from revdem_cli.kernels.pairs import contact_normals, pair_loop
 from revdem_cli.kernels.stress import stress_of
 from revdem_cli.kernels.wall_contacts import wall_loop
 
@@ -53,7 +54,8 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.destroyed,
         pairs.rolling,
         pairs.rolled,
-        pairs.normal_new,
+        pairs.normal_new if mode == REVERSE else pairs.normal,  # the step's other end
+        pairs.normal,
         law,
         mode,
         dt,
@@ -139,3 +141,18 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
     fx.note_overflow(fixed, quantity, (out, last))
     servo_forces(cell, dyn.local_damping)
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)
+
+
+@jit
+def note_normals(p, pairs, cell):
+    """Fixed point with shear: `Pairs.normal` found from the current positions, as the pair
+    loop leaves it (the periodic images as `compute_forces` takes them), wherever the list or
+    the state may have changed without a pair loop (a rebuild, a restart)."""
+    if pairs.normal.shape[0] == 0:
+        return
+    args = (p.x, p.radius)
+    listed = (pairs.i, pairs.j, pairs.count[0], pairs.normal)
+    if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
+        contact_normals(p.x.shape[0], *args, images(cell), *listed)
+    else:
+        contact_normals(p.x.shape[0], *args, None, *listed)

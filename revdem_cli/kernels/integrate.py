@@ -16,7 +16,7 @@ from revdem_cli.kernels.events import (
     note_damping,
     note_fixed_points,
 )
-from revdem_cli.kernels.forces import compute_forces
+from revdem_cli.kernels.forces import compute_forces, note_normals
 from revdem_cli.kernels.health import HEALTHY, Finding, examine
 from revdem_cli.kernels.neighbours import (
     build_pairs,
@@ -301,6 +301,7 @@ def rebuild_pairs(p, pairs, cell, skin):
     pairs.j[:needed] = pairs.new_j[:needed]
     pairs.count[0] = needed
     index_by_particle(pairs.i, pairs.j, needed, pairs.first, pairs.start, pairs.slots)
+    note_normals(p, pairs, cell)
     pairs.x_built[:] = p.x
     cell.built[:] = cell.length
     return OK
@@ -355,6 +356,7 @@ def advance(
     direction = 1 if stop > step else -1
     rows = 0
     finding = Finding(HEALTHY, -1, -1, 0.0)
+    note_normals(p, pairs, cell)  # of a state just restored, or its list just grown
     if tape.mode == tp.RECORD and tape.span[4] != 0:  # the step before, recorded again
         tape.span[4] = 0
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)

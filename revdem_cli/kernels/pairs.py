@@ -98,7 +98,8 @@ VELOCITY = 8  # v_j - v_i: 3 rows
 OMEGA_I = 11  # 3 rows
 OMEGA_J = 14  # 3 rows
 SHEAR = 17  # the shear history: 3 rows
-NORMAL_NEW = 20  # reversed runs: the unwinding normal: 3 rows
+NORMAL_THEN = 20  # the normal at the step's other end: reversed, the later positions' (the
+# unwinding normal); forward in fixed point, the earlier positions' (`Pairs.normal`): 3 rows
 FORCE = 23  # 3 rows
 NEW_SHEAR = 26  # the new shear history: 3 rows
 MOMENT = 29  # n x force: 3 rows
@@ -110,7 +111,8 @@ ROLLED = 40  # rolling moment removed by its limit
 DAMP_VELOCITY = 41  # with a velocity predictor, damped laws: the predicted v_j - v_i: 3 rows
 DAMP_OMEGA_I = 44  # the predicted spins: 3 rows
 DAMP_OMEGA_J = 47  # 3 rows
-ROWS = 50
+NORMAL = 50  # fixed point with shear: the contact normal here (zero apart): 3 rows
+ROWS = 53
 
 
 def empty_blocks(chunks: int) -> np.ndarray:
@@ -143,11 +145,11 @@ def enter3(block, r, k, vector):
 @inline
 def gather_pairs(
     block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material, estar, gstar,
-    image, pi, pj, history, rolling, normal_new, unwound, law,
+    image, pi, pj, history, rolling, normals_then, then, law,
 ):  # fmt: skip
     """Columns 0 to size - 1 of the block: what the contact stage needs of pairs first to
-    first + size - 1, from their particles and their history (and `unwound`, the normals
-    the reversed step unwound them across)."""
+    first + size - 1, from their particles and their history (and where `then`, the normals
+    at the step's other end, `normals_then`)."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0  # the force depends on the relative velocity
     damped = law.beta_n > 0.0 or law.beta_t > 0.0
@@ -175,12 +177,12 @@ def gather_pairs(
             enter3(block, SHEAR, k, row(history, p))
         if law.rolling != NO_ROLLING:
             enter3(block, ROLLING, k, row(rolling, p))
-        if unwound:
-            enter3(block, NORMAL_NEW, k, row(normal_new, p))
+        if then:
+            enter3(block, NORMAL_THEN, k, row(normals_then, p))
 
 
 @inline
-def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, predicted):
+def contacts(block, size, law, mode, dt, strain, deforming, then, small, predicted, turned):
     """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
     with a tangential law, the new history, n x force, the overlap and the shear force the
     Coulomb cap removed, with a rolling law the rolling moment and what its limit removed,
@@ -188,7 +190,10 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, pred
     body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
     The rows read are left as they were, so that a block can be done again. `small`: the
     spin corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`);
-    `predicted`: viscous damping reads the relative velocity of the predicted velocities.
+    `predicted`: viscous damping reads the relative velocity of the predicted velocities;
+    `then`: the NORMAL_THEN rows hold the normals at the step's other end; `turned` (fixed
+    point): the histories are carried across the contact plane's rotation by `contact.
+    turn_onto` from those normals, and each pair's normal goes into the NORMAL rows.
     Returns how many angles were not."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0
@@ -232,8 +237,9 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, pred
             vdamp,
             spin,
             entries(block, SHEAR, k) if shear_law else ZERO,
-            entries(block, NORMAL_NEW, k) if unwound else ZERO,
+            entries(block, NORMAL_THEN, k) if then else ZERO,
             small,
+            turned,
         )
         touching = overlap > 0.0
         enter3(block, FORCE, k, f if touching else ZERO)
@@ -242,13 +248,15 @@ def contacts(block, size, law, mode, dt, strain, deforming, unwound, small, pred
             enter3(block, MOMENT, k, cross(n, f) if touching else ZERO)
             enter(block, OVERLAP, k, overlap)
             enter(block, SLIPPED, k, slipped if touching else 0.0)
+            if turned:
+                enter3(block, NORMAL, k, n if touching else ZERO)
         if law.rolling != NO_ROLLING:
             rstar = r_i * r_j / reach
             old = entries(block, ROLLING, k)
-            n_new = entries(block, NORMAL_NEW, k) if unwound else ZERO
+            n_then = entries(block, NORMAL_THEN, k) if then else ZERO
             rolling, capped = rolling_moment(
-                law, mode, dt, overlap, n, rstar, normal, elastic, w_i, w_j, spin, old, n_new,
-                small,
+                law, mode, dt, overlap, n, rstar, normal, elastic, w_i, w_j, spin, old, n_then,
+                small, turned,
             )  # fmt: skip
             enter3(block, NEW_ROLLING, k, rolling if touching else ZERO)
             enter(block, ROLLED, k, capped if touching else 0.0)
@@ -263,24 +271,25 @@ def undamped(law, tangential, grid):
 
 
 @inline
-def plain_stage(block, size, law, mode, dt, strain, deforming, unwound):
+def plain_stage(block, size, law, mode, dt, strain, deforming, then, turned):
     """`contacts` of a law without viscous damping or rolling resistance (`undamped`), built
     for each mode: reversed; forward without shear; forward with shear, the block done with
     small spin corrections, and again with any where some angle is not small (rare:
-    |spin dt| >= 1e-3)."""
+    |spin dt| >= 1e-3). `turned`: a constant, fixed point's (see `contacts`)."""
     if mode == REVERSE:
-        contacts(block, size, law, REVERSE, dt, strain, deforming, unwound, False, False)
+        contacts(block, size, law, REVERSE, dt, strain, deforming, then, False, False, turned)
     elif law.tangential == NO_SHEAR:
         frictionless = undamped(law, NO_SHEAR, 0.0)
-        contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True, False)
+        contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True, False,
+                 False)  # fmt: skip
     else:
-        args = (block, size, law, FORWARD, dt, strain, deforming, False)
-        if contacts(*args, True, False) > 0:
-            contacts(*args, False, False)
+        args = (block, size, law, FORWARD, dt, strain, deforming, then)
+        if contacts(*args, True, False, turned) > 0:
+            contacts(*args, False, False, turned)
 
 
 @inline
-def contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predicted):
+def contact_stage(block, size, law, mode, dt, strain, deforming, then, predicted):
     """`contacts`, compiled apart for the common cases (stepping forward or reversed without
     viscous damping or rolling resistance, `plain_stage`), where the law's constants and the
     mode remove the branches those cases never take from the vectorised loop: an elementwise
@@ -288,13 +297,14 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predic
     whose histories' grid is the constant 0, so that it does not pay for their rounding."""
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
     if not plain or mode == STATIC or mode == SETTLED:
-        contacts(block, size, law, mode, dt, strain, deforming, unwound, False, predicted)
+        turned = law.history_grid != 0.0
+        contacts(block, size, law, mode, dt, strain, deforming, then, False, predicted, turned)
     elif law.history_grid == 0.0:
         floating = undamped(law, law.tangential, 0.0)
-        plain_stage(block, size, floating, mode, dt, strain, deforming, unwound)
+        plain_stage(block, size, floating, mode, dt, strain, deforming, then, False)
     else:
         gridded = undamped(law, law.tangential, law.history_grid)
-        plain_stage(block, size, gridded, mode, dt, strain, deforming, unwound)
+        plain_stage(block, size, gridded, mode, dt, strain, deforming, then, True)
 
 
 @inline
@@ -313,9 +323,11 @@ the two branches' stores into one plain store."""
 
 
 def _scatter_pairs(
-    block, first, size, force, history, moment, overlaps, destroyed, rolling, rolled, law, mode
-):
-    """The block's results into the pair arrays; returns the block's counts (`Destroyed`:
+    block, first, size, force, history, moment, overlaps, destroyed, rolling, rolled, normals,
+    law, mode,
+):  # fmt: skip
+    """The block's results into the pair arrays (`normals`, where a fixed-point run keeps
+    them, `Pairs.normal`); returns the block's counts (`Destroyed`:
     slips, last pair that slipped, losses, last pair that lost its shear force, and the same
     for the rolling moment). A pair apart loses its histories (counted lost when stepping
     forward)."""
@@ -339,6 +351,8 @@ def _scatter_pairs(
             overlap = entry(block, OVERLAP, k)
             lost = norm(row(history, u)) if overlap <= 0.0 and mode == FORWARD else 0.0
             put(history, u, entries(block, NEW_SHEAR, k))
+            if normals.shape[0] > 0:
+                put(normals, u, entries(block, NORMAL, k))
             if STREAMING:
                 put_streaming(moment, u, entries(block, MOMENT, k))
                 stream(overlaps, u, overlap)
@@ -400,7 +414,8 @@ def _pair_loop(
     destroyed,
     rolling,
     rolled,
-    normal_new,
+    normals_then,
+    normals,
     law,
     mode,
     dt,
@@ -410,11 +425,13 @@ def _pair_loop(
     law, n x force, the overlap and the shear force destroyed (viscous damping reading
     `v_damp`, `w_damp` where `predicted`, else v, w): by the Coulomb cap, or at
     separation, where the history is zeroed; with a rolling law the rolling moment on i and
-    what its limit or a separation destroyed. The list is cut into as many chunks as there
-    are `blocks`, each done block by block in its own: gather, contact stage, scatter.
+    what its limit or a separation destroyed; in fixed point, each pair's normal into
+    `normals`, the histories turned from `normals_then` (`contacts`). The list is cut into
+    as many chunks as there are `blocks`, each done block by block in its own: gather,
+    contact stage, scatter.
     Returns the counts of `events.note_destroyed`."""
     strain = strain_rates(rate, length)
-    unwound = mode == REVERSE and normal_new.shape[0] > 0  # only a reversed step reads them
+    then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     streaming = n_pairs >= STREAM_FROM
     chunks = blocks.shape[0]
     slips = 0
@@ -432,12 +449,14 @@ def _pair_loop(
             size = min(BLOCK, end - first)
             gather_pairs(
                 block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material,
-                estar, gstar, image, pi, pj, history, rolling, normal_new, unwound, law,
+                estar, gstar, image, pi, pj, history, rolling, normals_then, then, law,
             )  # fmt: skip
-            contact_stage(block, size, law, mode, dt, strain, deforming, unwound, predicted)
+            contact_stage(block, size, law, mode, dt, strain, deforming, then, predicted)
             if law.force_grid != 0.0:
                 snap_forces(block, size, law.force_grid)
-            results = (force, history, moment, overlaps, destroyed, rolling, rolled, law, mode)
+            results = (
+                force, history, moment, overlaps, destroyed, rolling, rolled, normals, law, mode,
+            )  # fmt: skip
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)
             else:
@@ -455,3 +474,17 @@ def _pair_loop(
 
 
 pair_loop = by_size(_pair_loop)
+
+
+def _contact_normals(x, radius, image, pi, pj, n_pairs, normals):
+    """Each pair's contact normal at the positions x, zero where it is apart, as the pair
+    loop finds it (`contacts`): what the next forward step turns its histories from."""
+    for k in numba.prange(n_pairs):
+        i = pi[k]
+        j = pj[k]
+        d = separation(x, i, j, image)
+        overlap, dist = pair_overlap(d, radius[i] + radius[j])
+        put(normals, k, scaled(1.0 / dist, d) if overlap > 0.0 else ZERO)
+
+
+contact_normals = by_size(_contact_normals)

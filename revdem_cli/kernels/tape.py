@@ -436,7 +436,7 @@ def predictable(p, walls, cell, law, dyn):
 def _unwound_columns(block, size, law, dt, strain, deforming, small):
     """Columns 0 to size - 1 of a pair loop's block, gathered at the later positions: each
     pair's histories unwound there (`unwind.unwind_contact`, as the reversed step's first
-    half does them) into the NEW_SHEAR and NEW_ROLLING rows, the normal into NORMAL_NEW;
+    half does them) into the NEW_SHEAR and NEW_ROLLING rows, the normal into NORMAL_THEN;
     the rows read are left as they were. Returns how many angles were not `small`."""
     large = 0
     for k in range(size):
@@ -452,7 +452,7 @@ def _unwound_columns(block, size, law, dt, strain, deforming, small):
         large += abs(0.5 * (dot(w_i, n) + dot(w_j, n)) * dt) >= SMALL_ANGLE
         enter3(block, pl.NEW_SHEAR, k, shear)
         enter3(block, pl.NEW_ROLLING, k, moment)
-        enter3(block, pl.NORMAL_NEW, k, n)
+        enter3(block, pl.NORMAL_THEN, k, n)
     return large
 
 
