@@ -225,12 +225,19 @@ def pair_capacity(needed: int) -> int:
 
 
 def empty_pairs(
-    n_particles: int, capacity: int, shear: bool, reversing: bool, rolling: bool, turning: bool
+    n_particles: int,
+    capacity: int,
+    shear: bool,
+    reversing: bool,
+    rolling: bool,
+    turning: bool,
+    taped: bool = False,
 ) -> Pairs:
     """A pair list with room for `capacity` pairs; shear state only with a tangential law,
     rolling state only with a rolling law, the unwinding normal only in a reversed run with a
     tangential law, and the normals the histories turn from only where they are `turning`
-    (fixed point with a tangential law, `turns`)."""
+    (fixed point with a tangential law, `turns`), and the histories a tape's prediction
+    finds only where they are `taped` too."""
     per_shear = count_if(shear, capacity)
     per_rolling = count_if(rolling, capacity)
     return Pairs(
@@ -246,6 +253,7 @@ def empty_pairs(
         rolled=np.zeros(per_rolling),
         normal_new=np.zeros((per_shear if reversing else 0, 3)),
         normal=np.zeros((per_shear if turning else 0, 3)),
+        earlier=np.zeros((per_shear if turning and taped else 0, 3)),
         first=np.zeros(n_particles + 1, dtype=np.int64),
         start=np.zeros(n_particles + 1, dtype=np.int64),
         slots=np.zeros(capacity, dtype=np.int32),
@@ -268,6 +276,7 @@ def grown(pairs: Pairs, capacity: int) -> Pairs:
         reversing=pairs.normal_new.shape[0] > 0,
         rolling=pairs.rolling.shape[0] > 0,
         turning=pairs.normal.shape[0] > 0,
+        taped=pairs.earlier.shape[0] > 0,
     )
     n = int(pairs.count[0])
     for name in ("i", "j", "force") + PAIR_HISTORY:
@@ -448,7 +457,7 @@ def initial_state(scenario: Scenario) -> State:
     state = State(
         p,
         empty_pairs(
-            len(p.x), pair_capacity(needed), shear, taped, rolls(scenario), turns(scenario)
+            len(p.x), pair_capacity(needed), shear, taped, rolls(scenario), turns(scenario), taped
         ),
         wall_arrays(scenario, len(p.x), taped),
         cell_now,

@@ -249,7 +249,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     integers = Fixed(*(read(f"fixed/{name}") for name in Fixed._fields))
     n = f["pairs/i"].shape[0]
     pairs: Pairs = empty_pairs(
-        n_particles, pair_capacity(n), shear, reversing, rolls(scenario), turns(scenario)
+        n_particles, pair_capacity(n), shear, reversing, rolls(scenario), turns(scenario), taped
     )
     for name in PAIR_FIELDS:
         if getattr(pairs, name).shape[0] > 0:

@@ -34,10 +34,8 @@ from revdem_cli.kernels.tape import (
     COMPARED,
     MECHANISMS,
     OFF,
-    POSITION,
     RECORD,
     REPLAY,
-    ROLLING,
     SHEAR,
     Tape,
     predictable,
@@ -90,7 +88,6 @@ assert tuple(COMPARED_ARRAYS) == COMPARED
 
 _NOTHING8 = np.zeros(0, dtype=np.uint8)
 _NOTHING64 = np.zeros(0, dtype=np.int64)
-_NO_ROWS = np.zeros((0, 3))
 
 
 def _flat(array: np.ndarray, dtype) -> np.ndarray:
@@ -106,10 +103,9 @@ def _changed(state, events) -> tuple:
 
 
 def _compared(state, predicting: bool) -> tuple:
-    """The compared arrays as int64 views; predicting, only those `kernels.tape.predict`
-    reads of the state before a step (the positions and the pairs' histories), the rest
-    empty."""
-    read = (POSITION, SHEAR, ROLLING) if predicting else range(len(COMPARED))
+    """The compared arrays as int64 views; predicting, only the one `kernels.tape.predict`
+    reads of the state before a step (the pairs' shear histories), the rest empty."""
+    read = (SHEAR,) if predicting else range(len(COMPARED))
     return tuple(
         _flat(getattr(getattr(state, bundle), name), np.int64) if k in read else _NOTHING64
         for k, (bundle, name) in enumerate(COMPARED_ARRAYS.values())
@@ -124,8 +120,7 @@ def no_tape() -> Tape:
         OFF, changed, changed, compared, compared, _NOTHING8, _NOTHING8,
         np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
         np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
-        _NOTHING64, np.zeros(5, dtype=np.int64), 0, (_NO_ROWS, _NO_ROWS),
-        (_NOTHING64, _NOTHING64), np.zeros(0),
+        _NOTHING64, np.zeros(5, dtype=np.int64), 0, _NOTHING64, np.zeros(0),
     )  # fmt: skip
 
 
@@ -146,19 +141,18 @@ class _Buffers:
         self.span = np.zeros(5, dtype=np.int64)
         self.causes = _NOTHING8
         self.wall_causes = _NOTHING8
-        self.earlier: tuple = (_NO_ROWS, _NO_ROWS)
         self.earlier_overlap = np.zeros(0)
 
     def bundle(self, state, events, mode: int, predicting: bool = False) -> Tape:
         """The tape of the stepping loop's next call; `predicting`: recording by
         `kernels.tape.predict`, which needs no copies of the arrays a step changes and of the
-        compared ones only its own, but the histories the reversal would find."""
+        compared ones only the shear histories, but the pairs' overlaps before the step and
+        the histories the pair loop predicted (`Pairs.earlier`)."""
         live = _changed(state, events)
         compared = _compared(state, predicting)
         if predicting:
             live = tuple(_NOTHING64 for _ in live)
             pairs = state.pairs
-            self.earlier = _like(self.earlier, (pairs.history, pairs.rolling))
             self.earlier_overlap = _like((self.earlier_overlap,), (pairs.overlap,))[0]
         self.kept = _like(self.kept, live)
         self.before = _like(self.before, compared)
@@ -169,12 +163,11 @@ class _Buffers:
         contacts = state.walls.overlap.size
         if self.wall_causes.shape[0] != 2 * contacts:
             self.wall_causes = np.zeros(2 * contacts, dtype=np.uint8)
-        earlier = self.earlier if predicting else (_NO_ROWS, _NO_ROWS)
         return Tape(
             mode, live, self.kept, compared, self.before, self.causes, self.wall_causes,
             self.what, self.where, self.amount, self.counts, self.bits, self.contacts,
-            self.offsets, self.span, int(predicting), earlier,
-            tuple(_flat(e, np.int64) for e in earlier),
+            self.offsets, self.span, int(predicting),
+            _flat(state.pairs.earlier, np.int64) if predicting else _NOTHING64,
             self.earlier_overlap if predicting else np.zeros(0),
         )  # fmt: skip
 
@@ -262,7 +255,7 @@ class Recorder:
     def bundle(self, state, events, law, dyn) -> Tape:
         """The tape the stepping loop records into, under the stage's contact law and
         dynamics: by prediction where they allow it (`kernels.tape.predictable`)."""
-        predicting = predictable(state.particles, state.walls, state.cell, law, dyn)
+        predicting = predictable(state.particles, state.pairs, state.walls, state.cell, law, dyn)
         return self.buffers.bundle(state, events, RECORD, predicting)
 
     def flush(self) -> None:

@@ -52,6 +52,9 @@ Pairs = namedtuple(
         "normal_new",  # reversed step: the contact normal the unwound history lies across
         "normal",  # fixed point with shear: each pair's contact normal at the current positions
         # (zero apart), which the next forward step turns its histories from, (P, 3)
+        "earlier",  # a run with the information tape and shear: the shear history the reversed
+        # step would find at the earlier positions, found by a forward pair loop that
+        # predicts it (`kernels.tape.predict`), (P, 3)
         "first",  # the pairs (q, j) of particle q are slots first[q] to first[q + 1], (N + 1,)
         "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, (N + 1,)
         "slots",  # the slots of the pairs (p, q) of each particle q, ascending in p, int32 (P,)
@@ -65,7 +68,7 @@ Pairs = namedtuple(
 """history, moment, overlap and destroyed have length P with a tangential law, else 0;
 rolling and rolled length P with a rolling law, else 0; normal_new has length P in a
 reversed run with a tangential law, else 0; normal length P in fixed point with a tangential
-law, else 0."""
+law, else 0; earlier length P with a tangential law and the information tape, else 0."""
 
 Walls = namedtuple(
     "Walls",

@@ -305,3 +305,21 @@ def unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, history, small=Fa
     kr = rolling_stiffness(law, overlap, rstar)
     rate = tangential(axpy(-1.0, w_i, w_j), n)
     return spring_unwound(history, n, spin, dt, kr, rate, small)
+
+
+@inline
+def earlier_shear(law, dt, overlap, n, rstar, estar, gstar, vrel, spin, shear, overlap_then,
+                  n_then, small=False):  # fmt: skip
+    """The shear history the reversed step finds at the earlier positions of a forward step
+    just taken, from the new history `shear` at the later ones (overlap, normal n, relative
+    velocity vrel, spin) and the overlap and normal the pair had at the earlier ones
+    (`overlap_then`, `n_then`): unwound at the later positions (`unwind_shear`), turned
+    back, capped and rounded at the earlier ones as `contact_force` does reversed (fixed
+    point, no viscous damping); zero where the pair was apart."""
+    if overlap <= 0.0 or overlap_then <= 0.0:  # nothing to unwind (n, apart, may be NaN)
+        return (0.0, 0.0, 0.0)
+    unwound = unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, shear, small)
+    normal, elastic = normal_force(law, overlap_then, rstar, 0.0, estar, (0.0, 0.0, 0.0), n_then)
+    back = turn_onto(unwound, n, n_then)
+    back = coulomb_cap(back, law.mu * max(normal, 0.0))[0]
+    return snapped(back, history_step(law, elastic))

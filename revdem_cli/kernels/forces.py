@@ -56,6 +56,7 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.rolled,
         pairs.normal_new if mode == REVERSE else pairs.normal,  # the step's other end
         pairs.normal,
+        pairs.earlier,
         law,
         mode,
         dt,
@@ -145,13 +146,14 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
 
 @jit
 def note_normals(p, pairs, cell):
-    """Fixed point with shear: `Pairs.normal` found from the current positions, as the pair
-    loop leaves it (the periodic images as `compute_forces` takes them), wherever the list or
-    the state may have changed without a pair loop (a rebuild, a restart)."""
+    """Fixed point with shear: `Pairs.normal` and `Pairs.overlap` found from the current
+    positions, as the pair loop leaves them (the periodic images as `compute_forces` takes
+    them), wherever the list or the state may have changed without a pair loop (a rebuild,
+    a restart)."""
     if pairs.normal.shape[0] == 0:
         return
     args = (p.x, p.radius)
-    listed = (pairs.i, pairs.j, pairs.count[0], pairs.normal)
+    listed = (pairs.i, pairs.j, pairs.count[0], pairs.normal, pairs.overlap)
     if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
         contact_normals(p.x.shape[0], *args, images(cell), *listed)
     else:

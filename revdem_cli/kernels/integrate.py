@@ -379,7 +379,7 @@ def advance(
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
         if direction > 0:
             if tape.mode == tp.RECORD:
-                tp.keep(tape)
+                tp.keep(tape, pairs)
             forward_step(*system, dt, step, elapsed)
             if tape.mode == tp.RECORD:
                 record_step(tape, *system, dt, step, first)

@@ -36,6 +36,7 @@ from revdem_cli.kernels.contact import (
     STATIC,
     contact_force,
     contact_velocity,
+    earlier_shear,
     rolling_moment,
 )
 from revdem_cli.kernels.fixed import snapped_in_range
@@ -112,7 +113,9 @@ DAMP_VELOCITY = 41  # with a velocity predictor, damped laws: the predicted v_j 
 DAMP_OMEGA_I = 44  # the predicted spins: 3 rows
 DAMP_OMEGA_J = 47  # 3 rows
 NORMAL = 50  # fixed point with shear: the contact normal here (zero apart): 3 rows
-ROWS = 53
+OVERLAP_THEN = 53  # recording a tape by prediction: the overlap at the earlier positions
+EARLIER = 54  # and the shear history the reversed step would find there: 3 rows
+ROWS = 57
 
 
 def empty_blocks(chunks: int) -> np.ndarray:
@@ -145,11 +148,12 @@ def enter3(block, r, k, vector):
 @inline
 def gather_pairs(
     block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material, estar, gstar,
-    image, pi, pj, history, rolling, normals_then, then, law,
+    image, pi, pj, history, rolling, normals_then, then, law, overlaps, predicting,
 ):  # fmt: skip
     """Columns 0 to size - 1 of the block: what the contact stage needs of pairs first to
     first + size - 1, from their particles and their history (and where `then`, the normals
-    at the step's other end, `normals_then`)."""
+    at the step's other end, `normals_then`; `predicting`, the overlaps of the step before,
+    `overlaps`)."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0  # the force depends on the relative velocity
     damped = law.beta_n > 0.0 or law.beta_t > 0.0
@@ -179,10 +183,14 @@ def gather_pairs(
             enter3(block, ROLLING, k, row(rolling, p))
         if then:
             enter3(block, NORMAL_THEN, k, row(normals_then, p))
+        if predicting:
+            enter(block, OVERLAP_THEN, k, overlaps[p])
 
 
 @inline
-def contacts(block, size, law, mode, dt, strain, deforming, then, small, predicted, turned):
+def contacts(
+    block, size, law, mode, dt, strain, deforming, then, small, predicted, turned, predicting
+):
     """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
     with a tangential law, the new history, n x force, the overlap and the shear force the
     Coulomb cap removed, with a rolling law the rolling moment and what its limit removed,
@@ -193,7 +201,9 @@ def contacts(block, size, law, mode, dt, strain, deforming, then, small, predict
     `predicted`: viscous damping reads the relative velocity of the predicted velocities;
     `then`: the NORMAL_THEN rows hold the normals at the step's other end; `turned` (fixed
     point): the histories are carried across the contact plane's rotation by `contact.
-    turn_onto` from those normals, and each pair's normal goes into the NORMAL rows.
+    turn_onto` from those normals, and each pair's normal goes into the NORMAL rows;
+    `predicting` (stepping forward with a tape, a constant): the history the reversed step
+    would find at the earlier positions into the EARLIER rows (`contact.earlier_shear`).
     Returns how many angles were not."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0
@@ -250,6 +260,13 @@ def contacts(block, size, law, mode, dt, strain, deforming, then, small, predict
             enter(block, SLIPPED, k, slipped if touching else 0.0)
             if turned:
                 enter3(block, NORMAL, k, n if touching else ZERO)
+            if predicting:
+                earlier = earlier_shear(
+                    law, dt, overlap, n, r_i * r_j / reach, entry(block, E_STAR, k),
+                    entry(block, G_STAR, k), vrel, spin, shear if touching else ZERO,
+                    entry(block, OVERLAP_THEN, k), entries(block, NORMAL_THEN, k), small,
+                )  # fmt: skip
+                enter3(block, EARLIER, k, earlier)
         if law.rolling != NO_ROLLING:
             rstar = r_i * r_j / reach
             old = entries(block, ROLLING, k)
@@ -271,40 +288,46 @@ def undamped(law, tangential, grid):
 
 
 @inline
-def plain_stage(block, size, law, mode, dt, strain, deforming, then, turned):
+def plain_stage(block, size, law, mode, dt, strain, deforming, then, turned, predicting):
     """`contacts` of a law without viscous damping or rolling resistance (`undamped`), built
     for each mode: reversed; forward without shear; forward with shear, the block done with
     small spin corrections, and again with any where some angle is not small (rare:
-    |spin dt| >= 1e-3). `turned`: a constant, fixed point's (see `contacts`)."""
+    |spin dt| >= 1e-3). `turned`, `predicting`: constants (see `contacts`)."""
     if mode == REVERSE:
-        contacts(block, size, law, REVERSE, dt, strain, deforming, then, False, False, turned)
+        contacts(block, size, law, REVERSE, dt, strain, deforming, then, False, False, turned,
+                 False)  # fmt: skip
     elif law.tangential == NO_SHEAR:
         frictionless = undamped(law, NO_SHEAR, 0.0)
         contacts(block, size, frictionless, FORWARD, dt, strain, deforming, False, True, False,
-                 False)  # fmt: skip
+                 False, False)  # fmt: skip
     else:
         args = (block, size, law, FORWARD, dt, strain, deforming, then)
-        if contacts(*args, True, False, turned) > 0:
-            contacts(*args, False, False, turned)
+        if contacts(*args, True, False, turned, predicting) > 0:
+            contacts(*args, False, False, turned, predicting)
 
 
 @inline
-def contact_stage(block, size, law, mode, dt, strain, deforming, then, predicted):
+def contact_stage(block, size, law, mode, dt, strain, deforming, then, predicted, predicting):
     """`contacts`, compiled apart for the common cases (stepping forward or reversed without
     viscous damping or rolling resistance, `plain_stage`), where the law's constants and the
     mode remove the branches those cases never take from the vectorised loop: an elementwise
     loop computes both sides of every branch in it. Floating point gets a build of its own,
-    whose histories' grid is the constant 0, so that it does not pay for their rounding."""
+    whose histories' grid is the constant 0, so that it does not pay for their rounding, and
+    fixed point stepping forward with a tape one of its own that `predicting`."""
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
     if not plain or mode == STATIC or mode == SETTLED:
         turned = law.history_grid != 0.0
-        contacts(block, size, law, mode, dt, strain, deforming, then, False, predicted, turned)
+        contacts(block, size, law, mode, dt, strain, deforming, then, False, predicted, turned,
+                 False)  # fmt: skip
     elif law.history_grid == 0.0:
         floating = undamped(law, law.tangential, 0.0)
-        plain_stage(block, size, floating, mode, dt, strain, deforming, then, False)
+        plain_stage(block, size, floating, mode, dt, strain, deforming, then, False, False)
     else:
         gridded = undamped(law, law.tangential, law.history_grid)
-        plain_stage(block, size, gridded, mode, dt, strain, deforming, then, True)
+        if predicting:
+            plain_stage(block, size, gridded, mode, dt, strain, deforming, then, True, True)
+        else:
+            plain_stage(block, size, gridded, mode, dt, strain, deforming, then, True, False)
 
 
 @inline
@@ -324,13 +347,13 @@ the two branches' stores into one plain store."""
 
 def _scatter_pairs(
     block, first, size, force, history, moment, overlaps, destroyed, rolling, rolled, normals,
-    law, mode,
+    earlier, predicting, law, mode,
 ):  # fmt: skip
     """The block's results into the pair arrays (`normals`, where a fixed-point run keeps
-    them, `Pairs.normal`); returns the block's counts (`Destroyed`:
-    slips, last pair that slipped, losses, last pair that lost its shear force, and the same
-    for the rolling moment). A pair apart loses its histories (counted lost when stepping
-    forward)."""
+    them, `Pairs.normal`; `predicting`, the histories of the EARLIER rows into `earlier`);
+    returns the block's counts (`Destroyed`: slips, last pair that slipped, losses, last
+    pair that lost its shear force, and the same for the rolling moment). A pair apart
+    loses its histories (counted lost when stepping forward)."""
     slips = 0
     last_slip = -1
     losses = 0
@@ -353,6 +376,8 @@ def _scatter_pairs(
             put(history, u, entries(block, NEW_SHEAR, k))
             if normals.shape[0] > 0:
                 put(normals, u, entries(block, NORMAL, k))
+            if predicting:
+                put(earlier, u, entries(block, EARLIER, k))
             if STREAMING:
                 put_streaming(moment, u, entries(block, MOMENT, k))
                 stream(overlaps, u, overlap)
@@ -416,6 +441,7 @@ def _pair_loop(
     rolled,
     normals_then,
     normals,
+    earlier,
     law,
     mode,
     dt,
@@ -426,12 +452,15 @@ def _pair_loop(
     `v_damp`, `w_damp` where `predicted`, else v, w): by the Coulomb cap, or at
     separation, where the history is zeroed; with a rolling law the rolling moment on i and
     what its limit or a separation destroyed; in fixed point, each pair's normal into
-    `normals`, the histories turned from `normals_then` (`contacts`). The list is cut into
-    as many chunks as there are `blocks`, each done block by block in its own: gather,
-    contact stage, scatter.
+    `normals`, the histories turned from `normals_then` (`contacts`); stepping forward
+    without damping or rolling resistance with an `earlier` array (`Pairs.earlier`), the
+    histories the reversed step would find into it. The list is cut into as many chunks as
+    there are `blocks`, each done block by block in its own: gather, contact stage, scatter.
     Returns the counts of `events.note_destroyed`."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
+    plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
+    predicting = mode == FORWARD and earlier.shape[0] > 0 and plain
     streaming = n_pairs >= STREAM_FROM
     chunks = blocks.shape[0]
     slips = 0
@@ -449,13 +478,17 @@ def _pair_loop(
             size = min(BLOCK, end - first)
             gather_pairs(
                 block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material,
-                estar, gstar, image, pi, pj, history, rolling, normals_then, then, law,
+                estar, gstar, image, pi, pj, history, rolling, normals_then, then, law, overlaps,
+                predicting,
             )  # fmt: skip
-            contact_stage(block, size, law, mode, dt, strain, deforming, then, predicted)
+            contact_stage(
+                block, size, law, mode, dt, strain, deforming, then, predicted, predicting
+            )
             if law.force_grid != 0.0:
                 snap_forces(block, size, law.force_grid)
             results = (
-                force, history, moment, overlaps, destroyed, rolling, rolled, normals, law, mode,
+                force, history, moment, overlaps, destroyed, rolling, rolled, normals, earlier,
+                predicting, law, mode,
             )  # fmt: skip
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)
@@ -476,15 +509,17 @@ def _pair_loop(
 pair_loop = by_size(_pair_loop)
 
 
-def _contact_normals(x, radius, image, pi, pj, n_pairs, normals):
-    """Each pair's contact normal at the positions x, zero where it is apart, as the pair
-    loop finds it (`contacts`): what the next forward step turns its histories from."""
+def _contact_normals(x, radius, image, pi, pj, n_pairs, normals, overlaps):
+    """Each pair's contact normal at the positions x, zero where it is apart, and its
+    overlap, as the pair loop finds them (`contacts`): what the next forward step turns its
+    histories from, and predicts what the reversed step finds with."""
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
         d = separation(x, i, j, image)
         overlap, dist = pair_overlap(d, radius[i] + radius[j])
         put(normals, k, scaled(1.0 / dist, d) if overlap > 0.0 else ZERO)
+        overlaps[k] = overlap
 
 
 contact_normals = by_size(_contact_normals)

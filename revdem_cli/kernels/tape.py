@@ -26,14 +26,15 @@ same function (`settle`), so it reaches S_n bit for bit; the shadow reversal is 
 one bit for bit because every per-contact value depends only on its own pair and every
 sum is taken in a fixed order (on integer grids).
 
-Where the reversal finds every array but the pairs' histories again (`predictable`: no
-damping, drag, moving cell or wall contact with history), the shadow reversal is not taken:
-the forward step predicts the histories the reversed step would find (`predict`: unwound at
-the later positions, mapped back and capped at the earlier ones, pair by pair, with the
-same functions the reversed step calls), and settles those alone, entry for entry what the
-shadow reversal records. A settled history gives the force the forward step found from it
-(the reversal finds forces from settled histories taking them as they are, `SETTLED`), so
-that no force or velocity entry follows.
+Where the reversal finds every array but the pairs' shear histories again (`predictable`:
+no damping, drag, rolling resistance, moving cell or wall contact with history), the shadow
+reversal is not taken: the forward pair loop works out, beside each new history, the one
+the reversed step would find from it (`contact.earlier_shear`: unwound at the later
+positions, turned back, capped and rounded at the earlier ones, with the functions the
+reversed step calls and the overlap and normal the pair had there), and `predict` settles
+those alone, entry for entry what the shadow reversal records. A settled history gives the
+force the forward step found from it (the reversal finds forces from settled histories
+taking them as they are, `SETTLED`), so that no force or velocity entry follows.
 
 Entries of the pair arrays are keyed by the pair (i, j), not by its slot, since the
 reversed run builds its own list at other steps. Each entry also counts as
@@ -46,24 +47,12 @@ of the doubles between.
 
 from collections import namedtuple
 
-import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, inline, inline_arrays, jit
 from revdem_cli.kernels import fixed as fx
-from revdem_cli.kernels import pairs as pl
-from revdem_cli.kernels.cell import deforms, images, nearest_image, strain_rates
-from revdem_cli.kernels.contact import (
-    NO_ROLLING,
-    NO_SHEAR,
-    REVERSE,
-    SMALL_ANGLE,
-    history_step,
-    normal_law,
-)
-from revdem_cli.kernels.pairs import enter3, entries, entry
-from revdem_cli.kernels.unwind import unwind_contact
-from revdem_cli.kernels.vectors import ZERO, axpy, dot, put
+from revdem_cli.kernels import inline, inline_arrays, jit
+from revdem_cli.kernels.cell import deforms
+from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -142,10 +131,9 @@ Tape = namedtuple(
         "offsets",  # first entry of each step of the block, int64 (S + 1,)
         "span",  # [first step of the block, steps in it, entries in it, the most entries a
         # step has made, 1 where the step before the block is to be recorded again], int64 (5,)
-        "predicting",  # 1 where the forward step predicts the reversal's histories itself
+        "predicting",  # 1 where the forward pair loop predicts the reversal's histories
         # (`predictable`), with no shadow reversal
-        "earlier",  # predicting: the histories the reversal finds, shear and rolling, (P, 3)
-        "earlier_bits",  # the same as int64 views, (3 P,)
+        "earlier",  # predicting: `Pairs.earlier` as an int64 view, (3 P,)
         "earlier_overlap",  # predicting: each pair's overlap at the earlier positions, (P,)
     ],
 )
@@ -211,9 +199,11 @@ def _copy(into, arrays):
 
 
 @jit
-def keep(tape):
-    """`before` <- the compared arrays now (S_n)."""
+def keep(tape, pairs):
+    """`before` <- the compared arrays now (S_n); predicting, the pairs' overlaps too."""
     _copy(tape.before, tape.state)
+    for k in range(min(pairs.count[0], tape.earlier_overlap.shape[0])):  # predicting
+        tape.earlier_overlap[k] = pairs.overlap[k]
 
 
 @jit
@@ -344,10 +334,11 @@ def _slot(first, partners, i, j):
 
 @jit
 def _settled(tape, what, values, was, overlaps, used, p, pairs, walls, cell, fixed, law, estar, h,
-             damped):  # fmt: skip
-    """Settle the array `what` of the reversal's state, `values`, onto `was`, the forward
-    run's, as `record` does, a pair's history on the grid of its contact at `overlaps`;
-    returns the entries counted, `used` with them."""
+             damped, settling):  # fmt: skip
+    """Record the differences of the array `what` of the reversal's state, `values`, from
+    `was`, the forward run's, as `record` does, a pair's history on the grid of its contact
+    at `overlaps`, and where `settling` apply them (`values` then is `was`); returns the
+    entries counted, `used` with them."""
     label = tape.span[1]
     room = tape.what.shape[0]
     n = p.x.shape[0]
@@ -396,8 +387,9 @@ def _settled(tape, what, values, was, overlaps, used, p, pairs, walls, cell, fix
             tape.bits[label, mechanism] += grid_bits(was[index], values[index], spacing)
         else:
             tape.bits[label, mechanism] += bits_of(amount)
-        _apply(values, what, index, amount, h, forces, inverse, ints, mirrors, step, p.x, p.s,
-               cell.length, fixed.grid)  # fmt: skip
+        if settling:
+            _apply(values, what, index, amount, h, forces, inverse, ints, mirrors, step, p.x,
+                   p.s, cell.length, fixed.grid)  # fmt: skip
     return used
 
 
@@ -414,122 +406,40 @@ def record(tape, p, pairs, walls, cell, fixed, law, estar, h, first, damped):
     used = tape.span[2]
     for what in range(0 if first else SECOND, SECOND if first else len(COMPARED)):
         used = _settled(tape, what, tape.state[what], tape.before[what], pairs.overlap, used, p,
-                        pairs, walls, cell, fixed, law, estar, h, damped)  # fmt: skip
+                        pairs, walls, cell, fixed, law, estar, h, damped, True)  # fmt: skip
     recorded = used - tape.span[2]
     tape.span[2] = used
     return recorded
 
 
 @jit
-def predictable(p, walls, cell, law, dyn):
-    """Whether the reversal of a forward step finds every array but the pairs' histories
-    again, so that those are all the tape holds and the forward step can predict them
-    itself (`predict`): fixed-point positions and velocities (the tape's arithmetic), no
-    velocity read by a force (local or viscous damping) nor drag, a cell that does not
-    move, and no wall contact with a history."""
+def predictable(p, pairs, walls, cell, law, dyn):
+    """Whether the reversal of a forward step finds every array but the pairs' shear
+    histories again, so that those are all the tape holds and the forward pair loop can
+    predict them itself (`predict`): fixed-point positions and velocities (the tape's
+    arithmetic), no velocity read by a force (local or viscous damping) nor drag, no rolling
+    resistance, a cell that does not move, no wall contact with a history, and the room for
+    the prediction (`Pairs.earlier`, a run with a tape and shear)."""
     quiet = dyn.local_damping == 0.0 and law.beta_n == 0.0 and law.beta_t == 0.0
     walled = walls.kind.shape[0] > 0 and law.tangential != NO_SHEAR
-    return quiet and dyn.drag == 1.0 and not deforms(cell) and not walled
-
-
-@inline
-def _unwound_columns(block, size, law, dt, strain, deforming, small):
-    """Columns 0 to size - 1 of a pair loop's block, gathered at the later positions: each
-    pair's histories unwound there (`unwind.unwind_contact`, as the reversed step's first
-    half does them) into the NEW_SHEAR and NEW_ROLLING rows, the normal into NORMAL_THEN;
-    the rows read are left as they were. Returns how many angles were not `small`."""
-    large = 0
-    for k in range(size):
-        w_i = entries(block, pl.OMEGA_I, k)
-        w_j = entries(block, pl.OMEGA_J, k)
-        shear, moment, n = unwind_contact(
-            entries(block, pl.SEPARATION, k), entry(block, pl.RADIUS_I, k),
-            entry(block, pl.RADIUS_J, k), entries(block, pl.VELOCITY, k), w_i, w_j,
-            entry(block, pl.G_STAR, k), entries(block, pl.SHEAR, k),
-            entries(block, pl.ROLLING, k) if law.rolling != NO_ROLLING else ZERO, law, dt,
-            strain, deforming, small,
-        )  # fmt: skip
-        large += abs(0.5 * (dot(w_i, n) + dot(w_j, n)) * dt) >= SMALL_ANGLE
-        enter3(block, pl.NEW_SHEAR, k, shear)
-        enter3(block, pl.NEW_ROLLING, k, moment)
-        enter3(block, pl.NORMAL_THEN, k, n)
-    return large
-
-
-def _earlier_histories(
-    x, v, w, radius, mass, material, estar, gstar, image, rate, length, deforming, pi, pj,
-    n_pairs, history, rolling, law, dt, earlier_ints, grid, shear_out, rolling_out, overlap_out,
-    blocks,
-):  # fmt: skip
-    """The histories the reversed step from the later positions x (the half-step velocities
-    v, w) finds for every pair at the earlier positions, the integers `earlier_ints` on their
-    `grid`, and each pair's overlap there: block by block as the pair loop works, the
-    histories unwound at the later positions (`_unwound_columns`), then mapped back and
-    capped at the earlier positions by the reversed pair loop's own contact stage
-    (`pairs.contact_stage`), zero for a pair apart there."""
-    strain = strain_rates(rate, length)
-    chunks = blocks.shape[0]
-    rolls = law.rolling != NO_ROLLING
-    for c in numba.prange(chunks):
-        block = blocks[c]
-        end = (c + 1) * n_pairs // chunks
-        for first in range(c * n_pairs // chunks, end, pl.BLOCK):
-            size = min(pl.BLOCK, end - first)
-            pl.gather_pairs(
-                block, first, size, x, v, w, v, w, False, radius, mass, material, estar, gstar,
-                image, pi, pj, history, rolling, history, False, law,
-            )  # fmt: skip
-            if _unwound_columns(block, size, law, dt, strain, deforming, True) > 0:
-                _unwound_columns(block, size, law, dt, strain, deforming, False)
-            for k in range(size):
-                i, j = pi[first + k], pj[first + k]
-                x_i = (earlier_ints[3 * i] * grid[0], earlier_ints[3 * i + 1] * grid[1],
-                       earlier_ints[3 * i + 2] * grid[2])  # fmt: skip
-                x_j = (earlier_ints[3 * j] * grid[0], earlier_ints[3 * j + 1] * grid[1],
-                       earlier_ints[3 * j + 2] * grid[2])  # fmt: skip
-                enter3(block, pl.SEPARATION, k, nearest_image(axpy(-1.0, x_i, x_j), image))
-                enter3(block, pl.SHEAR, k, entries(block, pl.NEW_SHEAR, k))
-                enter3(block, pl.ROLLING, k, entries(block, pl.NEW_ROLLING, k))
-            pl.contact_stage(block, size, law, REVERSE, dt, strain, deforming, True, False)
-            for k in range(size):
-                put(shear_out, first + k, entries(block, pl.NEW_SHEAR, k))
-                if rolls:
-                    put(rolling_out, first + k, entries(block, pl.NEW_ROLLING, k))
-                overlap_out[first + k] = entry(block, pl.OVERLAP, k)
-
-
-earlier_histories = by_size(_earlier_histories)
+    plain = quiet and law.rolling == NO_ROLLING and dyn.drag == 1.0
+    room = pairs.earlier.shape[0] > 0 or law.tangential == NO_SHEAR
+    return plain and room and not deforms(cell) and not walled
 
 
 @jit
 def predict(tape, p, pairs, walls, cell, fixed, law, moduli, dt):
     """Record the entries of the forward step just taken (S_n to S_{n+1}) of a run whose
-    reversal finds all but the pairs' histories again (`predictable`): the histories the
-    reversed step would find (`earlier_histories`, at the half-step velocities, the half
-    kick taken back and given again on its grid) settled onto those of S_n, with no
-    shadow reversal. What it records is what the shadow reversal would, entry for entry."""
+    reversal finds all but the pairs' shear histories again (`predictable`): the histories
+    the forward pair loop found the reversed step would find (`Pairs.earlier`,
+    `contact.earlier_shear`) compared with those of S_n, with no shadow reversal (and left
+    as they are, so that a step can be recorded again). What it records is what the shadow
+    reversal would, entry for entry."""
     if law.tangential == NO_SHEAR:
         return
-    h = 0.5 * dt
-    fx.kick(p.v.shape[0], fixed.v, p.v, p.f, p.inv_mass, -h, fixed.grid[fx.VELOCITY])
-    fx.kick(p.v.shape[0], fixed.omega, p.omega, p.torque, p.inv_inertia, -h,
-            fixed.grid[fx.ANGULAR_VELOCITY])  # fmt: skip
-    shear, moment = tape.earlier
-    earlier_histories(
-        p.x.shape[0], p.x, p.v, p.omega, p.radius, p.mass, p.material, moduli.estar,
-        moduli.gstar, images(cell), cell.rate, cell.length, deforms(cell), pairs.i, pairs.j,
-        pairs.count[0], pairs.history, pairs.rolling, law, dt, tape.before[POSITION],
-        fixed.grid[fx.X : fx.Z + 1], shear, moment, tape.earlier_overlap, pairs.blocks,
-    )  # fmt: skip
-    fx.kick(p.v.shape[0], fixed.v, p.v, p.f, p.inv_mass, h, fixed.grid[fx.VELOCITY])
-    fx.kick(p.v.shape[0], fixed.omega, p.omega, p.torque, p.inv_inertia, h,
-            fixed.grid[fx.ANGULAR_VELOCITY])  # fmt: skip
-    used = tape.span[2]
-    for what in (SHEAR, ROLLING):
-        used = _settled(tape, what, tape.earlier_bits[what - SHEAR], tape.before[what],
-                        tape.earlier_overlap, used, p, pairs, walls, cell, fixed, law,
-                        moduli.estar, -h, False)  # fmt: skip
-    tape.span[2] = used
+    tape.span[2] = _settled(tape, SHEAR, tape.earlier, tape.before[SHEAR], tape.earlier_overlap,
+                            tape.span[2], p, pairs, walls, cell, fixed, law, moduli.estar,
+                            -0.5 * dt, False, False)  # fmt: skip
 
 
 @jit

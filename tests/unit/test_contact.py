@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from revdem_cli.config import Material
-from revdem_cli.kernels.contact import normal_law, remap, rotate_about, unmap
+from revdem_cli.kernels.contact import normal_law, remap, rotate_about, turn_onto, unmap
 from revdem_cli.state import contact_law, effective_modulus, effective_shear_modulus, moduli
 from tests.conftest import two_spheres
 
@@ -66,6 +66,35 @@ def test_remap_keeps_magnitude_and_unmap_inverts_it():
         assert np.dot(mapped, n_new) == pytest.approx(0, abs=1e-15)
         assert np.linalg.norm(mapped) == pytest.approx(np.linalg.norm(shear), rel=1e-14)
         np.testing.assert_allclose(unmap(mapped, n_new, n_old), shear, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("angle", [1e-2, 1e-3])
+def test_turning_with_the_contact_plane_is_eq_7_8_to_second_order_and_keeps_its_normal_part(
+    angle,
+):
+    """The fixed-point remap: the rotation taking the old normal onto the new one. On a history
+    in the old plane it keeps the magnitude and lands in the new plane as Eq 7-8 does, and
+    differs from Eq 7-8's projection by less than the angle squared; a part across the
+    old plane (rounding's) comes out across the new one, which the projection drops; the
+    turn back from the new normal onto the old is its inverse to round-off."""
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        n_old = unit(rng.normal(size=3))
+        axis = unit(np.cross(n_old, rng.normal(size=3)))
+        n_new = tuple(np.asarray(n_old) * math.cos(angle) + np.cross(axis, n_old) * math.sin(angle))
+        shear = np.cross(n_old, rng.normal(size=3))
+        turned = np.asarray(turn_onto(tuple(shear), n_old, n_new))
+        size = np.linalg.norm(shear)
+        assert np.dot(turned, n_new) == pytest.approx(0, abs=1e-15 * size)
+        assert np.linalg.norm(turned) == pytest.approx(size, rel=1e-14)
+        projected = np.asarray(remap(tuple(shear), n_new))
+        assert np.linalg.norm(turned - projected) < angle**2 * size
+        across = shear + 1e-3 * size * np.asarray(n_old)
+        kept = np.dot(turn_onto(tuple(across), n_old, n_new), n_new)
+        assert kept == pytest.approx(1e-3 * size, rel=1e-9)
+        assert np.dot(remap(tuple(across), n_new), n_new) == pytest.approx(0, abs=1e-15 * size)
+        back = turn_onto(tuple(turned), n_new, n_old)
+        np.testing.assert_allclose(back, shear, rtol=0, atol=1e-15 * size)
 
 
 def test_spin_correction_rotates_within_the_contact_plane():
