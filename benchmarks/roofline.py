@@ -87,6 +87,9 @@ def traffic(state) -> dict[str, int]:
         kick_reads += [fixed.v] + spins
         kick_writes += [fixed.v] + spins
         drift_reads, drift_writes = [p.v, fixed.x], [fixed.x, p.x]
+        if pairs.normal.shape[0] > 0:  # the normals the histories turn from, and to
+            pair_reads.append(pairs.normal[:count])
+            pair_writes.append(pairs.normal[:count])
 
     def size(arrays: list) -> int:
         return sum(a.nbytes for a in arrays)
