@@ -297,14 +297,12 @@ def unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, history, small=F
 
 
 @inline
-def unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, history, small=False):
-    """Reversed step, at the later positions: undo the rolling spring's increment and turn
-    (`small` as `unwind_shear`'s)."""
+def unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, history):
+    """Reversed step, at the later positions: undo the rolling spring's increment and turn."""
     if overlap <= 0.0:
         return (0.0, 0.0, 0.0)
     kr = rolling_stiffness(law, overlap, rstar)
-    rate = tangential(axpy(-1.0, w_i, w_j), n)
-    return spring_unwound(history, n, spin, dt, kr, rate, small)
+    return spring_unwound(history, n, spin, dt, kr, tangential(axpy(-1.0, w_i, w_j), n))
 
 
 @inline

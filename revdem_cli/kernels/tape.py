@@ -31,10 +31,11 @@ no damping, drag, rolling resistance, moving cell or wall contact with history),
 reversal is not taken: the forward pair loop works out, beside each new history, the one
 the reversed step would find from it (`contact.earlier_shear`: unwound at the later
 positions, turned back, capped and rounded at the earlier ones, with the functions the
-reversed step calls and the overlap and normal the pair had there), and `predict` settles
-those alone, entry for entry what the shadow reversal records. A settled history gives the
-force the forward step found from it (the reversal finds forces from settled histories
-taking them as they are, `SETTLED`), so that no force or velocity entry follows.
+reversed step calls and the overlap and normal the pair had there), and `predict` records
+their differences alone, entry for entry what the shadow reversal records. A settled
+history gives the force the forward step found from it (the reversal finds forces from
+settled histories taking them as they are, `SETTLED`), so that no force or velocity entry
+follows.
 
 Entries of the pair arrays are keyed by the pair (i, j), not by its slot, since the
 reversed run builds its own list at other steps. Each entry also counts as

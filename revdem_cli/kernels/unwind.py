@@ -13,21 +13,19 @@ from revdem_cli.kernels.wall_contacts import wall_kinematics
 
 
 @inline
-def unwind_contact(d, r_i, r_j, v_ij, w_i, w_j, gs, shear, moment, law, dt, strain, deforming,
-                   small=False):  # fmt: skip
+def unwind_contact(d, r_i, r_j, v_ij, w_i, w_j, gs, shear, moment, law, dt, strain, deforming):
     """A pair at the later positions, separation d, radii r_i, r_j, its centres' relative
     half-step velocity v_ij = v_j - v_i and spins w_i, w_j, G* gs: its shear history `shear`
     with Eq 10 and 9 undone, its rolling history `moment` likewise (as it is without a
-    rolling law), and its contact normal there, across which they were unwound. `small`:
-    |spin dt| < SMALL_ANGLE (see `contact.cos_sin`)."""
+    rolling law), and its contact normal there, across which they were unwound."""
     dist = norm(d)
     overlap = r_i + r_j - dist
     n = scaled(1.0 / dist, d)
     vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
     rstar = r_i * r_j / (r_i + r_j)
-    shear = unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, shear, small)
+    shear = unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, shear)
     if law.rolling != NO_ROLLING:
-        moment = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, moment, small)
+        moment = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, moment)
     return shear, moment, n
 
 
