@@ -153,8 +153,7 @@ class _Buffers:
         compared = _compared(state, predicting)
         if predicting:
             live = tuple(_NOTHING64 for _ in live)
-            pairs = state.pairs
-            self.earlier_overlap = _like((self.earlier_overlap,), (pairs.overlap,))[0]
+            self.earlier_overlap = _like((self.earlier_overlap,), (state.pairs.overlap,))[0]
         self.kept = _like(self.kept, live)
         self.before = _like(self.before, compared)
         self.grow(max(MIN_ENTRIES, ENTRIES_PER_PARTICLE * state.particles.x.shape[0]))
