@@ -6,7 +6,12 @@ n x n x n fcc cells, Mindlin shear springs (mu = 0.5, `history`) or none
 (`frictionless`); each measurement in a process of its own (its thread count, its
 memory): the loop's particle-steps per second (best of REPEATS, set-up and compilation
 excluded), the peak memory per sphere above what the process held before the spheres
-were made, and for the tape its bytes and bits per step. Results: OUT/tape_cost.json.
+were made, and for the tape its bytes and bits per step. The REPEATS timings follow one
+another from the same start, so that with the tape each covers other steps of one run:
+with history the lattice's contacts start to slip after some 150 steps (n = 24), and
+the tape's cost then grows with its entries; each timing's cost is reported beside the
+entries per step it recorded (`cost_each`, `entries_per_step_each`). Results:
+OUT/tape_cost.json.
 
     NUMBA_NUM_THREADS=1 python benchmarks/tape_cost.py [--n 10 24]
 """
@@ -20,6 +25,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -58,7 +65,7 @@ def stepped(state, model, steps: int, recorder) -> float:
         elif status != OK:
             raise RuntimeError(f"the stepping loop stopped with status {status}")
     if recorder:
-        recorder.flush()
+        recorder.flush(wait=True)
     return time.perf_counter() - started
 
 
@@ -81,7 +88,11 @@ def measure(n: int, variant: str, tape: bool) -> dict:
         model, state = Model.of(scenario), initial_state(scenario)
         path = Path(folder) / "tape.h5"
         recorder = Recorder(path, "run", clock, state) if tape else None
-        loop = min(stepped(state, model, steps, recorder) for _ in range(REPEATS))
+        loops, entries = [], []
+        for _ in range(REPEATS):
+            loops.append(stepped(state, model, steps, recorder))
+            entries.append(recorder.written_entries if tape else 0)
+        loop = min(loops)
         count = len(state.particles.x)
         row = {
             "n": n,
@@ -91,6 +102,7 @@ def measure(n: int, variant: str, tape: bool) -> dict:
             "steps": steps,
             "threads": int(os.environ.get("NUMBA_NUM_THREADS", os.cpu_count())),
             "loop_s": loop,
+            "loop_s_each": loops,
             "particle_steps_per_s": count * steps / loop,
             "peak_bytes_per_particle": (_rss("VmHWM") - baseline) / count,
         }
@@ -99,6 +111,7 @@ def measure(n: int, variant: str, tape: bool) -> dict:
             row["tape_bytes_per_step"] = recorded["bytes"] / recorded["steps"]
             row["bits_per_step"] = recorded["bits_per_step"]
             row["size_over_full_state"] = recorded["size_over_full_state"]
+            row["entries_per_step_each"] = list(np.diff(entries, prepend=0) / steps)
     return row
 
 
@@ -112,16 +125,24 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
     arguments = parser.parse_args()
     rows = []
-    print(f"{'n':>3} {'variant':>12} {'without':>10} {'with tape':>10} {'cost':>5} {'B/sphere':>9}")
+    print(f"{'n':>3} {'variant':>12} {'without':>10} {'with tape':>10} {'cost':>5} {'B/sphere':>9}"
+          "  cost (entries/step) of each timing")  # fmt: skip
     for n in arguments.n:
         for variant in ("frictionless", "history"):
             bare, recorded = in_process(n, variant, False), in_process(n, variant, True)
             recorded["cost"] = bare["particle_steps_per_s"] / recorded["particle_steps_per_s"]
+            recorded["cost_each"] = [t / bare["loop_s"] for t in recorded["loop_s_each"]]
             rows += [bare, recorded]
             print(
                 f"{n:3d} {variant:>12} {bare['particle_steps_per_s']:10.3g} "
                 f"{recorded['particle_steps_per_s']:10.3g} {recorded['cost']:5.2f} "
                 f"{bare['peak_bytes_per_particle']:4.0f}/{recorded['peak_bytes_per_particle']:4.0f}"
+                + "".join(
+                    f"  {c:.2f} ({e:.0f})"
+                    for c, e in zip(
+                        recorded["cost_each"], recorded["entries_per_step_each"], strict=True
+                    )
+                )
             )
     arguments.out.mkdir(parents=True, exist_ok=True)
     (arguments.out / "tape_cost.json").write_text(json.dumps(rows, indent=2) + "\n")

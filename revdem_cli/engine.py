@@ -155,7 +155,7 @@ class Run:
             return
         writer.flush()
         if isinstance(tape, Recorder):
-            tape.flush()
+            tape.flush(wait=True)
         frames, observables = writer.rows()
         resumption = Resumption(
             events=events.copy(), frames=frames, observables=observables, **place

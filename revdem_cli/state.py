@@ -26,7 +26,7 @@ from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, rebuild_pairs
 from revdem_cli.kernels.neighbours import build_pairs
-from revdem_cli.kernels.pairs import empty_blocks
+from revdem_cli.kernels.pairs import MISSED_COLUMNS, empty_blocks
 from revdem_cli.kernels.sums import empty_partials
 
 
@@ -253,7 +253,7 @@ def empty_pairs(
         rolled=np.zeros(per_rolling),
         normal_new=np.zeros((per_shear if reversing else 0, 3)),
         normal=np.zeros((per_shear if turning else 0, 3)),
-        earlier=np.zeros((per_shear if turning and taped else 0, 3)),
+        earlier=np.zeros((per_shear if turning and taped else 0, MISSED_COLUMNS)),
         first=np.zeros(n_particles + 1, dtype=np.int64),
         start=np.zeros(n_particles + 1, dtype=np.int64),
         slots=np.zeros(capacity, dtype=np.int32),

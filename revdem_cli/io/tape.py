@@ -3,13 +3,15 @@ compiled loop records into and replays from (`kernels.tape`).
 
 Entries go to disk in blocks, so the tape's memory does not grow with the run: the loop
 returns TAPE_FULL when its block may have no room for one more step (it has less than the
-most entries a step has made so far), and the block is appended to the file. The block holds
-one entry a particle (at least MIN_ENTRIES) and grows only for a step that needs more: that
-step's entries are then recorded again (`Recorder.flush`). Layout (HDF5, every dataset
+most entries a step has made so far), and a thread of its own appends the block to the file
+while the loop steps on. The block holds one entry a particle (at least MIN_ENTRIES) and
+grows only for a step that needs more: that step's entries are then recorded again
+(`Recorder.flush`). Layout (HDF5, every dataset
 chunked, shuffled and compressed with Zstandard through hdf5plugin):
 
     /entries/what    int8   (E,)  the array, an index into `kernels.tape.COMPARED`
-    /entries/where   int64  (E,)  its place (pair arrays: (i N + j) 3 + axis)
+    /entries/where   int64  (E,)  its place (pair arrays: (i N + j) 3 + axis), delta-coded
+                                  within each step (`coded_places`)
     /entries/amount  int64  (E,)  the true value minus the reversal's
     /steps/count     int64  (S,)  entries of each step of the stage, from its first
     /steps/bits      float64 (S, M) bits of each step by mechanism (`MECHANISMS`)
@@ -23,6 +25,7 @@ which `summary` sets the tape beside), `compared` and `mechanisms`. Going backwa
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import h5py
@@ -36,15 +39,18 @@ from revdem_cli.kernels.tape import (
     OFF,
     RECORD,
     REPLAY,
-    SHEAR,
     Tape,
     predictable,
 )
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 STEPS_PER_BLOCK = 4096
 MIN_ENTRIES = 1 << 16
 ENTRIES_PER_PARTICLE = 1
+ROOM_FOR_STEPS = 4
+"""A block that grows takes room for this many steps of the most entries a step has made:
+fewer returns from the stepping loop to write it (each finds the contact normals again),
+and fewer steps recorded again while the entries a step makes are still growing."""
 CHUNK = 1 << 14
 FILTERS = dict(**hdf5plugin.Zstd(clevel=1), shuffle=True)
 """Zstandard at level 1 through hdf5plugin, after HDF5's byte shuffle: on the fcc
@@ -103,13 +109,11 @@ def _changed(state, events) -> tuple:
     return tuple(_flat(a, np.int64) for a in arrays + [events])
 
 
-def _compared(state, predicting: bool) -> tuple:
-    """The compared arrays as int64 views; predicting, only the one `kernels.tape.predict`
-    reads of the state before a step (the pairs' shear histories), the rest empty."""
-    read = (SHEAR,) if predicting else range(len(COMPARED))
+def _compared(state) -> tuple:
+    """The compared arrays as int64 views."""
     return tuple(
-        _flat(getattr(getattr(state, bundle), name), np.int64) if k in read else _NOTHING64
-        for k, (bundle, name) in enumerate(COMPARED_ARRAYS.values())
+        _flat(getattr(getattr(state, bundle), name), np.int64)
+        for bundle, name in COMPARED_ARRAYS.values()
     )
 
 
@@ -121,7 +125,7 @@ def no_tape() -> Tape:
         OFF, changed, changed, compared, compared, _NOTHING8, _NOTHING8,
         np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
         np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
-        _NOTHING64, np.zeros(5, dtype=np.int64), 0, _NOTHING64, np.zeros(0),
+        _NOTHING64, np.zeros(5, dtype=np.int64), 0,
     )  # fmt: skip
 
 
@@ -142,33 +146,29 @@ class _Buffers:
         self.span = np.zeros(5, dtype=np.int64)
         self.causes = _NOTHING8
         self.wall_causes = _NOTHING8
-        self.earlier_overlap = np.zeros(0)
 
     def bundle(self, state, events, mode: int, predicting: bool = False) -> Tape:
-        """The tape of the stepping loop's next call; `predicting`: recording by
-        `kernels.tape.predict`, which needs no copies of the arrays a step changes and of the
-        compared ones only the shear histories, but the pairs' overlaps before the step and
-        the histories the pair loop predicted (`Pairs.earlier`)."""
+        """The tape of the stepping loop's next call; `predicting`: recorded by
+        `kernels.tape.predict` from the pairs the forward pair loop lists (`Pairs.earlier`),
+        with no copy of the state before a step nor of the one after it."""
         live = _changed(state, events)
-        compared = _compared(state, predicting)
+        compared = _compared(state)
         if predicting:
             live = tuple(_NOTHING64 for _ in live)
-            self.earlier_overlap = _like((self.earlier_overlap,), (state.pairs.overlap,))[0]
+            compared = tuple(_NOTHING64 for _ in compared)
         self.kept = _like(self.kept, live)
         self.before = _like(self.before, compared)
         self.grow(max(MIN_ENTRIES, ENTRIES_PER_PARTICLE * state.particles.x.shape[0]))
         pairs = state.pairs.i.shape[0]
-        if self.causes.shape[0] != 2 * pairs:
+        if not predicting and self.causes.shape[0] != 2 * pairs:
             self.causes = np.zeros(2 * pairs, dtype=np.uint8)
         contacts = state.walls.overlap.size
-        if self.wall_causes.shape[0] != 2 * contacts:
+        if not predicting and self.wall_causes.shape[0] != 2 * contacts:
             self.wall_causes = np.zeros(2 * contacts, dtype=np.uint8)
         return Tape(
             mode, live, self.kept, compared, self.before, self.causes, self.wall_causes,
             self.what, self.where, self.amount, self.counts, self.bits, self.contacts,
             self.offsets, self.span, int(predicting),
-            _flat(state.pairs.earlier, np.int64) if predicting else _NOTHING64,
-            self.earlier_overlap if predicting else np.zeros(0),
         )  # fmt: skip
 
     def grow(self, capacity: int) -> None:
@@ -208,11 +208,12 @@ class Recorder:
         self.buffers = _Buffers()
         self.written_steps = 0
         self.written_entries = 0
-        self.written_bits = np.zeros(len(MECHANISMS))  # by mechanism, in the file
-        if step is None:
-            self._create(stage, clock, state)
+        self.written_bits = np.zeros(len(MECHANISMS))  # by mechanism, handed to the writer
+        self.pending = None  # the block the writer thread is appending, a Future
+        if step is None:  # by the writer, after any block of this file still being written
+            _WRITER.submit(self._create, stage, clock, state).result()
         else:
-            self._truncate(step - self.first_step)
+            _WRITER.submit(self._truncate, step - self.first_step).result()
         self.buffers.span[:] = (self.first_step + self.written_steps, 0, 0, 0, 0)
 
     def _create(self, stage: str, clock: tuple[int, float, float], state) -> None:
@@ -258,10 +259,12 @@ class Recorder:
         predicting = predictable(state.particles, state.pairs, state.walls, state.cell, law, dyn)
         return self.buffers.bundle(state, events, RECORD, predicting)
 
-    def flush(self) -> None:
-        """Append the block recorded so far to the file and empty it. Where its last step made
-        more entries than the block had room for, that step is left out, the block grown to
-        twice the most a step has made, and the stepping loop, called next, records the
+    def flush(self, wait: bool = False) -> None:
+        """Hand the block recorded so far to the writer thread, which appends it to the file
+        while the stepping loop goes on (it releases the GIL), and empty it; `wait`: until
+        every block handed over is in the file. Where its last step made more entries than
+        the block had room for, that step is left out, the block grown to ROOM_FOR_STEPS
+        times the most a step has made, and the stepping loop, called next, records the
         step again before it steps on (`retaking`)."""
         b = self.buffers
         steps, entries = int(b.span[1]), int(b.span[2])
@@ -273,8 +276,10 @@ class Recorder:
             b.contacts[steps] = 0
         self._write(steps, entries)
         if again:
-            b.grow(2 * int(b.span[3]))
+            b.grow(ROOM_FOR_STEPS * int(b.span[3]))
             b.span[4] = 1
+        if wait:
+            self._written()
 
     @property
     def retaking(self) -> bool:
@@ -282,17 +287,19 @@ class Recorder:
         return bool(self.buffers.span[4])
 
     def _write(self, steps: int, entries: int) -> None:
+        """Hand the block's first `steps` steps and `entries` entries to the writer (once the
+        block before is written: one at a time), and empty the block."""
         b = self.buffers
         if steps == 0:
             b.span[:3] = (self.first_step + self.written_steps, 0, 0)
             return
-        with _open(self.path, "a") as f:
-            _append(f["entries/what"], b.what[:entries])
-            _append(f["entries/where"], b.where[:entries])
-            _append(f["entries/amount"], b.amount[:entries])
-            _append(f["steps/count"], b.counts[:steps])
-            _append(f["steps/bits"], b.bits[:steps])
-            _append(f["steps/contacts"], b.contacts[:steps].astype(np.int32))
+        block = (
+            b.what[:entries].copy(), coded_places(b.where[:entries], b.counts[:steps]),
+            b.amount[:entries].copy(), b.counts[:steps].copy(), b.bits[:steps].copy(),
+            b.contacts[:steps].astype(np.int32),
+        )  # fmt: skip
+        self._written()
+        self.pending = _WRITER.submit(_append_block, self.path, block)
         self.written_steps += steps
         self.written_entries += entries
         self.written_bits = _running(self.written_bits, b.bits[:steps])[-1]
@@ -300,6 +307,12 @@ class Recorder:
         b.contacts[:steps] = 0
         b.offsets[:] = 0
         b.span[:3] = (self.first_step + self.written_steps, 0, 0)
+
+    def _written(self) -> None:
+        """Wait for the block the writer has; its failure is raised here."""
+        if self.pending is not None:
+            pending, self.pending = self.pending, None
+            pending.result()
 
     def destroyed_by(self, steps: np.ndarray) -> np.ndarray:
         """The bits recorded from the stage's start to each of `steps` (of the block being
@@ -394,10 +407,34 @@ class Replayer:
         begin, end = int(self.starts[low]), int(self.starts[high + 1])
         with _open(self.path, "r") as f:
             b.what[: end - begin] = f["entries/what"][begin:end]
-            b.where[: end - begin] = f["entries/where"][begin:end]
+            counts = np.diff(self.starts[low : high + 2])
+            b.where[: end - begin] = places(f["entries/where"][begin:end], counts)
             b.amount[: end - begin] = f["entries/amount"][begin:end]
         b.offsets[: high - low + 2] = self.starts[low : high + 2] - begin
         b.span[:3] = (self.first_step + low, high - low + 1, end - begin)
+
+
+def coded_places(where: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The places `where` of the entries of consecutive steps (`counts` entries each) as the
+    tape stores them: each step's first as it is, the others as the difference from the
+    entry before. A step's entries come array by array, each in the order of its places,
+    so the differences are small numbers, which compress to a few bits."""
+    coded = np.diff(where, prepend=np.int64(0))
+    firsts = _starts(counts)[counts > 0]
+    coded[firsts] = where[firsts]
+    return coded
+
+
+def places(coded: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The places of entries stored by `coded_places`."""
+    summed = np.cumsum(coded)
+    before = np.concatenate(([0], summed))[_starts(counts)]  # the sums up to each step
+    return summed - np.repeat(before, counts)
+
+
+def _starts(counts: np.ndarray) -> np.ndarray:
+    """The first entry of each step."""
+    return np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.int64)
 
 
 def _running(total: np.ndarray, bits: np.ndarray) -> np.ndarray:
@@ -433,6 +470,19 @@ def state_bytes(state) -> int:
         array = getattr(getattr(state, bundle), name)
         total += array[:listed].nbytes if bundle == "pairs" else array.nbytes
     return total
+
+
+_WRITER = ThreadPoolExecutor(max_workers=1, thread_name_prefix="revdem-tape")
+"""Appends the blocks of every tape recorded, one at a time (`Recorder.flush`)."""
+
+
+def _append_block(path: Path, block: tuple) -> None:
+    """Append a block (`Recorder._write`) to the tape at `path`."""
+    names = ("entries/what", "entries/where", "entries/amount", "steps/count", "steps/bits",
+             "steps/contacts")  # fmt: skip
+    with _open(path, "a") as f:
+        for name, values in zip(names, block, strict=True):
+            _append(f[name], values)
 
 
 def _append(dataset, values: np.ndarray) -> None:

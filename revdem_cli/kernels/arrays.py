@@ -52,9 +52,10 @@ Pairs = namedtuple(
         "normal_new",  # reversed step: the contact normal the unwound history lies across
         "normal",  # fixed point with shear: each pair's contact normal at the current positions
         # (zero apart), which the next forward step turns its histories from, (P, 3)
-        "earlier",  # a run with the information tape and shear: the shear history the reversed
-        # step would find at the earlier positions, found by a forward pair loop that
-        # predicts it (`kernels.tape.predict`), (P, 3)
+        "earlier",  # a run with the information tape and shear: the pairs whose shear history
+        # the reversed step would miss at the earlier positions, listed by a forward pair
+        # loop that predicts it (`kernels.tape.predict`; columns `pairs.MISSED` to
+        # `pairs.SPACING`), (P, 8): only the rows listed are written
         "first",  # the pairs (q, j) of particle q are slots first[q] to first[q + 1], (N + 1,)
         "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, (N + 1,)
         "slots",  # the slots of the pairs (p, q) of each particle q, ascending in p, int32 (P,)

@@ -313,11 +313,15 @@ def earlier_shear(law, dt, overlap, n, rstar, estar, gstar, vrel, spin, shear, o
     velocity vrel, spin) and the overlap and normal the pair had at the earlier ones
     (`overlap_then`, `n_then`): unwound at the later positions (`unwind_shear`), turned
     back, capped and rounded at the earlier ones as `contact_force` does reversed (fixed
-    point, no viscous damping); zero where the pair was apart."""
-    if overlap <= 0.0 or overlap_then <= 0.0:  # nothing to unwind (n, apart, may be NaN)
-        return (0.0, 0.0, 0.0)
-    unwound = unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, shear, small)
+    point, no viscous damping); zero where the pair was apart at either. Returns (that
+    history, the grid step of the pair's history at the earlier positions: 0 apart)."""
+    if overlap_then <= 0.0:
+        return (0.0, 0.0, 0.0), 0.0
     normal, elastic = normal_force(law, overlap_then, rstar, 0.0, estar, (0.0, 0.0, 0.0), n_then)
+    spacing = history_step(law, elastic)
+    if overlap <= 0.0:  # apart now: nothing to unwind (n may be NaN)
+        return (0.0, 0.0, 0.0), spacing
+    unwound = unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, shear, small)
     back = turn_onto(unwound, n, n_then)
     back = coulomb_cap(back, law.mu * max(normal, 0.0))[0]
-    return snapped(back, history_step(law, elastic))
+    return snapped(back, spacing), spacing

@@ -265,11 +265,11 @@ def record_step(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt
     from step + 1 taken in place, its state settled onto the state before the forward
     step, then undone (the shadow reversal); or, where that reversal would find all but the
     pairs' histories again (`tape.predictable`), those predicted (`tape.predict`)."""
-    tp.classify(tape, pairs, walls)
     if tape.predicting:
-        tp.predict(tape, p, pairs, walls, cell, fixed, law, moduli, dt)
+        tp.predict(tape, p, pairs, law)
         tp.close_step(tape)
         return
+    tp.classify(tape, pairs, walls)
     tp.hold(tape)
     system = (p, pairs, walls, cell, fixed, law, moduli, dyn)
     reverse_step(*system, events, dt, step + 1, (step - first) * dt)
@@ -379,7 +379,7 @@ def advance(
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
         if direction > 0:
             if tape.mode == tp.RECORD:
-                tp.keep(tape, pairs)
+                tp.keep(tape)
             forward_step(*system, dt, step, elapsed)
             if tape.mode == tp.RECORD:
                 record_step(tape, *system, dt, step, first)

@@ -115,7 +115,17 @@ DAMP_OMEGA_J = 47  # 3 rows
 NORMAL = 50  # fixed point with shear: the contact normal here (zero apart): 3 rows
 OVERLAP_THEN = 53  # recording a tape by prediction: the overlap at the earlier positions
 EARLIER = 54  # and the shear history the reversed step would find there: 3 rows
-ROWS = 57
+SPACING_THEN = 57  # and the grid step of the pair's history there
+ROWS = 58
+
+MISSED = 0  # `Pairs.earlier`: the slot of a pair whose earlier history the reversal misses
+WAS = 1  # the history it had at the earlier positions: 3 columns
+FOUND = 4  # the one the reversed step would find there: 3 columns
+SPACING = 7  # the grid step of its history there
+MISSED_COLUMNS = 8
+"""Columns of `Pairs.earlier`, each chunk of the list's pairs (`pair_loop`) listing from its
+first slot on those whose history the reversed step would miss, in slot order, ended by a
+MISSED of -1 where they are fewer than the chunk's pairs."""
 
 
 def empty_blocks(chunks: int) -> np.ndarray:
@@ -203,7 +213,8 @@ def contacts(
     point): the histories are carried across the contact plane's rotation by `contact.
     turn_onto` from those normals, and each pair's normal goes into the NORMAL rows;
     `predicting` (stepping forward with a tape, a constant): the history the reversed step
-    would find at the earlier positions into the EARLIER rows (`contact.earlier_shear`).
+    would find at the earlier positions into the EARLIER rows and its grid step there into
+    SPACING_THEN (`contact.earlier_shear`).
     Returns how many angles were not."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0
@@ -261,12 +272,13 @@ def contacts(
             if turned:
                 enter3(block, NORMAL, k, n if touching else ZERO)
             if predicting:
-                earlier = earlier_shear(
+                earlier, spacing = earlier_shear(
                     law, dt, overlap, n, r_i * r_j / reach, entry(block, E_STAR, k),
                     entry(block, G_STAR, k), vrel, spin, shear if touching else ZERO,
                     entry(block, OVERLAP_THEN, k), entries(block, NORMAL_THEN, k), small,
                 )  # fmt: skip
                 enter3(block, EARLIER, k, earlier)
+                enter(block, SPACING_THEN, k, spacing)
         if law.rolling != NO_ROLLING:
             rstar = r_i * r_j / reach
             old = entries(block, ROLLING, k)
@@ -339,6 +351,27 @@ def snap_forces(block, size, step):
         enter3(block, FORCE, k, snapped_in_range(entries(block, FORCE, k), step))
 
 
+@inline
+def enter_row(a, k, column, vector):
+    """Columns `column` to `column` + 2 of row k of `a` <- the 3-vector."""
+    a[k, column], a[k, column + 1], a[k, column + 2] = vector
+
+
+@inline
+def list_missed(earlier, listed, slot, was, found, spacing):
+    """Row `listed` of `Pairs.earlier` <- pair `slot`, where the history the reversed step
+    would find, `found`, is not bit for bit the one it had, `was` (and its grid step
+    `spacing`); returns the next row."""
+    for d in range(3):
+        if np.float64(was[d]).view(np.int64) != np.float64(found[d]).view(np.int64):
+            earlier[listed, MISSED] = slot
+            enter_row(earlier, listed, WAS, was)
+            enter_row(earlier, listed, FOUND, found)
+            earlier[listed, SPACING] = spacing
+            return listed + 1
+    return listed
+
+
 STREAMING = False
 """Whether `scatter_pairs` streams (see STREAM_FROM); its streaming build has it True. A
 constant, not an argument: numba optimises the helper before inlining it, and LLVM merges
@@ -347,12 +380,13 @@ the two branches' stores into one plain store."""
 
 def _scatter_pairs(
     block, first, size, force, history, moment, overlaps, destroyed, rolling, rolled, normals,
-    earlier, predicting, law, mode,
+    earlier, predicting, listed, law, mode,
 ):  # fmt: skip
     """The block's results into the pair arrays (`normals`, where a fixed-point run keeps
-    them, `Pairs.normal`; `predicting`, the histories of the EARLIER rows into `earlier`);
-    returns the block's counts (`Destroyed`: slips, last pair that slipped, losses, last
-    pair that lost its shear force, and the same for the rolling moment). A pair apart
+    them, `Pairs.normal`; `predicting`, each pair whose history the reversed step would miss
+    listed in `earlier` from row `listed` on, `list_missed`); returns the block's counts
+    (`Destroyed`: slips, last pair that slipped, losses, last pair that lost its shear
+    force, and the same for the rolling moment) and the next row of `earlier`. A pair apart
     loses its histories (counted lost when stepping forward)."""
     slips = 0
     last_slip = -1
@@ -377,7 +411,9 @@ def _scatter_pairs(
             if normals.shape[0] > 0:
                 put(normals, u, entries(block, NORMAL, k))
             if predicting:
-                put(earlier, u, entries(block, EARLIER, k))
+                was, found = entries(block, SHEAR, k), entries(block, EARLIER, k)
+                spacing = entry(block, SPACING_THEN, k)
+                listed = list_missed(earlier, listed, p, was, found, spacing)
             if STREAMING:
                 put_streaming(moment, u, entries(block, MOMENT, k))
                 stream(overlaps, u, overlap)
@@ -406,7 +442,7 @@ def _scatter_pairs(
                 rolled[p] = dropped
                 drops += 1
                 last_drop = p
-    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
+    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop, listed
 
 
 scatter_pairs = inline(_scatter_pairs)
@@ -454,7 +490,8 @@ def _pair_loop(
     what its limit or a separation destroyed; in fixed point, each pair's normal into
     `normals`, the histories turned from `normals_then` (`contacts`); stepping forward
     without damping or rolling resistance with an `earlier` array (`Pairs.earlier`), the
-    histories the reversed step would find into it. The list is cut into as many chunks as
+    pairs whose history the reversed step would miss listed in it (`list_missed`, each chunk
+    from its first slot on). The list is cut into as many chunks as
     there are `blocks`, each done block by block in its own: gather, contact stage, scatter.
     Returns the counts of `events.note_destroyed`."""
     strain = strain_rates(rate, length)
@@ -474,6 +511,7 @@ def _pair_loop(
     for c in numba.prange(chunks):
         block = blocks[c]
         end = (c + 1) * n_pairs // chunks
+        listed = c * n_pairs // chunks  # the chunk's next row of `earlier`
         for first in range(c * n_pairs // chunks, end, BLOCK):
             size = min(BLOCK, end - first)
             gather_pairs(
@@ -488,7 +526,7 @@ def _pair_loop(
                 snap_forces(block, size, law.force_grid)
             results = (
                 force, history, moment, overlaps, destroyed, rolling, rolled, normals, earlier,
-                predicting, law, mode,
+                predicting, listed, law, mode,
             )  # fmt: skip
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)
@@ -502,6 +540,9 @@ def _pair_loop(
             last_cap = max(last_cap, scattered[5])
             drops += scattered[6]
             last_drop = max(last_drop, scattered[7])
+            listed = scattered[8]
+        if predicting and listed < end:
+            earlier[listed, MISSED] = -1.0
         fence()  # any streamed results, before the gather reads them on other threads
     return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
 

@@ -54,6 +54,7 @@ from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import inline, inline_arrays, jit
 from revdem_cli.kernels.cell import deforms
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law
+from revdem_cli.kernels.pairs import FOUND, MISSED, SPACING, WAS
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -134,8 +135,6 @@ Tape = namedtuple(
         # step has made, 1 where the step before the block is to be recorded again], int64 (5,)
         "predicting",  # 1 where the forward pair loop predicts the reversal's histories
         # (`predictable`), with no shadow reversal
-        "earlier",  # predicting: `Pairs.earlier` as an int64 view, (3 P,)
-        "earlier_overlap",  # predicting: each pair's overlap at the earlier positions, (P,)
     ],
 )
 """Entries are labelled by the step whose state they restore: a forward step from n records
@@ -200,11 +199,9 @@ def _copy(into, arrays):
 
 
 @jit
-def keep(tape, pairs):
-    """`before` <- the compared arrays now (S_n); predicting, the pairs' overlaps too."""
+def keep(tape):
+    """`before` <- the compared arrays now (S_n) (none where predicting)."""
     _copy(tape.before, tape.state)
-    for k in range(min(pairs.count[0], tape.earlier_overlap.shape[0])):  # predicting
-        tape.earlier_overlap[k] = pairs.overlap[k]
 
 
 @jit
@@ -227,20 +224,25 @@ def restore(tape, p, cell, fixed):
             p.omega[q, d] = fixed.omega[q, d] * w_step
 
 
+@inline
+def _cause(destroyed, apart, capped, lost):
+    """What a contact's history did in the forward step: `capped` (SLIP, LIMIT) or `lost` at
+    separation where some of it was destroyed, ROUND_OFF otherwise."""
+    if destroyed > 0.0:
+        return lost if apart else capped
+    return ROUND_OFF
+
+
 @jit
 def classify(tape, pairs, walls):
     """What each contact's histories did in the forward step just taken (S_n to S_{n+1}):
-    capped (slip, rolling limit) or lost at separation; round-off otherwise."""
+    capped (slip, rolling limit) or lost at separation; round-off otherwise (`_cause`)."""
     n = pairs.count[0]
     for k in range(min(n, pairs.destroyed.shape[0])):
         apart = pairs.overlap[k] <= 0.0
-        tape.causes[2 * k] = ROUND_OFF
-        if pairs.destroyed[k] > 0.0:
-            tape.causes[2 * k] = LOST if apart else SLIP
+        tape.causes[2 * k] = _cause(pairs.destroyed[k], apart, SLIP, LOST)
         if pairs.rolled.shape[0] > 0:
-            tape.causes[2 * k + 1] = ROUND_OFF
-            if pairs.rolled[k] > 0.0:
-                tape.causes[2 * k + 1] = ROLLED_OFF if apart else LIMIT
+            tape.causes[2 * k + 1] = _cause(pairs.rolled[k], apart, LIMIT, ROLLED_OFF)
     if walls.history.shape[0] == 0:
         return
     count = walls.overlap.shape[1]
@@ -248,13 +250,10 @@ def classify(tape, pairs, walls):
         for b in range(count):
             c = q * count + b
             apart = walls.overlap[q, b] <= 0.0
-            tape.wall_causes[2 * c] = ROUND_OFF
-            if walls.destroyed[q, b] > 0.0:
-                tape.wall_causes[2 * c] = LOST if apart else SLIP
+            tape.wall_causes[2 * c] = _cause(walls.destroyed[q, b], apart, SLIP, LOST)
             if walls.rolled.shape[0] > 0:
-                tape.wall_causes[2 * c + 1] = ROUND_OFF
-                if walls.rolled[q, b] > 0.0:
-                    tape.wall_causes[2 * c + 1] = ROLLED_OFF if apart else LIMIT
+                tape.wall_causes[2 * c + 1] = _cause(walls.rolled[q, b], apart, LIMIT,
+                                                     ROLLED_OFF)  # fmt: skip
 
 
 @inline
@@ -333,15 +332,24 @@ def _slot(first, partners, i, j):
     return -1
 
 
+@inline_arrays
+def _entry(whats, wheres, amounts, used, what, where, amount):
+    """Entry `used` of the block <- (what, where, amount), where it has room (counted either
+    way: `overflowed`); returns the entries counted."""
+    if used < whats.shape[0]:
+        whats[used] = what
+        wheres[used] = where
+        amounts[used] = amount
+    return used + 1
+
+
 @jit
-def _settled(tape, what, values, was, overlaps, used, p, pairs, walls, cell, fixed, law, estar, h,
-             damped, settling):  # fmt: skip
+def _settled(tape, what, values, was, used, p, pairs, walls, cell, fixed, law, estar, h, damped):
     """Record the differences of the array `what` of the reversal's state, `values`, from
     `was`, the forward run's, as `record` does, a pair's history on the grid of its contact
-    at `overlaps`, and where `settling` apply them (`values` then is `was`); returns the
-    entries counted, `used` with them."""
+    at the reversal's overlap, and apply them (`values` then is `was`); returns the entries
+    counted, `used` with them."""
     label = tape.span[1]
-    room = tape.what.shape[0]
     n = p.x.shape[0]
     radius, material = p.radius, p.material
     walls_each = walls.overlap.shape[1]
@@ -365,11 +373,7 @@ def _settled(tape, what, values, was, overlaps, used, p, pairs, walls, cell, fix
         if keyed:
             k = index // 3
             where = (np.int64(pairs.i[k]) * n + pairs.j[k]) * 3 + index % 3
-        if used < room:
-            tape.what[used] = what
-            tape.where[used] = where
-            tape.amount[used] = amount
-        used += 1
+        used = _entry(tape.what, tape.where, tape.amount, used, what, where, amount)
         mechanism = charged if charged >= 0 else causes[2 * (index // 3) + rolling]
         if index // 3 != counted:
             tape.contacts[label, mechanism] += 1
@@ -379,7 +383,7 @@ def _settled(tape, what, values, was, overlaps, used, p, pairs, walls, cell, fix
                 i, j = pairs.i[c], pairs.j[c]
                 rstar = radius[i] * radius[j] / (radius[i] + radius[j])
                 modulus = estar[material[i], material[j]]
-                spacing = contact_grid(law, rolling == 1, overlaps[c], rstar, modulus)
+                spacing = contact_grid(law, rolling == 1, pairs.overlap[c], rstar, modulus)
             elif charged < 0:
                 q, b = index // 3 // walls_each, index // 3 % walls_each
                 modulus = estar[material[q], walls.material[b]]
@@ -388,9 +392,22 @@ def _settled(tape, what, values, was, overlaps, used, p, pairs, walls, cell, fix
             tape.bits[label, mechanism] += grid_bits(was[index], values[index], spacing)
         else:
             tape.bits[label, mechanism] += bits_of(amount)
-        if settling:
-            _apply(values, what, index, amount, h, forces, inverse, ints, mirrors, step, p.x,
-                   p.s, cell.length, fixed.grid)  # fmt: skip
+        _apply(
+            values,
+            what,
+            index,
+            amount,
+            h,
+            forces,
+            inverse,
+            ints,
+            mirrors,
+            step,
+            p.x,
+            p.s,
+            cell.length,
+            fixed.grid,
+        )
     return used
 
 
@@ -406,8 +423,8 @@ def record(tape, p, pairs, walls, cell, fixed, law, estar, h, first, damped):
     room (`overflowed`). Returns the entries counted."""
     used = tape.span[2]
     for what in range(0 if first else SECOND, SECOND if first else len(COMPARED)):
-        used = _settled(tape, what, tape.state[what], tape.before[what], pairs.overlap, used, p,
-                        pairs, walls, cell, fixed, law, estar, h, damped, True)  # fmt: skip
+        used = _settled(tape, what, tape.state[what], tape.before[what], used, p, pairs, walls,
+                        cell, fixed, law, estar, h, damped)  # fmt: skip
     recorded = used - tape.span[2]
     tape.span[2] = used
     return recorded
@@ -429,18 +446,39 @@ def predictable(p, pairs, walls, cell, law, dyn):
 
 
 @jit
-def predict(tape, p, pairs, walls, cell, fixed, law, moduli, dt):
+def predict(tape, p, pairs, law):
     """Record the entries of the forward step just taken (S_n to S_{n+1}) of a run whose
-    reversal finds all but the pairs' shear histories again (`predictable`): the histories
-    the forward pair loop found the reversed step would find (`Pairs.earlier`,
-    `contact.earlier_shear`) compared with those of S_n, with no shadow reversal (and left
-    as they are, so that a step can be recorded again). What it records is what the shadow
-    reversal would, entry for entry."""
+    reversal finds all but the pairs' shear histories again (`predictable`), with no shadow
+    reversal: of each pair the forward pair loop listed in `Pairs.earlier`
+    (`pairs.list_missed`), the history it had at S_n against the one the reversed step
+    would find there (`contact.earlier_shear`), the list left as it is, so that a step can
+    be recorded again. What it records is what the shadow reversal would, entry for entry
+    and bit for bit."""
     if law.tangential == NO_SHEAR:
         return
-    tape.span[2] = _settled(tape, SHEAR, tape.earlier, tape.before[SHEAR], tape.earlier_overlap,
-                            tape.span[2], p, pairs, walls, cell, fixed, law, moduli.estar,
-                            -0.5 * dt, False, False)  # fmt: skip
+    label = tape.span[1]
+    used = tape.span[2]
+    n = p.x.shape[0]
+    count = pairs.count[0]
+    chunks = pairs.blocks.shape[0]
+    listed = pairs.earlier
+    for c in range(chunks):  # each chunk's list, in slot order (`pairs.MISSED`)
+        for row in range(c * count // chunks, (c + 1) * count // chunks):
+            if listed[row, MISSED] < 0.0:
+                break
+            k = np.int64(listed[row, MISSED])
+            cause = _cause(pairs.destroyed[k], pairs.overlap[k] <= 0.0, SLIP, LOST)
+            tape.contacts[label, cause] += 1
+            key = (np.int64(pairs.i[k]) * n + pairs.j[k]) * 3
+            for axis in range(3):
+                was = np.float64(listed[row, WAS + axis]).view(np.int64)
+                found = np.float64(listed[row, FOUND + axis]).view(np.int64)
+                if was == found:
+                    continue
+                used = _entry(tape.what, tape.where, tape.amount, used, SHEAR, key + axis,
+                              ordered(was) - ordered(found))  # fmt: skip
+                tape.bits[label, cause] += grid_bits(was, found, listed[row, SPACING])
+    tape.span[2] = used
 
 
 @jit

@@ -159,19 +159,23 @@ def test_a_reversed_run_gives_back_the_bits_the_forward_run_recorded(tmp_path):
 
 
 def _entries(path):
+    """The tape's entries (what, where, amount, and the count of each step), its places
+    decoded."""
     with h5py.File(path) as f:
-        return {name: f[f"entries/{name}"][:] for name in ("what", "where", "amount")} | {
-            "count": f["steps/count"][:]
-        }
+        entries = {name: f[f"entries/{name}"][:] for name in ("what", "where", "amount")}
+        entries["count"] = f["steps/count"][:]
+    entries["where"] = tape_file.places(entries["where"], entries["count"])
+    return entries
 
 
 def _rewrite(path, entries) -> None:
     """Write `entries` (what, where, amount, and the count of each step) over the tape's."""
+    stored = entries | {"where": tape_file.coded_places(entries["where"], entries["count"])}
     with h5py.File(path, "a") as f:
         for name in ("what", "where", "amount"):
-            f[f"entries/{name}"].resize((len(entries[name]),))
-            f[f"entries/{name}"][:] = entries[name]
-        f["steps/count"][:] = entries["count"]
+            f[f"entries/{name}"].resize((len(stored[name]),))
+            f[f"entries/{name}"][:] = stored[name]
+        f["steps/count"][:] = stored["count"]
 
 
 def _labels(entries) -> np.ndarray:
@@ -331,7 +335,9 @@ def test_a_step_with_more_entries_than_the_block_holds_is_recorded_again(tmp_pat
     retaken = []
     flush = tape_file.Recorder.flush
     monkeypatch.setattr(
-        tape_file.Recorder, "flush", lambda r: flush(r) or retaken.append(r.retaking)
+        tape_file.Recorder,
+        "flush",
+        lambda r, **wait: flush(r, **wait) or retaken.append(r.retaking),
     )
     cramped = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path / "cramped")
     assert cramped.comparison["bitwise_identical"]
