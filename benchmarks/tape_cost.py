@@ -55,7 +55,7 @@ def stepped(state, model, steps: int, recorder) -> float:
     started = time.perf_counter()
     while state.step != first + steps or recorder and recorder.retaking:
         tape = recorder.bundle(state, events, model.law, model.dynamics) if recorder else no_tape()
-        bundles = stepping_bundles(state, model, model.dynamics, model.law)
+        bundles = stepping_bundles(state, model, model.dynamics, model.law, tape)
         status, state.step, _, _ = advance(
             *bundles, events, tape, stepping, state.step, first + steps, first + steps, obs,
             obs_steps,

@@ -36,7 +36,7 @@ from revdem_cli.kernels.integrate import (
 )
 from revdem_cli.kernels.observables import Layout, observe
 from revdem_cli.kernels.stress import particle_stress
-from revdem_cli.kernels.tape import MECHANISMS
+from revdem_cli.kernels.tape import MECHANISMS, RECORD, Tape
 from revdem_cli.state import (
     BlownUp,
     CellTooSmall,
@@ -306,7 +306,7 @@ def run_stage(
         while state.step != target or isinstance(tape, Recorder) and tape.retaking:
             logs = (events, tape.bundle(state, events, law, dyn) if tape else no_tape())
             status, state.step, rows, finding = stepper.advance(
-                advance, (*stepping_bundles(state, model, dyn, law), *logs), stepping,
+                advance, (*stepping_bundles(state, model, dyn, law, logs[1]), *logs), stepping,
                 state.step, target, buffer, buffer_steps,
             )  # fmt: skip
             _write_observables(writer, model, clock, buffer_steps[:rows], buffer[:rows], tape)
@@ -424,12 +424,19 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
     return float(np.linalg.norm(travel)) > stop.wall_travel_above.distance
 
 
-def stepping_bundles(state: State, model: Model, dyn: Dynamics, law: ContactLaw) -> tuple:
+def stepping_bundles(
+    state: State, model: Model, dyn: Dynamics, law: ContactLaw, tape: Tape | None = None
+) -> tuple:
     """The bundles the kernels step: particles, pairs, walls, cell, the fixed-point state,
-    contact law (a stage's, `Model.stage_law`), moduli, dynamics."""
+    contact law (a stage's, `Model.stage_law`), moduli, dynamics. The pairs hold their list
+    of the histories a reversal would miss (`Pairs.earlier`) only where `tape` records by
+    prediction (`kernels.tape.predict`): no other pair loop predicts them."""
+    pairs = state.pairs
+    if not (tape is not None and tape.mode == RECORD and tape.predicting):
+        pairs = pairs._replace(earlier=pairs.earlier[:0])
     return (
         state.particles,
-        state.pairs,
+        pairs,
         state.walls,
         state.cell,
         state.fixed,
