@@ -10,8 +10,7 @@ grows only for a step that needs more: that step's entries are then recorded aga
 chunked, shuffled and compressed with Zstandard through hdf5plugin):
 
     /entries/what    int8   (E,)  the array, an index into `kernels.tape.COMPARED`
-    /entries/where   int64  (E,)  its place (pair arrays: (i N + j) 3 + axis), delta-coded
-                                  within each step (`coded_places`)
+    /entries/where   int64  (E,)  its place (pair arrays: (i N + j) 3 + axis)
     /entries/amount  int64  (E,)  the true value minus the reversal's
     /steps/count     int64  (S,)  entries of each step of the stage, from its first
     /steps/bits      float64 (S, M) bits of each step by mechanism (`MECHANISMS`)
@@ -43,7 +42,7 @@ from revdem_cli.kernels.tape import (
     predictable,
 )
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 1
 STEPS_PER_BLOCK = 4096
 MIN_ENTRIES = 1 << 16
 ENTRIES_PER_PARTICLE = 1
@@ -294,7 +293,7 @@ class Recorder:
             b.span[:3] = (self.first_step + self.written_steps, 0, 0)
             return
         block = (
-            b.what[:entries].copy(), coded_places(b.where[:entries], b.counts[:steps]),
+            b.what[:entries].copy(), b.where[:entries].copy(),
             b.amount[:entries].copy(), b.counts[:steps].copy(), b.bits[:steps].copy(),
             b.contacts[:steps].astype(np.int32),
         )  # fmt: skip
@@ -407,34 +406,10 @@ class Replayer:
         begin, end = int(self.starts[low]), int(self.starts[high + 1])
         with _open(self.path, "r") as f:
             b.what[: end - begin] = f["entries/what"][begin:end]
-            counts = np.diff(self.starts[low : high + 2])
-            b.where[: end - begin] = places(f["entries/where"][begin:end], counts)
+            b.where[: end - begin] = f["entries/where"][begin:end]
             b.amount[: end - begin] = f["entries/amount"][begin:end]
         b.offsets[: high - low + 2] = self.starts[low : high + 2] - begin
         b.span[:3] = (self.first_step + low, high - low + 1, end - begin)
-
-
-def coded_places(where: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """The places `where` of the entries of consecutive steps (`counts` entries each) as the
-    tape stores them: each step's first as it is, the others as the difference from the
-    entry before. A step's entries come array by array, each in the order of its places,
-    so the differences are small numbers, which compress to a few bits."""
-    coded = np.diff(where, prepend=np.int64(0))
-    firsts = _starts(counts)[counts > 0]
-    coded[firsts] = where[firsts]
-    return coded
-
-
-def places(coded: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """The places of entries stored by `coded_places`."""
-    summed = np.cumsum(coded)
-    before = np.concatenate(([0], summed))[_starts(counts)]  # the sums up to each step
-    return summed - np.repeat(before, counts)
-
-
-def _starts(counts: np.ndarray) -> np.ndarray:
-    """The first entry of each step."""
-    return np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.int64)
 
 
 def _running(total: np.ndarray, bits: np.ndarray) -> np.ndarray:

@@ -159,23 +159,19 @@ def test_a_reversed_run_gives_back_the_bits_the_forward_run_recorded(tmp_path):
 
 
 def _entries(path):
-    """The tape's entries (what, where, amount, and the count of each step), its places
-    decoded."""
     with h5py.File(path) as f:
-        entries = {name: f[f"entries/{name}"][:] for name in ("what", "where", "amount")}
-        entries["count"] = f["steps/count"][:]
-    entries["where"] = tape_file.places(entries["where"], entries["count"])
-    return entries
+        return {name: f[f"entries/{name}"][:] for name in ("what", "where", "amount")} | {
+            "count": f["steps/count"][:]
+        }
 
 
 def _rewrite(path, entries) -> None:
     """Write `entries` (what, where, amount, and the count of each step) over the tape's."""
-    stored = entries | {"where": tape_file.coded_places(entries["where"], entries["count"])}
     with h5py.File(path, "a") as f:
         for name in ("what", "where", "amount"):
-            f[f"entries/{name}"].resize((len(stored[name]),))
-            f[f"entries/{name}"][:] = stored[name]
-        f["steps/count"][:] = stored["count"]
+            f[f"entries/{name}"].resize((len(entries[name]),))
+            f[f"entries/{name}"][:] = entries[name]
+        f["steps/count"][:] = entries["count"]
 
 
 def _labels(entries) -> np.ndarray:
