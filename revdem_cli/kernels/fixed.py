@@ -144,6 +144,12 @@ def add_snapped(total, value, factor, per_step, largest):
 
 
 @inline
+def in_grid_range(y0, y1, y2):
+    """Whether values in grid steps are all within the range (NaN is not)."""
+    return abs(y0) <= RANGE and abs(y1) <= RANGE and abs(y2) <= RANGE
+
+
+@inline
 def sum_in_range(largest, terms):
     """Whether a sum of `terms` terms on a grid, none larger than `largest` grid steps before
     rounding (half a step more after), stays in range whatever their order: a sum that might

@@ -51,14 +51,19 @@ def _gather_loop(
     rolling moment on the pair's first particle) each pair adds its rolling moment, on i,
     and its opposite, on j.
 
-    In fixed-point arithmetic (fixed_v not empty) each term is rounded to the force or moment
-    grid and summed as an integer, so the sum does not depend on the order of its terms,
-    and the kick lands on the velocity grids; the pair loop has already rounded each pair's
-    force (`fixed.snapped_in_range`), once for its two particles, so its terms convert
-    exactly. A sum leaves its grid when its largest term times the number of terms would
-    (`fixed.sum_in_range`). Returns (particles whose sum or velocity left its grid, the last
-    of them, what left it there: fixed.OF_FORCE, OF_MOMENT, OF_VELOCITY or
-    OF_ANGULAR_VELOCITY, the first of these in that order)."""
+    In fixed-point arithmetic (fixed_v not empty) each force term is on the force grid and
+    summed as an integer, so that the pairs' forces cancel to the integer (momentum is
+    conserved exactly): the pair loop has rounded each pair's force once for its two
+    particles (`fixed.snapped_in_range`), so its terms convert exactly, and a force sum
+    leaves its grid when its largest term times the number of terms would
+    (`fixed.sum_in_range`). The moment is summed in doubles in the same fixed order and the
+    sum rounded onto the moment grid once (`fixed.snapped_in_range`; it leaves the grid when
+    that does): a reversed run sums the same terms in the same order, its pairs by partner
+    index whichever steps its lists were built at (a pair listed in one run and not in the
+    other adds an exact zero). The kick lands on the velocity grids. Returns (particles
+    whose sum or velocity left its grid, the last of them, what left it there:
+    fixed.OF_FORCE, OF_MOMENT, OF_VELOCITY or OF_ANGULAR_VELOCITY, the first of these in
+    that order)."""
     torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
     on_grid = fixed_v.shape[0] > 0
@@ -78,11 +83,9 @@ def _gather_loop(
                     prefetch(overlaps, k)
         weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
         f_int = (np.int64(0), np.int64(0), np.int64(0))
-        t_int = (np.int64(0), np.int64(0), np.int64(0))
         f = ZERO if on_grid else weight
         t = ZERO
         largest_f = 0.0  # the largest term of the force sum on its grid, in grid steps
-        largest_t = 0.0  # of the moment sum
         if on_grid:
             f_int, largest_f = fx.add_on_grid(f_int, weight, 1.0, per_f, largest_f)
         # the two partner loops are written out: one helper for both, returning the four
@@ -94,18 +97,9 @@ def _gather_loop(
             else:
                 f = axpy(-1.0, row(pair_force, k), f)
             if torques:  # Hanley 2020 Eq 5: the lever arm r - overlap / 2 times n x f
-                arm = radius[q] - 0.5 * overlaps[k]
-                if on_grid:
-                    t_int, largest_t = fx.add_on_grid(t_int, row(moment, k), arm, per_t, largest_t)
-                else:
-                    t = axpy(arm, row(moment, k), t)
+                t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
             if rolls:  # the opposite of the rolling moment on p
-                if on_grid:
-                    t_int, largest_t = fx.add_on_grid(
-                        t_int, row(rolling, k), -1.0, per_t, largest_t
-                    )
-                else:
-                    t = axpy(-1.0, row(rolling, k), t)
+                t = axpy(-1.0, row(rolling, k), t)
         for kk in range(first[q], first[q + 1]):  # partners j > q
             k = np.uint64(kk)
             if on_grid:
@@ -113,36 +107,26 @@ def _gather_loop(
             else:
                 f = axpy(1.0, row(pair_force, k), f)
             if torques:
-                arm = radius[q] - 0.5 * overlaps[k]
-                if on_grid:
-                    t_int, largest_t = fx.add_on_grid(t_int, row(moment, k), arm, per_t, largest_t)
-                else:
-                    t = axpy(arm, row(moment, k), t)
+                t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
             if rolls:
-                if on_grid:
-                    t_int, largest_t = fx.add_on_grid(t_int, row(rolling, k), 1.0, per_t, largest_t)
-                else:
-                    t = axpy(1.0, row(rolling, k), t)
+                t = axpy(1.0, row(rolling, k), t)
         for b in range(wall_force.shape[1]):
             if on_grid:
                 f_int, largest_f = fx.add_on_grid(
                     f_int, cell_of(wall_force, q, b), 1.0, per_f, largest_f
                 )
-                t_int, largest_t = fx.add_on_grid(
-                    t_int, cell_of(wall_torque, q, b), 1.0, per_t, largest_t
-                )
             else:
                 f = axpy(1.0, cell_of(wall_force, q, b), f)
-                t = axpy(1.0, cell_of(wall_torque, q, b), t)
+            t = axpy(1.0, cell_of(wall_torque, q, b), t)
         ok = True  # the force sum on its grid
         turned = True  # the moment sum
         if on_grid:
             partners = start[q + 1] - start[q] + first[q + 1] - first[q]
             walls = wall_force.shape[1]
             ok = fx.sum_in_range(largest_f, 1 + partners + walls)
-            turned = fx.sum_in_range(largest_t, partners * (2 if rolls else 1) + walls)
+            turned = fx.in_grid_range(t[0] * per_t, t[1] * per_t, t[2] * per_t)
             f = (f_int[0] * f_step, f_int[1] * f_step, f_int[2] * f_step)
-            t = (t_int[0] * t_step, t_int[1] * t_step, t_int[2] * t_step)
+            t = fx.snapped_in_range(t, t_step)
         for d in range(3):
             f_out[q, d] = f[d] - local * abs(f[d]) * sign(v_damp[q, d])  # Hanley 2020 Eq 21
         if torques:  # else the moments stay zero

@@ -24,7 +24,7 @@ velocity entry holds only what the kick does not explain (drag's remainder). The
 run applies the entries of step n right after its step to n, in the same order and by the
 same function (`settle`), so it reaches S_n bit for bit; the shadow reversal is the real
 one bit for bit because every per-contact value depends only on its own pair and every
-sum is taken in a fixed order (on integer grids).
+sum is taken in a fixed order (a particle's pairs by partner index).
 
 Where the reversal finds every array but the pairs' shear histories again (`predictable`:
 no damping, drag, rolling resistance, moving cell or wall contact with history), the shadow
