@@ -116,12 +116,16 @@ def _compared(state) -> tuple:
     )
 
 
+_UNCHANGED = tuple(_NOTHING64 for _ in range(sum(len(names) for _, names in CHANGED) + 1))
+_UNCOMPARED = tuple(_NOTHING64 for _ in COMPARED)
+"""What a tape that neither copies nor compares the state has in place of `_changed` and
+`_compared`: without a tape, or recording by prediction."""
+
+
 def no_tape() -> Tape:
     """The tape of a run without one."""
-    changed = tuple(_NOTHING64 for _ in range(sum(len(names) for _, names in CHANGED) + 1))
-    compared = tuple(_NOTHING64 for _ in COMPARED)
     return Tape(
-        OFF, changed, changed, compared, compared, _NOTHING8, _NOTHING8,
+        OFF, _UNCHANGED, _UNCHANGED, _UNCOMPARED, _UNCOMPARED, _NOTHING8, _NOTHING8,
         np.zeros(0, dtype=np.int8), _NOTHING64, _NOTHING64, _NOTHING64,
         np.zeros((0, len(MECHANISMS))), np.zeros((0, len(MECHANISMS)), dtype=np.int64),
         _NOTHING64, np.zeros(5, dtype=np.int64), 0,
@@ -150,11 +154,8 @@ class _Buffers:
         """The tape of the stepping loop's next call; `predicting`: recorded by
         `kernels.tape.predict` from the pairs the forward pair loop lists (`Pairs.earlier`),
         with no copy of the state before a step nor of the one after it."""
-        live = _changed(state, events)
-        compared = _compared(state)
-        if predicting:
-            live = tuple(_NOTHING64 for _ in live)
-            compared = tuple(_NOTHING64 for _ in compared)
+        live = _UNCHANGED if predicting else _changed(state, events)
+        compared = _UNCOMPARED if predicting else _compared(state)
         self.kept = _like(self.kept, live)
         self.before = _like(self.before, compared)
         self.grow(max(MIN_ENTRIES, ENTRIES_PER_PARTICLE * state.particles.x.shape[0]))

@@ -332,6 +332,13 @@ def _slot(first, partners, i, j):
     return -1
 
 
+@inline
+def _keyed(i, j, n):
+    """The place of pair (i, j)'s first component in a pair array's entries, (i N + j) 3:
+    the same whichever list the pair is in."""
+    return (np.int64(i) * n + j) * 3
+
+
 @inline_arrays
 def _entry(whats, wheres, amounts, used, what, where, amount):
     """Entry `used` of the block <- (what, where, amount), where it has room (counted either
@@ -372,7 +379,7 @@ def _settled(tape, what, values, was, used, p, pairs, walls, cell, fixed, law, e
         where = index
         if keyed:
             k = index // 3
-            where = (np.int64(pairs.i[k]) * n + pairs.j[k]) * 3 + index % 3
+            where = _keyed(pairs.i[k], pairs.j[k], n) + index % 3
         used = _entry(tape.what, tape.where, tape.amount, used, what, where, amount)
         mechanism = charged if charged >= 0 else causes[2 * (index // 3) + rolling]
         if index // 3 != counted:
@@ -469,7 +476,7 @@ def predict(tape, p, pairs, law):
             k = np.int64(listed[row, MISSED])
             cause = _cause(pairs.destroyed[k], pairs.overlap[k] <= 0.0, SLIP, LOST)
             tape.contacts[label, cause] += 1
-            key = (np.int64(pairs.i[k]) * n + pairs.j[k]) * 3
+            key = _keyed(pairs.i[k], pairs.j[k], n)
             for axis in range(3):
                 was = np.float64(listed[row, WAS + axis]).view(np.int64)
                 found = np.float64(listed[row, FOUND + axis]).view(np.int64)
