@@ -64,8 +64,8 @@ def traffic(state) -> dict[str, int]:
     listed = [a[:count] for a in (pairs.i, pairs.j, pairs.force, pairs.slots)]
     i, j, force, slots = listed
     shear = pairs.history.shape[0] > 0
-    history, moment, overlap, destroyed = (
-        a[:count] for a in (pairs.history, pairs.moment, pairs.overlap, pairs.destroyed)
+    history, normal, overlap, destroyed = (
+        a[:count] for a in (pairs.history, pairs.normal, pairs.overlap, pairs.destroyed)
     )
     pair_reads = [i, j, p.x, p.radius, p.material]
     pair_writes = [force]
@@ -75,8 +75,8 @@ def traffic(state) -> dict[str, int]:
     drift_reads, drift_writes = [p.v, p.x], [p.x]
     if shear:
         pair_reads += [p.v, p.omega, history]
-        pair_writes += [history, moment, overlap, destroyed]
-        gather_reads += [moment, overlap, p.radius, p.inv_inertia, p.omega]
+        pair_writes += [history, normal, overlap, destroyed]
+        gather_reads += [normal, overlap, p.radius, p.inv_inertia, p.omega]
         gather_writes += [p.torque, p.omega]
         kick_reads += [p.torque, p.inv_inertia, p.omega]
         kick_writes += [p.omega]

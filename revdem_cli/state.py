@@ -196,7 +196,7 @@ def cell_arrays(scenario: Scenario) -> Cell:
     )
 
 
-PAIR_HISTORY = ("history", "moment", "overlap", "destroyed", "rolling", "rolled")
+PAIR_HISTORY = ("history", "overlap", "destroyed", "rolling", "rolled")
 """The per-pair arrays a growing list carries over besides the pairs and their forces (those
 a run does not need are empty)."""
 
@@ -211,11 +211,12 @@ def rolls(scenario: Scenario) -> bool:
     return scenario.contact.rolling != "none"
 
 
-def turns(scenario: Scenario) -> bool:
-    """Whether the pairs' histories turn with their contact planes by a rotation
-    (`contact.turn_onto`), keeping the normals they turn from: fixed-point arithmetic with a
-    tangential law."""
-    return scenario.integrator.arithmetic == "fixed" and scenario.contact.tangential != "none"
+def predicts(scenario: Scenario) -> bool:
+    """Whether a forward pair loop may predict the histories its reversal would miss, for the
+    information tape (`Pairs.earlier`): fixed-point arithmetic with a tangential law (whose
+    histories turn with their contact planes by a rotation, `contact.turn_onto`) and a tape."""
+    fixed = scenario.integrator.arithmetic == "fixed"
+    return fixed and scenario.contact.tangential != "none" and scenario.reversal.tape
 
 
 def pair_capacity(needed: int) -> int:
@@ -230,14 +231,12 @@ def empty_pairs(
     shear: bool,
     reversing: bool,
     rolling: bool,
-    turning: bool,
-    taped: bool = False,
+    predicting: bool = False,
 ) -> Pairs:
-    """A pair list with room for `capacity` pairs; shear state only with a tangential law,
-    rolling state only with a rolling law, the unwinding normal only in a reversed run with a
-    tangential law, and the normals the histories turn from only where they are `turning`
-    (fixed point with a tangential law, `turns`), and the histories a tape's prediction
-    finds only where they are `taped` too."""
+    """A pair list with room for `capacity` pairs; shear state (the contact normals with it)
+    only with a tangential law, rolling state only with a rolling law, the unwinding normal
+    only in a reversed run with a tangential law, and the histories a tape's prediction
+    finds only where it is `predicting` (`predicts`)."""
     per_shear = count_if(shear, capacity)
     per_rolling = count_if(rolling, capacity)
     return Pairs(
@@ -246,14 +245,13 @@ def empty_pairs(
         j=np.zeros(capacity, dtype=np.int32),
         force=np.zeros((capacity, 3)),
         history=np.zeros((per_shear, 3)),
-        moment=np.zeros((per_shear, 3)),
         overlap=np.zeros(per_shear),
         destroyed=np.zeros(per_shear),
         rolling=np.zeros((per_rolling, 3)),
         rolled=np.zeros(per_rolling),
         normal_new=np.zeros((per_shear if reversing else 0, 3)),
-        normal=np.zeros((per_shear if turning else 0, 3)),
-        earlier=np.zeros((per_shear if turning and taped else 0, MISSED_COLUMNS)),
+        normal=np.zeros((per_shear, 3)),
+        earlier=np.zeros((per_shear if predicting else 0, MISSED_COLUMNS)),
         first=np.zeros(n_particles + 1, dtype=np.int64),
         start=np.zeros(n_particles + 1, dtype=np.int64),
         slots=np.zeros(capacity, dtype=np.int32),
@@ -275,8 +273,7 @@ def grown(pairs: Pairs, capacity: int) -> Pairs:
         shear=pairs.history.shape[0] > 0,
         reversing=pairs.normal_new.shape[0] > 0,
         rolling=pairs.rolling.shape[0] > 0,
-        turning=pairs.normal.shape[0] > 0,
-        taped=pairs.earlier.shape[0] > 0,
+        predicting=pairs.earlier.shape[0] > 0,
     )
     n = int(pairs.count[0])
     for name in ("i", "j", "force") + PAIR_HISTORY:
@@ -457,7 +454,7 @@ def initial_state(scenario: Scenario) -> State:
     state = State(
         p,
         empty_pairs(
-            len(p.x), pair_capacity(needed), shear, taped, rolls(scenario), turns(scenario), taped
+            len(p.x), pair_capacity(needed), shear, taped, rolls(scenario), predicts(scenario)
         ),
         wall_arrays(scenario, len(p.x), taped),
         cell_now,

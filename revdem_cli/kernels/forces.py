@@ -49,7 +49,6 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.count[0],
         pairs.force,
         pairs.history,
-        pairs.moment,
         pairs.overlap,
         pairs.destroyed,
         pairs.rolling,
@@ -107,7 +106,7 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.start,
         pairs.slots,
         pairs.force,
-        pairs.moment,
+        pairs.normal,
         pairs.overlap,
         pairs.rolling,
         walls.force,
@@ -145,12 +144,12 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
 
 
 @jit
-def note_normals(p, pairs, cell):
+def note_normals(p, pairs, cell, law):
     """Fixed point with shear: `Pairs.normal` and `Pairs.overlap` found from the current
     positions, as the pair loop leaves them (the periodic images as `compute_forces` takes
     them), wherever the list or the state may have changed without a pair loop (a rebuild,
-    a restart)."""
-    if pairs.normal.shape[0] == 0:
+    a restart): the next forward step turns the histories from them."""
+    if pairs.normal.shape[0] == 0 or law.history_grid == 0.0:
         return
     args = (p.x, p.radius)
     listed = (pairs.i, pairs.j, pairs.count[0], pairs.normal, pairs.overlap)

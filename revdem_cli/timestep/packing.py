@@ -301,8 +301,8 @@ def _at_rest_copy(state: State, model: Model) -> State:
     p, pairs, walls, cell = (
         copied(b) for b in (state.particles, state.pairs, state.walls, state.cell)
     )
-    nothing = np.zeros((0, 3))  # a forward step in floating point: no unwinding nor turning
-    pairs = pairs._replace(normal_new=nothing, normal=nothing, earlier=nothing)
+    nothing = np.zeros((0, 3))  # a forward step in floating point: no unwinding nor tape
+    pairs = pairs._replace(normal_new=nothing, earlier=nothing)
     walls = walls._replace(normal_new=np.zeros((0,) + walls.normal_new.shape[1:]))
     for at_rest in (p.v, p.omega, p.v_past, p.omega_past, p.v_pred, p.omega_pred):
         at_rest[...] = 0.0  # with a velocity predictor's history
