@@ -256,8 +256,6 @@ def empty_pairs(
         start=np.zeros(n_particles + 1, dtype=np.int64),
         slots=np.zeros(capacity, dtype=np.int32),
         x_built=np.zeros((n_particles, 3)),
-        new_i=np.zeros(capacity, dtype=np.int32),
-        new_j=np.zeros(capacity, dtype=np.int32),
         blocks=empty_blocks(numba.config.NUMBA_NUM_THREADS),
         partials=empty_partials(n_particles),
     )

@@ -60,8 +60,6 @@ Pairs = namedtuple(
         "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, (N + 1,)
         "slots",  # the slots of the pairs (p, q) of each particle q, ascending in p, int32 (P,)
         "x_built",  # positions at the last build, m, (N, 3)
-        "new_i",  # the next list while it is built, int32 (P,)
-        "new_j",  # int32 (P,)
         "blocks",  # working rows of the pair loop, one block per chunk of the list (forces.py)
         "partials",  # partial sums of each block of particles (sums.py)
     ],

@@ -289,16 +289,18 @@ def rebuild_pairs(p, pairs, cell, skin):
     for d in range(3):
         if cell.periodic[d] and cell.length[d] <= 2.0 * cutoff:
             return CELL_TOO_SMALL
-    needed = build_pairs(p.x, p.radius, skin, cell.periodic, cell.length, pairs.new_i, pairs.new_j)
+    new_i = np.empty(pairs.i.shape[0], dtype=np.int32)  # the new list, while it is built:
+    new_j = np.empty(pairs.j.shape[0], dtype=np.int32)  # not kept from one build to the next
+    needed = build_pairs(p.x, p.radius, skin, cell.periodic, cell.length, new_i, new_j)
     pairs.count[1] = needed
     if needed > pairs.i.shape[0]:
         return PAIR_OVERFLOW
     old = pairs.count[0]
     for history in (pairs.history, pairs.rolling):  # those of the laws a run has
         if history.shape[0] > 0:
-            carry_history(pairs.i, pairs.j, old, pairs.new_i, pairs.new_j, needed, history)
-    pairs.i[:needed] = pairs.new_i[:needed]
-    pairs.j[:needed] = pairs.new_j[:needed]
+            carry_history(pairs.i, pairs.j, old, new_i, new_j, needed, history)
+    pairs.i[:needed] = new_i[:needed]
+    pairs.j[:needed] = new_j[:needed]
     pairs.count[0] = needed
     index_by_particle(pairs.i, pairs.j, needed, pairs.first, pairs.start, pairs.slots)
     pairs.x_built[:] = p.x
