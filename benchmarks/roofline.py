@@ -64,8 +64,9 @@ def traffic(state) -> dict[str, int]:
     listed = [a[:count] for a in (pairs.i, pairs.j, pairs.force, pairs.slots)]
     i, j, force, slots = listed
     shear = pairs.history.shape[0] > 0
-    history, normal, overlap, destroyed = (
-        a[:count] for a in (pairs.history, pairs.normal, pairs.overlap, pairs.destroyed)
+    kept = pairs.normal if pairs.normal.shape[0] else pairs.moment  # n x f, or n (fixed)
+    history, kept, overlap, destroyed = (
+        a[:count] for a in (pairs.history, kept, pairs.overlap, pairs.destroyed)
     )
     pair_reads = [i, j, p.x, p.radius, p.material]
     pair_writes = [force]
@@ -75,8 +76,8 @@ def traffic(state) -> dict[str, int]:
     drift_reads, drift_writes = [p.v, p.x], [p.x]
     if shear:
         pair_reads += [p.v, p.omega, history]
-        pair_writes += [history, normal, overlap, destroyed]
-        gather_reads += [normal, overlap, p.radius, p.inv_inertia, p.omega]
+        pair_writes += [history, kept, overlap, destroyed]
+        gather_reads += [kept, overlap, p.radius, p.inv_inertia, p.omega]
         gather_writes += [p.torque, p.omega]
         kick_reads += [p.torque, p.inv_inertia, p.omega]
         kick_writes += [p.omega]

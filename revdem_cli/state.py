@@ -211,12 +211,17 @@ def rolls(scenario: Scenario) -> bool:
     return scenario.contact.rolling != "none"
 
 
+def turns(scenario: Scenario) -> bool:
+    """Whether the pairs' histories turn with their contact planes by a rotation
+    (`contact.turn_onto`), keeping the normals they turn from: fixed-point arithmetic with a
+    tangential law."""
+    return scenario.integrator.arithmetic == "fixed" and scenario.contact.tangential != "none"
+
+
 def predicts(scenario: Scenario) -> bool:
     """Whether a forward pair loop may predict the histories its reversal would miss, for the
-    information tape (`Pairs.earlier`): fixed-point arithmetic with a tangential law (whose
-    histories turn with their contact planes by a rotation, `contact.turn_onto`) and a tape."""
-    fixed = scenario.integrator.arithmetic == "fixed"
-    return fixed and scenario.contact.tangential != "none" and scenario.reversal.tape
+    information tape (`Pairs.earlier`): where the histories turn (`turns`), with a tape."""
+    return turns(scenario) and scenario.reversal.tape
 
 
 def pair_capacity(needed: int) -> int:
@@ -231,12 +236,14 @@ def empty_pairs(
     shear: bool,
     reversing: bool,
     rolling: bool,
+    turning: bool,
     predicting: bool = False,
 ) -> Pairs:
-    """A pair list with room for `capacity` pairs; shear state (the contact normals with it)
-    only with a tangential law, rolling state only with a rolling law, the unwinding normal
-    only in a reversed run with a tangential law, and the histories a tape's prediction
-    finds only where it is `predicting` (`predicts`)."""
+    """A pair list with room for `capacity` pairs; shear state only with a tangential law,
+    rolling state only with a rolling law, the unwinding normal only in a reversed run with a
+    tangential law, the normals the histories turn from in place of the moments where they
+    are `turning` (fixed point with a tangential law, `turns`), and the histories a tape's
+    prediction finds only where it is `predicting` too (`predicts`)."""
     per_shear = count_if(shear, capacity)
     per_rolling = count_if(rolling, capacity)
     return Pairs(
@@ -245,12 +252,13 @@ def empty_pairs(
         j=np.zeros(capacity, dtype=np.int32),
         force=np.zeros((capacity, 3)),
         history=np.zeros((per_shear, 3)),
+        moment=np.zeros((0 if turning else per_shear, 3)),
         overlap=np.zeros(per_shear),
         destroyed=np.zeros(per_shear),
         rolling=np.zeros((per_rolling, 3)),
         rolled=np.zeros(per_rolling),
         normal_new=np.zeros((per_shear if reversing else 0, 3)),
-        normal=np.zeros((per_shear, 3)),
+        normal=np.zeros((per_shear if turning else 0, 3)),
         earlier=np.zeros((per_shear if predicting else 0, MISSED_COLUMNS)),
         first=np.zeros(n_particles + 1, dtype=np.int64),
         start=np.zeros(n_particles + 1, dtype=np.int64),
@@ -271,6 +279,7 @@ def grown(pairs: Pairs, capacity: int) -> Pairs:
         shear=pairs.history.shape[0] > 0,
         reversing=pairs.normal_new.shape[0] > 0,
         rolling=pairs.rolling.shape[0] > 0,
+        turning=pairs.normal.shape[0] > 0,
         predicting=pairs.earlier.shape[0] > 0,
     )
     n = int(pairs.count[0])
@@ -452,7 +461,13 @@ def initial_state(scenario: Scenario) -> State:
     state = State(
         p,
         empty_pairs(
-            len(p.x), pair_capacity(needed), shear, taped, rolls(scenario), predicts(scenario)
+            len(p.x),
+            pair_capacity(needed),
+            shear,
+            taped,
+            rolls(scenario),
+            turns(scenario),
+            predicts(scenario),
         ),
         wall_arrays(scenario, len(p.x), taped),
         cell_now,

@@ -34,6 +34,7 @@ from revdem_cli.state import (
     pair_capacity,
     predicts,
     rolls,
+    turns,
     wall_arrays,
 )
 
@@ -249,7 +250,13 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     integers = Fixed(*(read(f"fixed/{name}") for name in Fixed._fields))
     n = f["pairs/i"].shape[0]
     pairs: Pairs = empty_pairs(
-        n_particles, pair_capacity(n), shear, reversing, rolls(scenario), predicts(scenario)
+        n_particles,
+        pair_capacity(n),
+        shear,
+        reversing,
+        rolls(scenario),
+        turns(scenario),
+        predicts(scenario),
     )
     for name in PAIR_FIELDS:
         if getattr(pairs, name).shape[0] > 0:

@@ -59,7 +59,7 @@ larger). Tapes written with gzip read as well."""
 
 CHANGED = (
     ("particles", ("f", "torque", "v_drift")),
-    ("pairs", ("force", "history", "overlap", "destroyed", "rolling", "rolled",
+    ("pairs", ("force", "history", "moment", "overlap", "destroyed", "rolling", "rolled",
                "normal")),
     ("walls", ("point", "force", "torque", "overlap", "history", "destroyed", "rolling",
                "rolled")),

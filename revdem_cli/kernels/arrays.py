@@ -44,14 +44,16 @@ Pairs = namedtuple(
         "j",  # second particle, int32 (P,)
         "force",  # contact force on i from j at the current step, N, (P, 3)
         "history",  # elastic shear force on i, N, (P, 3): the contact history
+        "moment",  # floating point: n x force, the moment about i's centre over its lever arm
+        # (Hanley 2020 Eq 5), N, (P, 3); fixed point takes it from `normal`
         "overlap",  # overlap at the current step (< 0: apart), m, (P,)
         "destroyed",  # shear force destroyed this step (0: none): Coulomb cap, separation; N (P,)
         "rolling",  # rolling moment on i: the rolling history, N m, (P, 3)
         "rolled",  # rolling moment destroyed this step: its limit or separation, N m, (P,)
         "normal_new",  # reversed step: the contact normal the unwound history lies across
-        "normal",  # each pair's contact normal at the current positions (zero apart): the
-        # gather's moment n x force (Hanley 2020 Eq 5) and, in fixed point, what the next
-        # forward step turns its histories from, (P, 3)
+        "normal",  # fixed point with shear: each pair's contact normal at the current
+        # positions (zero apart), which the next forward step turns its histories from and
+        # the gather takes n x force from, (P, 3)
         "earlier",  # a run with the information tape and shear: the pairs whose shear history
         # the reversed step would miss at the earlier positions, listed by a forward pair
         # loop that predicts it (`kernels.tape.predict`; columns `pairs.MISSED` to
@@ -64,10 +66,11 @@ Pairs = namedtuple(
         "partials",  # partial sums of each block of particles (sums.py)
     ],
 )
-"""history, normal, overlap and destroyed have length P with a tangential law, else 0;
-rolling and rolled length P with a rolling law, else 0; normal_new has length P in a
-reversed run with a tangential law, else 0; earlier length P in fixed point with a
-tangential law and the information tape, else 0."""
+"""history, overlap and destroyed have length P with a tangential law, else 0; with one,
+moment has length P in floating point and normal in fixed point (0 the other); rolling
+and rolled length P with a rolling law, else 0; normal_new has length P in a reversed run
+with a tangential law, else 0; earlier length P in fixed point with a tangential law and
+the information tape, else 0."""
 
 Walls = namedtuple(
     "Walls",

@@ -33,6 +33,7 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
     velocity predictor its predicted ones (Kolafa & Lisal 2011); the shear spring's
     increment always reads p.v, p.omega."""
     deforming = deforms(cell)
+    of_normals = pairs.normal.shape[0] > 0  # fixed point with shear: no `Pairs.moment`
     predicted = p.v_pred.shape[0] > 0  # damping reads the velocity predictor's velocities
     v_damp = p.v_pred if predicted else p.v
     w_damp = p.omega_pred if predicted else p.omega
@@ -49,6 +50,7 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.count[0],
         pairs.force,
         pairs.history,
+        pairs.moment,
         pairs.overlap,
         pairs.destroyed,
         pairs.rolling,
@@ -106,7 +108,8 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.start,
         pairs.slots,
         pairs.force,
-        pairs.normal,
+        pairs.normal if of_normals else pairs.moment,  # what the pairs keep for their moments
+        of_normals,
         pairs.overlap,
         pairs.rolling,
         walls.force,
@@ -144,12 +147,12 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
 
 
 @jit
-def note_normals(p, pairs, cell, law):
+def note_normals(p, pairs, cell):
     """Fixed point with shear: `Pairs.normal` and `Pairs.overlap` found from the current
     positions, as the pair loop leaves them (the periodic images as `compute_forces` takes
     them), wherever the list or the state may have changed without a pair loop (a rebuild,
-    a restart): the next forward step turns the histories from them."""
-    if pairs.normal.shape[0] == 0 or law.history_grid == 0.0:
+    a restart)."""
+    if pairs.normal.shape[0] == 0:
         return
     args = (p.x, p.radius)
     listed = (pairs.i, pairs.j, pairs.count[0], pairs.normal, pairs.overlap)

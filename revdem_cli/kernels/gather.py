@@ -31,7 +31,8 @@ def _gather_loop(
     start,
     slots,
     pair_force,
-    normals,
+    moment,
+    of_normals,
     overlaps,
     rolling,
     wall_force,
@@ -44,14 +45,15 @@ def _gather_loop(
     grid,
 ):
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
-    (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21;
-    v from `v_damp`, `w_damp`: the half-step velocities or the predictor's);
-    then the half kick v += h f / m, w += h t / I (Eq 11-12; h = 0: none). A pair's moment
-    on each of its particles is its lever arm r - overlap / 2 times n x f (Eq 5), of its
-    contact normal n (`normals`) and force f on the first; without a tangential law (no
-    `normals`) every moment is zero; with a rolling law (`rolling`, the
-    rolling moment on the pair's first particle) each pair adds its rolling moment, on i,
-    and its opposite, on j.
+    (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21; v
+    from `v_damp`, `w_damp`: the half-step velocities or the predictor's); then the half
+    kick v += h f / m, w += h t / I (Eq 11-12; h = 0: none). A pair's moment on each of its
+    particles is its lever arm r - overlap / 2 times n x f (Eq 5): the rows of `moment`,
+    or where `of_normals` (fixed point, `Pairs.normal`) its rows are the pairs' contact
+    normals n, crossed with their forces f on the grid; without a tangential law (no
+    `moment`) every moment is zero; with a rolling law
+    (`rolling`, the rolling moment on the pair's first particle) each pair adds its rolling
+    moment, on i, and its opposite, on j.
 
     In fixed-point arithmetic (fixed_v not empty) each force term is on the force grid and
     summed as an integer, so that the pairs' forces cancel to the integer (momentum is
@@ -66,7 +68,7 @@ def _gather_loop(
     whose sum or velocity left its grid, the last of them, what left it there:
     fixed.OF_FORCE, OF_MOMENT, OF_VELOCITY or OF_ANGULAR_VELOCITY, the first of these in
     that order)."""
-    torques = normals.shape[0] > 0
+    torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
     on_grid = fixed_v.shape[0] > 0
     f_step = grid[fx.FORCE] if on_grid else 1.0
@@ -81,7 +83,7 @@ def _gather_loop(
                 k = np.uint32(slots[s])
                 prefetch(pair_force, k)
                 if torques:
-                    prefetch(normals, k)
+                    prefetch(moment, k)
                     prefetch(overlaps, k)
         weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
         f_int = (np.int64(0), np.int64(0), np.int64(0))
@@ -99,7 +101,9 @@ def _gather_loop(
             else:
                 f = axpy(-1.0, row(pair_force, k), f)
             if torques:  # Hanley 2020 Eq 5: the lever arm r - overlap / 2 times n x f
-                n_x_f = cross(row(normals, k), row(pair_force, k))
+                n_x_f = row(moment, k)
+                if of_normals:
+                    n_x_f = cross(n_x_f, row(pair_force, k))
                 t = axpy(radius[q] - 0.5 * overlaps[k], n_x_f, t)
             if rolls:  # the opposite of the rolling moment on p
                 t = axpy(-1.0, row(rolling, k), t)
@@ -110,7 +114,9 @@ def _gather_loop(
             else:
                 f = axpy(1.0, row(pair_force, k), f)
             if torques:
-                n_x_f = cross(row(normals, k), row(pair_force, k))
+                n_x_f = row(moment, k)
+                if of_normals:
+                    n_x_f = cross(n_x_f, row(pair_force, k))
                 t = axpy(radius[q] - 0.5 * overlaps[k], n_x_f, t)
             if rolls:
                 t = axpy(1.0, row(rolling, k), t)

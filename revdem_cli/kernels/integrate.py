@@ -303,6 +303,7 @@ def rebuild_pairs(p, pairs, cell, skin):
     pairs.j[:needed] = new_j[:needed]
     pairs.count[0] = needed
     index_by_particle(pairs.i, pairs.j, needed, pairs.first, pairs.start, pairs.slots)
+    note_normals(p, pairs, cell)
     pairs.x_built[:] = p.x
     cell.built[:] = cell.length
     return OK
@@ -357,7 +358,7 @@ def advance(
     direction = 1 if stop > step else -1
     rows = 0
     finding = Finding(HEALTHY, -1, -1, 0.0)
-    note_normals(p, pairs, cell, law)  # of a state just restored, or its list just grown
+    note_normals(p, pairs, cell)  # of a state just restored, or its list just grown
     if tape.mode == tp.RECORD and tape.span[4] != 0:  # the step before, recorded again
         tape.span[4] = 0
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
@@ -376,7 +377,6 @@ def advance(
             status = rebuild_pairs(p, pairs, cell, skin)
             if status != OK:
                 return status, step, rows, finding
-            note_normals(p, pairs, cell, law)  # at the new list's slots
         elapsed = (step + direction - first) * dt
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
         if direction > 0:

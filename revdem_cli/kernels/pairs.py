@@ -10,9 +10,9 @@ quantity and a column per pair, and goes through three stages:
   reading and writing the block only, so the loop is elementwise over contiguous rows (with
   the spin correction's cos and sin as their series; a block where some angle is too large
   for that is done again with them in full);
-- scatter: each column's force, history, normal and overlap into the pair arrays, counting
-  the shear force destroyed (scalar, branches); in a long list, force, normal and overlap
-  with non-temporal stores (STREAM_FROM).
+- scatter: each column's force, history, moment (fixed point: normal) and overlap into the
+  pair arrays, counting the shear force destroyed (scalar, branches); in a long list,
+  force, moment or normal and overlap with non-temporal stores (STREAM_FROM).
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
 cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each chunk worked
 through with its own block, so the loop allocates nothing.
@@ -40,10 +40,10 @@ from revdem_cli.kernels.contact import (
     rolling_moment,
 )
 from revdem_cli.kernels.fixed import snapped_in_range
-from revdem_cli.kernels.vectors import ZERO, axpy, dot, norm, put, put_streaming, row, scaled
+from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
 
 STREAM_FROM = 200_000
-"""Lists of at least this many pairs send the pair loop's results (force, normal, overlap)
+"""Lists of at least this many pairs send the pair loop's results (force, n x f, overlap)
 to memory with non-temporal stores: read back only by the gather, after the loop, they
 would not stay in cache, and a store that first reads its cache line in costs twice the
 traffic (the pair loop takes 9-20 % less time at n = 24 and 64 fcc). Smaller lists keep
@@ -103,7 +103,7 @@ NORMAL_THEN = 20  # the normal at the step's other end: reversed, the later posi
 # unwinding normal); forward in fixed point, the earlier positions' (`Pairs.normal`): 3 rows
 FORCE = 23  # 3 rows
 NEW_SHEAR = 26  # the new shear history: 3 rows
-NORMAL = 29  # with shear: the contact normal here (zero apart): 3 rows
+MOMENT = 29  # floating point with shear: n x force (zero apart): 3 rows
 OVERLAP = 32
 SLIPPED = 33  # shear force removed by the Coulomb cap
 ROLLING = 34  # rolling laws: the rolling history: 3 rows
@@ -112,10 +112,11 @@ ROLLED = 40  # rolling moment removed by its limit
 DAMP_VELOCITY = 41  # with a velocity predictor, damped laws: the predicted v_j - v_i: 3 rows
 DAMP_OMEGA_I = 44  # the predicted spins: 3 rows
 DAMP_OMEGA_J = 47  # 3 rows
-OVERLAP_THEN = 50  # recording a tape by prediction: the overlap at the earlier positions
-EARLIER = 51  # and the shear history the reversed step would find there: 3 rows
-SPACING_THEN = 54  # and the grid step of the pair's history there
-ROWS = 55
+NORMAL = 50  # fixed point with shear: the contact normal here (zero apart): 3 rows
+OVERLAP_THEN = 53  # recording a tape by prediction: the overlap at the earlier positions
+EARLIER = 54  # and the shear history the reversed step would find there: 3 rows
+SPACING_THEN = 57  # and the grid step of the pair's history there
+ROWS = 58
 
 MISSED = 0  # `Pairs.earlier`: the slot of a pair whose earlier history the reversal misses
 WAS = 1  # the history it had at the earlier positions: 3 columns
@@ -200,21 +201,20 @@ def gather_pairs(
 def contacts(
     block, size, law, mode, dt, strain, deforming, then, small, predicted, turned, predicting
 ):
-    """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
-    with a tangential law, the new history, the contact normal, the overlap and the shear
-    force the Coulomb cap removed, with a rolling law the rolling moment and what its limit removed,
-    column by column, reading and writing the block only: one loop
-    body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
-    The rows read are left as they were, so that a block can be done again. `small`: the
-    spin corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`);
+    """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and, with
+    a tangential law, the new history, n x force (where `turned`, the contact normal instead),
+    the overlap and the shear force the Coulomb cap removed, with a rolling law the rolling
+    moment and what its limit removed, column by column, reading and writing the block only: one
+    loop body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
+    The rows read are left as they were, so that a block can be done again. `small`: the spin
+    corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`);
     `predicted`: viscous damping reads the relative velocity of the predicted velocities;
     `then`: the NORMAL_THEN rows hold the normals at the step's other end; `turned` (fixed
     point): the histories are carried across the contact plane's rotation by `contact.
-    turn_onto` from those normals;
-    `predicting` (stepping forward with a tape, a constant): the history the reversed step
-    would find at the earlier positions into the EARLIER rows and its grid step there into
-    SPACING_THEN (`contact.earlier_shear`).
-    Returns how many angles were not."""
+    turn_onto` from those normals; `predicting` (stepping forward with a tape, a constant): the
+    history the reversed step would find at the earlier positions into the EARLIER rows and its
+    grid step there into SPACING_THEN (`contact.earlier_shear`). Returns how many angles were
+    not."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0
     damped = law.beta_n > 0.0 or law.beta_t > 0.0
@@ -265,7 +265,10 @@ def contacts(
         enter3(block, FORCE, k, f if touching else ZERO)
         if shear_law:
             enter3(block, NEW_SHEAR, k, shear if touching else ZERO)
-            enter3(block, NORMAL, k, n if touching else ZERO)
+            if turned:  # what the pair keeps for its moment (`Pairs.normal`, `Pairs.moment`)
+                enter3(block, NORMAL, k, n if touching else ZERO)
+            else:
+                enter3(block, MOMENT, k, cross(n, f) if touching else ZERO)
             enter(block, OVERLAP, k, overlap)
             enter(block, SLIPPED, k, slipped if touching else 0.0)
             if predicting:
@@ -376,14 +379,16 @@ the two branches' stores into one plain store."""
 
 
 def _scatter_pairs(
-    block, first, size, force, history, normals, overlaps, destroyed, rolling, rolled, earlier,
-    predicting, listed, law, mode,
+    block, first, size, force, history, moment, normals, overlaps, destroyed, rolling, rolled,
+    earlier, predicting, listed, law, mode,
 ):  # fmt: skip
-    """The block's results into the pair arrays (`predicting`, each pair whose history the
-    reversed step would miss listed in `earlier` from row `listed` on, `list_missed`);
-    returns the block's counts (`Destroyed`: slips, last pair that slipped, losses, last
-    pair that lost its shear force, and the same for the rolling moment) and the next row
-    of `earlier`. A pair apart loses its histories (counted lost when stepping forward)."""
+    """The block's results into the pair arrays (the moment n x f into `moment`, or where a
+    fixed-point run keeps its normals, `Pairs.normal`, the normal into `normals`; `predicting`,
+    each pair whose history the reversed step would miss listed in `earlier` from row `listed`
+    on, `list_missed`); returns the block's counts (`Destroyed`: slips, last pair that slipped,
+    losses, last pair that lost its shear force, and the same for the rolling moment) and the
+    next row of `earlier`. A pair apart loses its histories (counted lost when stepping
+    forward)."""
     slips = 0
     last_slip = -1
     losses = 0
@@ -408,11 +413,12 @@ def _scatter_pairs(
                 was, found = entries(block, SHEAR, k), entries(block, EARLIER, k)
                 spacing = entry(block, SPACING_THEN, k)
                 listed = list_missed(earlier, listed, p, was, found, spacing)
+            kept, row_kept = (normals, NORMAL) if normals.shape[0] > 0 else (moment, MOMENT)
             if STREAMING:
-                put_streaming(normals, u, entries(block, NORMAL, k))
+                put_streaming(kept, u, entries(block, row_kept, k))
                 stream(overlaps, u, overlap)
             else:
-                put(normals, u, entries(block, NORMAL, k))
+                put(kept, u, entries(block, row_kept, k))
                 overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
             destroyed[p] = slipped  # this step's, 0 where nothing was: the sliding flag
@@ -464,6 +470,7 @@ def _pair_loop(
     n_pairs,
     force,
     history,
+    moment,
     overlaps,
     destroyed,
     rolling,
@@ -476,21 +483,19 @@ def _pair_loop(
     dt,
     blocks,
 ):
-    """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
-    law, its contact normal (`normals`), the overlap and the shear force destroyed
-    (viscous damping reading `v_damp`, `w_damp` where `predicted`, else v, w): by the
-    Coulomb cap, or at separation, where the history is zeroed; with a rolling law the
-    rolling moment on i and what its limit or a separation destroyed; in fixed point, the
-    histories turned from `normals_then`, the normals at the step's other end
-    (`contacts`); stepping forward without damping or rolling resistance with an `earlier`
-    array (`Pairs.earlier`), the pairs whose history the reversed step would miss listed in
-    it (`list_missed`, each chunk from its first slot on). The list is cut into as many
-    chunks as there are `blocks`, each done block by block in its own: gather, contact
-    stage, scatter.
-    Returns the counts of `events.note_destroyed`."""
+    """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential law,
+    n x force (`moment`; in fixed point the contact normal, `normals`, instead), the overlap and
+    the shear force destroyed (viscous damping reading `v_damp`, `w_damp` where `predicted`,
+    else v, w): by the Coulomb cap, or at separation, where the history is zeroed; with a
+    rolling law the rolling moment on i and what its limit or a separation destroyed; in fixed
+    point, the histories turned from `normals_then`, the normals at the step's other end
+    (`contacts`), and each pair's normal into `normals`; stepping forward without damping or
+    rolling resistance with an `earlier` array (`Pairs.earlier`), the pairs whose history the
+    reversed step would miss listed in it (`list_missed`, each chunk from its first slot on).
+    The list is cut into as many chunks as there are `blocks`, each done block by block in its
+    own: gather, contact stage, scatter. Returns the counts of `events.note_destroyed`."""
     strain = strain_rates(rate, length)
-    turning = mode == FORWARD and law.history_grid != 0.0  # from the earlier positions'
-    then = normals_then.shape[0] > 0 and (turning or mode == REVERSE)
+    then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
     predicting = mode == FORWARD and earlier.shape[0] > 0 and plain
     streaming = n_pairs >= STREAM_FROM
@@ -520,8 +525,8 @@ def _pair_loop(
             if law.force_grid != 0.0:
                 snap_forces(block, size, law.force_grid)
             results = (
-                force, history, normals, overlaps, destroyed, rolling, rolled, earlier,
-                predicting, listed, law, mode,
+                force, history, moment, normals, overlaps, destroyed, rolling, rolled,
+                earlier, predicting, listed, law, mode,
             )  # fmt: skip
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)
