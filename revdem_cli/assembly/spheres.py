@@ -27,6 +27,12 @@ class Spheres:
 
     @classmethod
     def join(cls, parts: list[Spheres], materials: tuple[str, ...]) -> Spheres:
+        """The spheres of `parts` in their order: the one part that has spheres as it is (no
+        copy, and no page of an array it has not written, such as `uniform`'s spins)."""
+        filled = [part for part in parts if len(part)]
+        if len(filled) == 1 and filled[0].materials == tuple(materials):
+            return filled[0]
+
         def stacked(name: str, shape: tuple[int, ...], dtype=np.float64) -> np.ndarray:
             arrays = [getattr(part, name) for part in parts]
             return np.concatenate(arrays) if arrays else np.zeros(shape, dtype)
