@@ -196,7 +196,7 @@ def cell_arrays(scenario: Scenario) -> Cell:
     )
 
 
-PAIR_HISTORY = ("history", "overlap", "destroyed", "rolling", "rolled")
+PAIR_HISTORY = ("history", "moment", "overlap", "destroyed", "rolling", "rolled")
 """The per-pair arrays a growing list carries over besides the pairs and their forces (those
 a run does not need are empty)."""
 

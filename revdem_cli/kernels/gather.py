@@ -48,12 +48,11 @@ def _gather_loop(
     (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21; v
     from `v_damp`, `w_damp`: the half-step velocities or the predictor's); then the half
     kick v += h f / m, w += h t / I (Eq 11-12; h = 0: none). A pair's moment on each of its
-    particles is its lever arm r - overlap / 2 times n x f (Eq 5): the rows of `moment`,
-    or where `of_normals` (fixed point, `Pairs.normal`) its rows are the pairs' contact
-    normals n, crossed with their forces f on the grid; without a tangential law (no
-    `moment`) every moment is zero; with a rolling law
-    (`rolling`, the rolling moment on the pair's first particle) each pair adds its rolling
-    moment, on i, and its opposite, on j.
+    particles is its lever arm r - overlap / 2 times n x f (Eq 5): the rows of `moment`, or
+    where `of_normals` (fixed point, `Pairs.normal`) its rows are the pairs' contact normals
+    n, crossed with their forces f on the grid; without a tangential law (no `moment`) every
+    moment is zero; with a rolling law (`rolling`, the rolling moment on the pair's first
+    particle) each pair adds its rolling moment, on i, and its opposite, on j.
 
     In fixed-point arithmetic (fixed_v not empty) each force term is on the force grid and
     summed as an integer, so that the pairs' forces cancel to the integer (momentum is

@@ -201,20 +201,20 @@ def gather_pairs(
 def contacts(
     block, size, law, mode, dt, strain, deforming, then, small, predicted, turned, predicting
 ):
-    """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and, with
-    a tangential law, the new history, n x force (where `turned`, the contact normal instead),
-    the overlap and the shear force the Coulomb cap removed, with a rolling law the rolling
-    moment and what its limit removed, column by column, reading and writing the block only: one
-    loop body, elementwise, which LLVM vectorises. Pairs apart get zeros (their overlap < 0).
-    The rows read are left as they were, so that a block can be done again. `small`: the spin
-    corrections take every angle to be below contact.SMALL_ANGLE (`contact.cos_sin`);
-    `predicted`: viscous damping reads the relative velocity of the predicted velocities;
-    `then`: the NORMAL_THEN rows hold the normals at the step's other end; `turned` (fixed
-    point): the histories are carried across the contact plane's rotation by `contact.
-    turn_onto` from those normals; `predicting` (stepping forward with a tape, a constant): the
-    history the reversed step would find at the earlier positions into the EARLIER rows and its
-    grid step there into SPACING_THEN (`contact.earlier_shear`). Returns how many angles were
-    not."""
+    """Contact stage: the force on i from j of the block's pairs (Hanley 2020 Eq 4-10) and,
+    with a tangential law, the new history, n x force (where `turned`, the contact normal
+    instead), the overlap and the shear force the Coulomb cap removed, with a rolling law
+    the rolling moment and what its limit removed, column by column, reading and writing the
+    block only: one loop body, elementwise, which LLVM vectorises. Pairs apart get zeros
+    (their overlap < 0). The rows read are left as they were, so that a block can be done
+    again. `small`: the spin corrections take every angle to be below contact.SMALL_ANGLE
+    (`contact.cos_sin`); `predicted`: viscous damping reads the relative velocity of the
+    predicted velocities; `then`: the NORMAL_THEN rows hold the normals at the step's other
+    end; `turned` (fixed point): the histories are carried across the contact plane's
+    rotation by `contact. turn_onto` from those normals; `predicting` (stepping forward with
+    a tape, a constant): the history the reversed step would find at the earlier positions
+    into the EARLIER rows and its grid step there into SPACING_THEN
+    (`contact.earlier_shear`). Returns how many angles were not."""
     shear_law = law.tangential != NO_SHEAR
     moving = shear_law or law.beta_n > 0.0
     damped = law.beta_n > 0.0 or law.beta_t > 0.0
@@ -383,12 +383,12 @@ def _scatter_pairs(
     earlier, predicting, listed, law, mode,
 ):  # fmt: skip
     """The block's results into the pair arrays (the moment n x f into `moment`, or where a
-    fixed-point run keeps its normals, `Pairs.normal`, the normal into `normals`; `predicting`,
-    each pair whose history the reversed step would miss listed in `earlier` from row `listed`
-    on, `list_missed`); returns the block's counts (`Destroyed`: slips, last pair that slipped,
-    losses, last pair that lost its shear force, and the same for the rolling moment) and the
-    next row of `earlier`. A pair apart loses its histories (counted lost when stepping
-    forward)."""
+    fixed-point run keeps its normals, `Pairs.normal`, the normal into `normals`;
+    `predicting`, each pair whose history the reversed step would miss listed in `earlier`
+    from row `listed` on, `list_missed`); returns the block's counts (`Destroyed`: slips,
+    last pair that slipped, losses, last pair that lost its shear force, and the same for
+    the rolling moment) and the next row of `earlier`. A pair apart loses its histories
+    (counted lost when stepping forward)."""
     slips = 0
     last_slip = -1
     losses = 0
@@ -483,17 +483,18 @@ def _pair_loop(
     dt,
     blocks,
 ):
-    """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential law,
-    n x force (`moment`; in fixed point the contact normal, `normals`, instead), the overlap and
-    the shear force destroyed (viscous damping reading `v_damp`, `w_damp` where `predicted`,
-    else v, w): by the Coulomb cap, or at separation, where the history is zeroed; with a
-    rolling law the rolling moment on i and what its limit or a separation destroyed; in fixed
-    point, the histories turned from `normals_then`, the normals at the step's other end
-    (`contacts`), and each pair's normal into `normals`; stepping forward without damping or
-    rolling resistance with an `earlier` array (`Pairs.earlier`), the pairs whose history the
-    reversed step would miss listed in it (`list_missed`, each chunk from its first slot on).
-    The list is cut into as many chunks as there are `blocks`, each done block by block in its
-    own: gather, contact stage, scatter. Returns the counts of `events.note_destroyed`."""
+    """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
+    law, n x force (`moment`; in fixed point the contact normal, `normals`, instead), the
+    overlap and the shear force destroyed (viscous damping reading `v_damp`, `w_damp` where
+    `predicted`, else v, w): by the Coulomb cap, or at separation, where the history is
+    zeroed; with a rolling law the rolling moment on i and what its limit or a separation
+    destroyed; in fixed point, the histories turned from `normals_then`, the normals at the
+    step's other end (`contacts`), and each pair's normal into `normals`; stepping forward
+    without damping or rolling resistance with an `earlier` array (`Pairs.earlier`), the
+    pairs whose history the reversed step would miss listed in it (`list_missed`, each chunk
+    from its first slot on). The list is cut into as many chunks as there are `blocks`, each
+    done block by block in its own: gather, contact stage, scatter. Returns the counts of
+    `events.note_destroyed`."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
