@@ -34,6 +34,7 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
     increment always reads p.v, p.omega."""
     deforming = deforms(cell)
     of_normals = pairs.normal.shape[0] > 0  # fixed point with shear: no `Pairs.moment`
+    kept = pairs.normal if of_normals else pairs.moment  # what the pairs keep for moments
     predicted = p.v_pred.shape[0] > 0  # damping reads the velocity predictor's velocities
     v_damp = p.v_pred if predicted else p.v
     w_damp = p.omega_pred if predicted else p.omega
@@ -50,13 +51,12 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.count[0],
         pairs.force,
         pairs.history,
-        pairs.moment,
+        kept,
         pairs.overlap,
         pairs.destroyed,
         pairs.rolling,
         pairs.rolled,
         pairs.normal_new if mode == REVERSE else pairs.normal,  # the step's other end
-        pairs.normal,
         pairs.earlier,
         law,
         mode,
@@ -108,7 +108,7 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.start,
         pairs.slots,
         pairs.force,
-        pairs.normal if of_normals else pairs.moment,  # what the pairs keep for their moments
+        kept,
         of_normals,
         pairs.overlap,
         pairs.rolling,

@@ -103,7 +103,8 @@ NORMAL_THEN = 20  # the normal at the step's other end: reversed, the later posi
 # unwinding normal); forward in fixed point, the earlier positions' (`Pairs.normal`): 3 rows
 FORCE = 23  # 3 rows
 NEW_SHEAR = 26  # the new shear history: 3 rows
-MOMENT = 29  # floating point with shear: n x force (zero apart): 3 rows
+MOMENT = 29  # with shear, what a pair keeps for its moment: n x force, or where `turned` (fixed
+# point) the contact normal n, which the gather crosses with the force (zero apart): 3 rows
 OVERLAP = 32
 SLIPPED = 33  # shear force removed by the Coulomb cap
 ROLLING = 34  # rolling laws: the rolling history: 3 rows
@@ -112,11 +113,10 @@ ROLLED = 40  # rolling moment removed by its limit
 DAMP_VELOCITY = 41  # with a velocity predictor, damped laws: the predicted v_j - v_i: 3 rows
 DAMP_OMEGA_I = 44  # the predicted spins: 3 rows
 DAMP_OMEGA_J = 47  # 3 rows
-NORMAL = 50  # fixed point with shear: the contact normal here (zero apart): 3 rows
-OVERLAP_THEN = 53  # recording a tape by prediction: the overlap at the earlier positions
-EARLIER = 54  # and the shear history the reversed step would find there: 3 rows
-SPACING_THEN = 57  # and the grid step of the pair's history there
-ROWS = 58
+OVERLAP_THEN = 50  # recording a tape by prediction: the overlap at the earlier positions
+EARLIER = 51  # and the shear history the reversed step would find there: 3 rows
+SPACING_THEN = 54  # and the grid step of the pair's history there
+ROWS = 55
 
 MISSED = 0  # `Pairs.earlier`: the slot of a pair whose earlier history the reversal misses
 WAS = 1  # the history it had at the earlier positions: 3 columns
@@ -265,10 +265,8 @@ def contacts(
         enter3(block, FORCE, k, f if touching else ZERO)
         if shear_law:
             enter3(block, NEW_SHEAR, k, shear if touching else ZERO)
-            if turned:  # what the pair keeps for its moment (`Pairs.normal`, `Pairs.moment`)
-                enter3(block, NORMAL, k, n if touching else ZERO)
-            else:
-                enter3(block, MOMENT, k, cross(n, f) if touching else ZERO)
+            kept = n if turned else cross(n, f)  # for its moment (`Pairs.normal`, `.moment`)
+            enter3(block, MOMENT, k, kept if touching else ZERO)
             enter(block, OVERLAP, k, overlap)
             enter(block, SLIPPED, k, slipped if touching else 0.0)
             if predicting:
@@ -379,16 +377,16 @@ the two branches' stores into one plain store."""
 
 
 def _scatter_pairs(
-    block, first, size, force, history, moment, normals, overlaps, destroyed, rolling, rolled,
-    earlier, predicting, listed, law, mode,
+    block, first, size, force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
+    predicting, listed, law, mode,
 ):  # fmt: skip
-    """The block's results into the pair arrays (the moment n x f into `moment`, or where a
-    fixed-point run keeps its normals, `Pairs.normal`, the normal into `normals`;
-    `predicting`, each pair whose history the reversed step would miss listed in `earlier`
-    from row `listed` on, `list_missed`); returns the block's counts (`Destroyed`: slips,
-    last pair that slipped, losses, last pair that lost its shear force, and the same for
-    the rolling moment) and the next row of `earlier`. A pair apart loses its histories
-    (counted lost when stepping forward)."""
+    """The block's results into the pair arrays (into `moment` what each pair keeps for its
+    moment, `Pairs.moment` or in fixed point `Pairs.normal`; `predicting`, each pair whose
+    history the reversed step would miss listed in `earlier` from row `listed` on,
+    `list_missed`); returns the block's counts (`Destroyed`: slips, last pair that slipped,
+    losses, last pair that lost its shear force, and the same for the rolling moment) and
+    the next row of `earlier`. A pair apart loses its histories (counted lost when stepping
+    forward)."""
     slips = 0
     last_slip = -1
     losses = 0
@@ -413,12 +411,11 @@ def _scatter_pairs(
                 was, found = entries(block, SHEAR, k), entries(block, EARLIER, k)
                 spacing = entry(block, SPACING_THEN, k)
                 listed = list_missed(earlier, listed, p, was, found, spacing)
-            kept, row_kept = (normals, NORMAL) if normals.shape[0] > 0 else (moment, MOMENT)
             if STREAMING:
-                put_streaming(kept, u, entries(block, row_kept, k))
+                put_streaming(moment, u, entries(block, MOMENT, k))
                 stream(overlaps, u, overlap)
             else:
-                put(kept, u, entries(block, row_kept, k))
+                put(moment, u, entries(block, MOMENT, k))
                 overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
             destroyed[p] = slipped  # this step's, 0 where nothing was: the sliding flag
@@ -476,7 +473,6 @@ def _pair_loop(
     rolling,
     rolled,
     normals_then,
-    normals,
     earlier,
     law,
     mode,
@@ -484,17 +480,16 @@ def _pair_loop(
     blocks,
 ):
     """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
-    law, n x force (`moment`; in fixed point the contact normal, `normals`, instead), the
+    law, what it keeps for its moment (`moment`: n x force, in fixed point its normal), the
     overlap and the shear force destroyed (viscous damping reading `v_damp`, `w_damp` where
     `predicted`, else v, w): by the Coulomb cap, or at separation, where the history is
     zeroed; with a rolling law the rolling moment on i and what its limit or a separation
     destroyed; in fixed point, the histories turned from `normals_then`, the normals at the
-    step's other end (`contacts`), and each pair's normal into `normals`; stepping forward
-    without damping or rolling resistance with an `earlier` array (`Pairs.earlier`), the
-    pairs whose history the reversed step would miss listed in it (`list_missed`, each chunk
-    from its first slot on). The list is cut into as many chunks as there are `blocks`, each
-    done block by block in its own: gather, contact stage, scatter. Returns the counts of
-    `events.note_destroyed`."""
+    step's other end (`contacts`); stepping forward without damping or rolling resistance
+    with an `earlier` array (`Pairs.earlier`), the pairs whose history the reversed step
+    would miss listed in it (`list_missed`, each chunk from its first slot on). The list is
+    cut into as many chunks as there are `blocks`, each done block by block in its own:
+    gather, contact stage, scatter. Returns the counts of `events.note_destroyed`."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
@@ -526,8 +521,8 @@ def _pair_loop(
             if law.force_grid != 0.0:
                 snap_forces(block, size, law.force_grid)
             results = (
-                force, history, moment, normals, overlaps, destroyed, rolling, rolled,
-                earlier, predicting, listed, law, mode,
+                force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
+                predicting, listed, law, mode,
             )  # fmt: skip
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)
