@@ -132,6 +132,38 @@ def add_on_grid(total, value, factor, per_step, largest):
     return (total[0] + to_grid(y0), total[1] + to_grid(y1), total[2] + to_grid(y2)), largest
 
 
+EXACT = 2.0**53
+"""Grid steps below which every integer is a double: a sum of values on one grid whose every
+partial sum stays below it is exact in floating point, in any order."""
+
+
+@inline
+def add_rounded(total, value, step, per_step, largest):
+    """total + value rounded to the grid of `step` (`add_on_grid` in doubles: total a
+    3-tuple of doubles on the grid, each sum exact while `sum_exact` holds)."""
+    y0 = in_range(value[0] * per_step)
+    y1 = in_range(value[1] * per_step)
+    y2 = in_range(value[2] * per_step)
+    largest = max(largest, max(abs(y0), max(abs(y1), abs(y2))))
+    rounded_value = (rounded(y0) * step, rounded(y1) * step, rounded(y2) * step)
+    return (total[0] + rounded_value[0], total[1] + rounded_value[1],
+            total[2] + rounded_value[2]), largest  # fmt: skip
+
+
+@inline
+def largest_of(value, largest):
+    """The largest magnitude of a component of the 3-vector `value` and `largest`."""
+    return max(largest, max(abs(value[0]), max(abs(value[1]), abs(value[2]))))
+
+
+@inline
+def sum_exact(largest, terms):
+    """Whether a sum of `terms` terms on a grid, none larger than `largest` grid steps before
+    rounding, is exact in doubles whatever their order (`EXACT`); then it is also in range
+    (`sum_in_range`)."""
+    return (largest + 0.5) * terms < EXACT
+
+
 @inline
 def add_snapped(total, value, factor, per_step, largest):
     """`add_on_grid` of a value already on the grid and in range (`snapped_in_range`) and

@@ -199,6 +199,45 @@ def test_a_pair_force_is_rounded_once_and_summed_exactly():
     np.testing.assert_array_equal(state.particles.f / step, net)
 
 
+def test_a_net_force_is_the_integer_sum_of_its_terms_whichever_way_it_is_summed():
+    """The gather sums a sphere's forces in doubles where every partial sum is an integer a
+    double holds (fixed.sum_exact), else as integers: a sphere pressed by three neighbours
+    with forces of 2^50 to 2^52 force-grid steps, whose sum in doubles rounds, gets the
+    integer sum rounded once; on a grid 16 times coarser, where the doubles are exact, the
+    integer sum as well."""
+    from revdem_cli.kernels import fixed
+    from revdem_cli.kernels.contact import FORWARD
+    from revdem_cli.kernels.forces import compute_forces
+    from revdem_cli.stage import Model, stepping_bundles
+    from revdem_cli.state import empty_events, initial_state
+    from tests.conftest import two_spheres
+
+    sphere = {"material": "sphere", "radius": 0.005, "velocity": [0.0, 0.0, 0.0]}
+    rows = (
+        [0, 0, 0],
+        [0.0099, 0.0003, 0.0001],
+        [-0.0003, 0.0097, 0.0002],
+        [0.0002, -0.0004, 0.0096],
+    )
+    particles = [sphere | {"position": [float(c) for c in x]} for x in rows]
+    scenario = two_spheres(particles=particles, integrator={"dt": 1e-7, "arithmetic": "fixed"})
+    for coarser, rounds in ((1.0, True), (16.0, False)):
+        model, state = Model.of(scenario), initial_state(scenario)
+        step = state.fixed.grid[fixed.FORCE] * coarser
+        state.fixed.grid[fixed.FORCE] = step
+        bundles = stepping_bundles(
+            state, model, model.dynamics, model.law._replace(force_grid=step)
+        )
+        compute_forces(*bundles, FORWARD, 1e-7, 0.0, empty_events(), 1)
+        count = int(state.pairs.count[0])
+        terms = [state.pairs.force[k] for k in range(count) if state.pairs.i[k] == 0]
+        assert len(terms) == 3 and state.fixed.overflow[0] == 0
+        in_doubles = sum(terms[1:], terms[0]) / step  # in the gather's order
+        exact = [float(sum(int(t[d] / step) for t in terms)) for d in range(3)]
+        assert (list(in_doubles) != exact) == rounds
+        np.testing.assert_array_equal(state.particles.f[0] / step, exact)
+
+
 def test_a_pair_force_beyond_its_grid_is_reported_as_the_force():
     """A pair's force more than 2^62 force-grid steps is held at the end of the range, never
     converted past it, and the sums it enters are reported out of range, as the force on the
