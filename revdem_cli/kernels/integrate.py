@@ -145,6 +145,10 @@ def drift_on_grid(p, cell, fixed, h):
     in_cell = p.s.shape[0] > 0  # positions are the coordinates of a deforming cell
     step = fixed.grid[fx.X : fx.Z + 1]
     n = p.x.shape[0]
+    if not in_cell and step[0] == step[1] and step[1] == step[2]:  # as `state.fixed_grid` makes
+        flat = (fixed.x.reshape(-1), p.x.reshape(-1), p.v.reshape(-1))
+        fx.note_overflow(fixed, fx.OF_POSITION, fx.drift_uniform(n, *flat, h, step[0]))
+        return
     moved = fx.drift(n, fixed.x, p.v, h, step, cell.mid, in_cell)
     fx.note_overflow(fixed, fx.OF_POSITION, moved)
     fx.mirror(n, fixed.x, p.x, p.s, step, cell.length)

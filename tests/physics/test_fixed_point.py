@@ -97,7 +97,8 @@ def test_drag_breaks_exactness_in_fixed_point_too(tmp_path):
 
 
 def test_a_value_leaving_its_grid_is_an_error_not_a_wrap_around(tmp_path):
-    # one sphere at 1 m/s from the origin: its grid reaches 1024 x the extent (8 m)
+    # a sphere at rest at the origin and one leaving it along y at 1 m/s: the grid reaches
+    # 1024 x the power of two above the extent (0.016 m), 32 m; the flying one is named
     scenario = tmp_path / "away.toml"
     scenario.write_text(
         """name = "away"
@@ -111,14 +112,19 @@ model = "hertz"
 material = "m"
 radius = 0.005
 position = [0.0, 0.0, 0.0]
-velocity = [1.0, 0.0, 0.0]
+velocity = [0.0, 0.0, 0.0]
+[[particles]]
+material = "m"
+radius = 0.005
+position = [0.0, 0.011, 0.0]
+velocity = [0.0, 1.0, 0.0]
 [integrator]
-dt = 1.0e-3
+dt = 2.0e-4
 arithmetic = "fixed"
 [[stages]]
 name = "fly"
-steps = 20000
-output_every = 1000
+steps = 200000
+output_every = 5000
 """
     )
     done = subprocess.run(
@@ -130,10 +136,10 @@ output_every = 1000
     assert done.returncode == 1
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr
-    assert "position of particle 0 left the range of its fixed-point grid" in lines[0]
+    assert "position of particle 1 left the range of its fixed-point grid" in lines[0]
     with h5py.File(tmp_path / "away.forward.h5") as f:  # what was written is kept
-        x = f["particles/all/position/value"][:, 0, 0]
-    assert 7.0 < x[-1] < 8.2 and (np.diff(x) > 0).all()
+        y = f["particles/all/position/value"][:, 1, 1]
+    assert 31.0 < y[-1] < 32.0 and (np.diff(y) > 0).all()
 
 
 def test_fixed_point_is_recorded_with_its_grid(tmp_path):
