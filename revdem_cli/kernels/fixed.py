@@ -253,8 +253,8 @@ def _drift_uniform(n, x, v, h, step):
         n[k] = moved
         x[k] = moved * step
         out += not fine
-        last = max(last, -1 if fine else k // 3)
-    return out, last
+        last = max(last, -1 if fine else k)  # the coordinate: a division here stops LLVM
+    return out, last // 3 if last >= 0 else -1
 
 
 def _mirror_positions(n, x, s, step, length):
