@@ -138,16 +138,27 @@ partial sum stays below it is exact in floating point, in any order."""
 
 
 @inline
-def add_rounded(total, value, step, per_step, largest):
-    """total + value rounded to the grid of `step` (`add_on_grid` in doubles: total a
-    3-tuple of doubles on the grid, each sum exact while `sum_exact` holds)."""
-    y0 = in_range(value[0] * per_step)
-    y1 = in_range(value[1] * per_step)
-    y2 = in_range(value[2] * per_step)
-    largest = max(largest, max(abs(y0), max(abs(y1), abs(y2))))
-    rounded_value = (rounded(y0) * step, rounded(y1) * step, rounded(y2) * step)
-    return (total[0] + rounded_value[0], total[1] + rounded_value[1],
-            total[2] + rounded_value[2]), largest  # fmt: skip
+def add_rounded(total, value, step, per_step):
+    """total + value rounded to the grid of `step`, as `add_on_grid` rounds it, in doubles:
+    total a 3-tuple of doubles on the grid, each sum exact while `sum_exact` holds."""
+    y = in_range3((value[0] * per_step, value[1] * per_step, value[2] * per_step))
+    return (total[0] + rounded(y[0]) * step, total[1] + rounded(y[1]) * step,
+            total[2] + rounded(y[2]) * step)  # fmt: skip
+
+
+@inline
+def in_range3(y):
+    """`in_range` of each component of a 3-vector in grid steps."""
+    return in_range(y[0]), in_range(y[1]), in_range(y[2])
+
+
+MAGNITUDE = np.int64(0x7FFFFFFFFFFFFFFF)
+
+
+@inline
+def magnitude_bits(x):
+    """The bits of |x| as an integer, which orders as |x| does (x not NaN)."""
+    return np.float64(x).view(np.int64) & MAGNITUDE
 
 
 @inline

@@ -134,13 +134,13 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
     )
     n = p.x.shape[0]
     if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
-        pair_events = pair_loop(n, *particle_args, images(cell), *pair_args)
+        pair_events, largest = pair_loop(n, *particle_args, images(cell), *pair_args)
     else:  # an open system's pairs skip the nearest image: a build of its own
-        pair_events = pair_loop(n, *particle_args, None, *pair_args)
+        pair_events, largest = pair_loop(n, *particle_args, None, *pair_args)
     wall_events = wall_loop(n, *wall_args)
     if holds_stress(cell):
         stress_of(p, pairs, cell, cell.stress)
-    out, last, quantity = gather_loop(n, *gather_args)
+    out, last, quantity = gather_loop(n, *gather_args, largest)
     fx.note_overflow(fixed, quantity, (out, last))
     servo_forces(cell, dyn.local_damping)
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)

@@ -5,7 +5,7 @@ its half kick; in fixed-point arithmetic on integer grids."""
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, jit, prefetch
+from revdem_cli.kernels import by_size, inline_arrays, prefetch
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, cross, row, scaled, sign
 
@@ -16,22 +16,14 @@ see them coming (at 10^6 fcc spheres the gather takes 26-31 % less time; 8 ahead
 overall: 16 was 6 % faster frictionless at 10^6 but 9-12 % slower with history, 4 slower)."""
 
 
-@jit
-def _integer_force_sum(q, weight, first, start, slots, pair_force, wall_force, step, per_step):
-    """The net force on particle q on the force grid of `step` summed as integers (weight,
-    pairs by partner index, walls), where `fixed.sum_exact` does not hold; and whether the
-    sum stayed in range (`fixed.sum_in_range`)."""
-    total = (np.int64(0), np.int64(0), np.int64(0))
-    total, largest = fx.add_on_grid(total, weight, 1.0, per_step, 0.0)
-    for s in range(start[q], start[q + 1]):
-        total, largest = fx.add_snapped(total, row(pair_force, slots[s]), -1.0, per_step, largest)
-    for k in range(first[q], first[q + 1]):
-        total, largest = fx.add_snapped(total, row(pair_force, k), 1.0, per_step, largest)
+@inline_arrays
+def _largest_own_term(q, weight, wall_force, per_step):
+    """The largest magnitude of a component of particle q's weight and wall forces, in steps
+    of the force grid, before rounding (as `fixed.add_on_grid` finds it)."""
+    largest = fx.largest_of(fx.in_range3(scaled(per_step, weight)), 0.0)
     for b in range(wall_force.shape[1]):
-        total, largest = fx.add_on_grid(total, cell_of(wall_force, q, b), 1.0, per_step, largest)
-    terms = 1 + start[q + 1] - start[q] + first[q + 1] - first[q] + wall_force.shape[1]
-    ok = fx.sum_in_range(largest, terms)
-    return (total[0] * step, total[1] * step, total[2] * step), ok
+        largest = fx.largest_of(fx.in_range3(scaled(per_step, cell_of(wall_force, q, b))), largest)
+    return largest
 
 
 def _gather_loop(
@@ -61,6 +53,7 @@ def _gather_loop(
     fixed_v,
     fixed_w,
     grid,
+    largest_pair,
 ):
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
     (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21; v
@@ -76,13 +69,14 @@ def _gather_loop(
     the sum is their integer sum, so that the pairs' forces cancel to the integer (momentum
     is conserved exactly): the pair loop has rounded each pair's force once for its two
     particles (`fixed.snapped_in_range`), and the weight and wall forces are rounded onto
-    the grid as they are added. The terms are summed in doubles, which is exact in any
-    order while the largest term times the number of terms stays below 2^53 grid steps
-    (`fixed.sum_exact`: every partial sum is then an integer a double holds), and as
-    integers where it does not (`_integer_force_sum`); a force sum leaves its grid when its
-    largest term times the number of terms would (`fixed.sum_in_range`). The two give the
-    same bits; the doubles take 22 % less time frictionless (n = 24 fcc: 43.6 against 55.8
-    ns a sphere), 12 % with history. The moment is summed in doubles in the same fixed order and the
+    the grid as they are added. The pair loop finds the largest component of a pair's
+    force (`largest_pair`, N); with the particle's own weight and wall forces it bounds each
+    term of its sum: where that bound times the number of terms stays below 2^53 grid steps
+    (`fixed.sum_exact`: every partial sum is then an integer a double holds) the terms are
+    summed in doubles, exactly and in any order, else as integers, as before the bound
+    was known; the two give the same bits. A sum in doubles is in range; one of integers
+    leaves its grid when its largest term times the number of terms would
+    (`fixed.sum_in_range`). The moment is summed in doubles in the same fixed order and the
     sum rounded onto the moment grid once (`fixed.snapped_in_range`; it leaves the grid when
     that does): a reversed run sums the same terms in the same order, its pairs by partner
     index whichever steps its lists were built at (a pair listed in one run and not in the
@@ -108,19 +102,28 @@ def _gather_loop(
                     prefetch(moment, k)
                     prefetch(overlaps, k)
         weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
+        f_int = (np.int64(0), np.int64(0), np.int64(0))
         f = ZERO if on_grid else weight
         t = ZERO
-        largest_pair = 0.0  # fixed point: the largest component of a pair's force, N
-        largest_f = 0.0  # and of the weight's and walls' forces, in grid steps
+        ok = True  # the force sum on its grid
+        integer = False  # summed as integers, not in doubles
+        largest_f = 0.0  # summed as integers: its largest term so far, in grid steps
+        terms = 1 + start[q + 1] - start[q] + first[q + 1] - first[q] + wall_force.shape[1]
         if on_grid:
-            f, largest_f = fx.add_rounded(f, weight, f_step, per_f, largest_f)
+            bound = max(largest_pair * per_f, _largest_own_term(q, weight, wall_force, per_f))
+            integer = not fx.sum_exact(bound, terms)
+            if integer:
+                f_int, largest_f = fx.add_on_grid(f_int, weight, 1.0, per_f, largest_f)
+            else:
+                f = fx.add_rounded(f, weight, f_step, per_f)
         # the two partner loops are written out: one helper for both, returning the four
         # sums, made this loop 1.4 to 2.6 times slower (n = 24 fcc, float and fixed point)
         for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
             k = np.uint32(slots[s])  # unsigned, as in `gather_pairs`
-            if on_grid:
-                largest_pair = fx.largest_of(row(pair_force, k), largest_pair)
-            f = axpy(-1.0, row(pair_force, k), f)
+            if integer:
+                f_int, largest_f = fx.add_snapped(f_int, row(pair_force, k), -1.0, per_f, largest_f)
+            else:
+                f = axpy(-1.0, row(pair_force, k), f)
             if torques:  # Hanley 2020 Eq 5: the lever arm r - overlap / 2 times n x f
                 n_x_f = row(moment, k)
                 if of_normals:
@@ -130,9 +133,10 @@ def _gather_loop(
                 t = axpy(-1.0, row(rolling, k), t)
         for kk in range(first[q], first[q + 1]):  # partners j > q
             k = np.uint64(kk)
-            if on_grid:
-                largest_pair = fx.largest_of(row(pair_force, k), largest_pair)
-            f = axpy(1.0, row(pair_force, k), f)
+            if integer:
+                f_int, largest_f = fx.add_snapped(f_int, row(pair_force, k), 1.0, per_f, largest_f)
+            else:
+                f = axpy(1.0, row(pair_force, k), f)
             if torques:
                 n_x_f = row(moment, k)
                 if of_normals:
@@ -141,25 +145,22 @@ def _gather_loop(
             if rolls:
                 t = axpy(1.0, row(rolling, k), t)
         for b in range(wall_force.shape[1]):
-            if on_grid:
-                f, largest_f = fx.add_rounded(
-                    f, cell_of(wall_force, q, b), f_step, per_f, largest_f
+            if integer:
+                f_int, largest_f = fx.add_on_grid(
+                    f_int, cell_of(wall_force, q, b), 1.0, per_f, largest_f
                 )
+            elif on_grid:
+                f = fx.add_rounded(f, cell_of(wall_force, q, b), f_step, per_f)
             else:
                 f = axpy(1.0, cell_of(wall_force, q, b), f)
             t = axpy(1.0, cell_of(wall_torque, q, b), t)
-        ok = True  # the force sum on its grid
         turned = True  # the moment sum
         if on_grid:
-            partners = start[q + 1] - start[q] + first[q + 1] - first[q]
-            walls = wall_force.shape[1]
-            terms = 1 + partners + walls
-            if fx.sum_exact(max(largest_pair * per_f, largest_f), terms):
-                f = (f[0] + 0.0, f[1] + 0.0, f[2] + 0.0)
+            if integer:
+                ok = fx.sum_in_range(largest_f, terms)
+                f = (f_int[0] * f_step, f_int[1] * f_step, f_int[2] * f_step)
             else:
-                f, ok = _integer_force_sum(
-                    q, weight, first, start, slots, pair_force, wall_force, f_step, per_f
-                )
+                f = (f[0] + 0.0, f[1] + 0.0, f[2] + 0.0)  # a sum of zeros is +0, as f_int's
             turned = fx.in_grid_range(t[0] * per_t, t[1] * per_t, t[2] * per_t)
             t = fx.snapped_in_range(t, t_step)
         for d in range(3):

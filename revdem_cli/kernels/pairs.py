@@ -39,7 +39,7 @@ from revdem_cli.kernels.contact import (
     earlier_shear,
     rolling_moment,
 )
-from revdem_cli.kernels.fixed import snapped_in_range
+from revdem_cli.kernels.fixed import magnitude_bits, snapped_in_range
 from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
 
 STREAM_FROM = 200_000
@@ -343,10 +343,16 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, then, predicted
 @inline
 def snap_forces(block, size, step):
     """Fixed-point arithmetic: the block's forces on the force grid of `step`
-    (`fixed.snapped_in_range`), once a pair, so that the gather sums each exactly as an
-    integer for both its particles."""
+    (`fixed.snapped_in_range`), once a pair, so that the gather sums each exactly for both
+    its particles. Returns the largest magnitude of a component of them (N), found from
+    their bits (a double's magnitude orders as its bits do, and integers LLVM vectorises)."""
+    largest = np.int64(0)
     for k in range(size):
-        enter3(block, FORCE, k, snapped_in_range(entries(block, FORCE, k), step))
+        f = snapped_in_range(entries(block, FORCE, k), step)
+        enter3(block, FORCE, k, f)
+        largest = max(largest, max(magnitude_bits(f[0]), max(magnitude_bits(f[1]),
+                                                             magnitude_bits(f[2]))))  # fmt: skip
+    return np.int64(largest).view(np.float64)
 
 
 @inline
@@ -489,7 +495,9 @@ def _pair_loop(
     with an `earlier` array (`Pairs.earlier`), the pairs whose history the reversed step
     would miss listed in it (`list_missed`, each chunk from its first slot on). The list is
     cut into as many chunks as there are `blocks`, each done block by block in its own:
-    gather, contact stage, scatter. Returns the counts of `events.note_destroyed`."""
+    gather, contact stage, scatter. Returns (the counts of `events.note_destroyed`, in
+    fixed point the largest magnitude of a component of a pair's force, N, which the gather
+    sums by: `gather._gather_loop`)."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
@@ -504,6 +512,7 @@ def _pair_loop(
     last_cap = -1
     drops = 0
     last_drop = -1
+    largest = 0.0  # fixed point: the largest component of a pair's force, N
     for c in numba.prange(chunks):
         block = blocks[c]
         end = (c + 1) * n_pairs // chunks
@@ -519,7 +528,7 @@ def _pair_loop(
                 block, size, law, mode, dt, strain, deforming, then, predicted, predicting
             )
             if law.force_grid != 0.0:
-                snap_forces(block, size, law.force_grid)
+                largest = max(largest, snap_forces(block, size, law.force_grid))
             results = (
                 force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
                 predicting, listed, law, mode,
@@ -540,7 +549,7 @@ def _pair_loop(
         if predicting and listed < end:
             earlier[listed, MISSED] = -1.0
         fence()  # any streamed results, before the gather reads them on other threads
-    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
+    return (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop), largest
 
 
 pair_loop = by_size(_pair_loop)
