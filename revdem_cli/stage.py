@@ -291,6 +291,7 @@ def run_stage(
     every = clock.stage.observable_interval
     buffer, buffer_steps = model.buffers(clock.stage.output_every // every + 2)
     stepper = stepper or Stepper()
+    stepper.new_stage()
     stepping = model.stepping(clock.dt, clock.first_step, clock.last_step, every, stepper.halt)
     if events is None:
         events = empty_events()

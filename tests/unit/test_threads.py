@@ -100,6 +100,20 @@ def test_a_slow_first_call_is_not_taken_for_the_rate_of_its_thread_count(quick):
     assert stepper.steps_with[1] > 0.9 * 40000, stepper.steps_with
 
 
+def test_a_new_stage_times_its_thread_counts_afresh(quick):
+    """A stage after one where two threads lost every trial: its first call on one thread
+    is slowed by a warm-up (its code loaded), which is not taken for one thread's rate, so
+    its steps go to one thread, five times faster."""
+    stepper, _, _ = step_with({1: 2e-5, 2: 1e-4}, 100000)  # its trials further and further apart
+    before = dict(stepper.steps_with)
+    stepper.new_stage()
+    particles = SimpleNamespace(x=np.zeros((PARALLEL_FROM, 3)))
+    obs, obs_steps = np.zeros((2002, 1)), np.zeros(2002, dtype=np.int64)
+    loop = fake_loop({1: 2e-5, 2: 1e-4}, first_call={1: 0.05})
+    stepper.advance(loop, (particles,), None, 0, 20000, obs, obs_steps)
+    assert stepper.steps_with[1] - before[1] > 0.9 * 20000, stepper.steps_with
+
+
 def test_a_run_is_bitwise_the_same_wherever_the_thread_count_changes(tmp_path, monkeypatch):
     """The fcc lattice (parallel loops, frictional contacts, a servo) stepped on 2 threads
     throughout, then with the count changed every 7 steps."""
