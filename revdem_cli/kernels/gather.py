@@ -73,8 +73,8 @@ def _gather_loop(
     force (`largest_pair`, N); with the particle's own weight and wall forces it bounds each
     term of its sum: where that bound times the number of terms stays below 2^53 grid steps
     (`fixed.sum_exact`: every partial sum is then an integer a double holds) the terms are
-    summed in doubles, exactly and in any order, else as integers, as before the bound
-    was known; the two give the same bits. A sum in doubles is in range; one of integers
+    summed in doubles, exactly and in any order, else as integers, each term's size kept
+    track of; the two give the same bits. A sum in doubles is in range; one of integers
     leaves its grid when its largest term times the number of terms would
     (`fixed.sum_in_range`). The moment is summed in doubles in the same fixed order and the
     sum rounded onto the moment grid once (`fixed.snapped_in_range`; it leaves the grid when
