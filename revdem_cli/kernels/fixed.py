@@ -116,6 +116,18 @@ def snapped_in_range(vector, step):
 
 
 @inline
+def in_range3(y):
+    """`in_range` of each component of a 3-vector in grid steps."""
+    return in_range(y[0]), in_range(y[1]), in_range(y[2])
+
+
+@inline
+def largest_of(value, largest):
+    """The largest magnitude of a component of the 3-vector `value` and `largest`."""
+    return max(largest, max(abs(value[0]), max(abs(value[1]), abs(value[2]))))
+
+
+@inline
 def add_on_grid(total, value, factor, per_step, largest):
     """total + factor value on a grid of 1 / per_step: total a 3-tuple of integers, factor
     value rounded to the grid first (the steps are powers of two, so multiplying by per_step
@@ -126,11 +138,10 @@ def add_on_grid(total, value, factor, per_step, largest):
     (`in_range`), which the largest then reports: a selection of the whole term, which each
     conversion waited for, made the history gather take 15 % longer."""
     scale = factor * per_step
-    y0 = in_range(value[0] * scale)
-    y1 = in_range(value[1] * scale)
-    y2 = in_range(value[2] * scale)
-    largest = max(largest, max(abs(y0), max(abs(y1), abs(y2))))
-    return (total[0] + to_grid(y0), total[1] + to_grid(y1), total[2] + to_grid(y2)), largest
+    y = in_range3((value[0] * scale, value[1] * scale, value[2] * scale))
+    return (total[0] + to_grid(y[0]), total[1] + to_grid(y[1]), total[2] + to_grid(y[2])), (
+        largest_of(y, largest)
+    )
 
 
 EXACT = 2.0**53
@@ -147,12 +158,6 @@ def add_rounded(total, value, step, per_step):
             total[2] + rounded(y[2]) * step)  # fmt: skip
 
 
-@inline
-def in_range3(y):
-    """`in_range` of each component of a 3-vector in grid steps."""
-    return in_range(y[0]), in_range(y[1]), in_range(y[2])
-
-
 MAGNITUDE = np.int64(0x7FFFFFFFFFFFFFFF)
 
 
@@ -160,12 +165,6 @@ MAGNITUDE = np.int64(0x7FFFFFFFFFFFFFFF)
 def magnitude_bits(x):
     """The bits of |x| as an integer, which orders as |x| does (x not NaN)."""
     return np.float64(x).view(np.int64) & MAGNITUDE
-
-
-@inline
-def largest_of(value, largest):
-    """The largest magnitude of a component of the 3-vector `value` and `largest`."""
-    return max(largest, max(abs(value[0]), max(abs(value[1]), abs(value[2]))))
 
 
 @inline
@@ -183,7 +182,7 @@ def add_snapped(total, value, factor, per_step, largest):
     y0 = factor * value[0] * per_step
     y1 = factor * value[1] * per_step
     y2 = factor * value[2] * per_step
-    largest = max(largest, max(abs(y0), max(abs(y1), abs(y2))))
+    largest = largest_of((y0, y1, y2), largest)
     return (total[0] + np.int64(y0), total[1] + np.int64(y1), total[2] + np.int64(y2)), largest
 
 

@@ -59,9 +59,9 @@ def quick(monkeypatch):
 
 
 def step_with(
-    cost: dict[int, float], stop: int, start: int = 0, first_call=None
+    cost: dict[int, float], stop: int, start: int = 0, first_call=None, stepper=None
 ) -> tuple[Stepper, tuple, np.ndarray]:
-    stepper = Stepper()
+    stepper = stepper or Stepper()
     particles = SimpleNamespace(x=np.zeros((PARALLEL_FROM, 3)))
     rows = abs(stop - start) // EVERY + 2
     obs, obs_steps = np.zeros((rows, 1)), np.zeros(rows, dtype=np.int64)
@@ -107,10 +107,7 @@ def test_a_new_stage_times_its_thread_counts_afresh(quick):
     stepper, _, _ = step_with({1: 2e-5, 2: 1e-4}, 100000)  # its trials further and further apart
     before = dict(stepper.steps_with)
     stepper.new_stage()
-    particles = SimpleNamespace(x=np.zeros((PARALLEL_FROM, 3)))
-    obs, obs_steps = np.zeros((2002, 1)), np.zeros(2002, dtype=np.int64)
-    loop = fake_loop({1: 2e-5, 2: 1e-4}, first_call={1: 0.05})
-    stepper.advance(loop, (particles,), None, 0, 20000, obs, obs_steps)
+    step_with({1: 2e-5, 2: 1e-4}, 20000, first_call={1: 0.05}, stepper=stepper)
     assert stepper.steps_with[1] - before[1] > 0.9 * 20000, stepper.steps_with
 
 
