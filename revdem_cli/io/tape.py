@@ -4,9 +4,12 @@ compiled loop records into and replays from (`kernels.tape`).
 Entries go to disk in blocks, so the tape's memory does not grow with the run: the loop
 returns TAPE_FULL when its block may have no room for one more step (it has less than the
 most entries a step has made so far), and a thread of its own appends the block to the file
-while the loop steps on. The block holds one entry a particle (at least MIN_ENTRIES) and
-grows only for a step that needs more: that step's entries are then recorded again
-(`Recorder.flush`). Layout (HDF5, every dataset
+while the loop fills a fresh one. The block holds one entry a particle (at least
+MIN_ENTRIES) and grows only for a step that needs more: that step's entries are then
+recorded again (`Recorder.flush`). Blocks lie on pages mapped for them alone
+(`_untouched`), which take memory only where entries are written and go back to the system
+once written out, so that the tape holds about two steps' entries however large its blocks.
+Layout (HDF5, every dataset
 chunked, shuffled and compressed with Zstandard through hdf5plugin):
 
     /entries/what    int8   (E,)  the array, an index into `kernels.tape.COMPARED`
@@ -24,6 +27,7 @@ which `summary` sets the tape beside), `compared` and `mechanisms`. Going backwa
 
 from __future__ import annotations
 
+import mmap
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -46,10 +50,11 @@ SCHEMA_VERSION = 1
 STEPS_PER_BLOCK = 4096
 MIN_ENTRIES = 1 << 16
 ENTRIES_PER_PARTICLE = 1
-ROOM_FOR_STEPS = 4
+ROOM_FOR_STEPS = 1.5
 """A block that grows takes room for this many steps of the most entries a step has made:
-fewer returns from the stepping loop to write it (each finds the contact normals again),
-and fewer steps recorded again while the entries a step makes are still growing."""
+then a step that makes about as many is written out on its own while the next fills a
+fresh block, and a step is recorded again only where its entries outgrow the most by half.
+More room would hold more steps in memory; less, record growing steps again more often."""
 CHUNK = 1 << 14
 FILTERS = dict(**hdf5plugin.Zstd(clevel=1), shuffle=True)
 """Zstandard at level 1 through hdf5plugin, after HDF5's byte shuffle: on the fcc
@@ -176,15 +181,28 @@ class _Buffers:
         if self.what.shape[0] >= capacity:
             return
         used = min(int(self.span[2]), self.what.shape[0])
-        what = np.zeros(capacity, dtype=np.int8)
-        where = np.zeros(capacity, dtype=np.int64)
-        amount = np.zeros(capacity, dtype=np.int64)
-        what[:used], where[:used], amount[:used] = (
-            self.what[:used],
-            self.where[:used],
-            self.amount[:used],
+        what, where, amount = self.what, self.where, self.amount
+        self.renew(capacity)
+        self.what[:used], self.where[:used], self.amount[:used] = (
+            what[:used],
+            where[:used],
+            amount[:used],
         )
-        self.what, self.where, self.amount = what, where, amount
+
+    def renew(self, capacity: int) -> None:
+        """A fresh block of room for `capacity` entries, the one before left to whoever holds
+        it (the writer thread)."""
+        self.what = _untouched(capacity, np.int8)
+        self.where = _untouched(capacity, np.int64)
+        self.amount = _untouched(capacity, np.int64)
+
+
+def _untouched(count: int, dtype) -> np.ndarray:
+    """`count` zeros of `dtype` on anonymously mapped pages of their own: resident only where
+    written, and unmapped when the array is dropped (not kept by the allocator, which holds
+    freed blocks of this size for the next and so would hold several blocks' pages)."""
+    size = count * np.dtype(dtype).itemsize
+    return np.frombuffer(mmap.mmap(-1, max(size, 1)), dtype=dtype, count=count)
 
 
 def _like(copies: tuple, arrays: tuple) -> tuple:
@@ -276,7 +294,7 @@ class Recorder:
             b.contacts[steps] = 0
         self._write(steps, entries)
         if again:
-            b.grow(ROOM_FOR_STEPS * int(b.span[3]))
+            b.grow(int(ROOM_FOR_STEPS * int(b.span[3])))
             b.span[4] = 1
         if wait:
             self._written()
@@ -288,18 +306,19 @@ class Recorder:
 
     def _write(self, steps: int, entries: int) -> None:
         """Hand the block's first `steps` steps and `entries` entries to the writer (once the
-        block before is written: one at a time), and empty the block."""
+        block before is written: one at a time), and go on in a fresh block of the same room
+        (the entries are not copied: the writer has the block itself)."""
         b = self.buffers
         if steps == 0:
             b.span[:3] = (self.first_step + self.written_steps, 0, 0)
             return
         block = (
-            b.what[:entries].copy(), b.where[:entries].copy(),
-            b.amount[:entries].copy(), b.counts[:steps].copy(), b.bits[:steps].copy(),
-            b.contacts[:steps].astype(np.int32),
+            b.what[:entries], b.where[:entries], b.amount[:entries],
+            b.counts[:steps].copy(), b.bits[:steps].copy(), b.contacts[:steps].astype(np.int32),
         )  # fmt: skip
         self._written()
         self.pending = _WRITER.submit(_append_block, self.path, block)
+        b.renew(b.what.shape[0])
         self.written_steps += steps
         self.written_entries += entries
         self.written_bits = _running(self.written_bits, b.bits[:steps])[-1]
