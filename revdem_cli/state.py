@@ -270,9 +270,9 @@ def empty_pairs(
 
 
 def grown(pairs: Pairs, capacity: int) -> Pairs:
-    """A copy of `pairs` with room for `capacity` pairs; the listed pairs, their histories and
-    the particle index kept. (A list always has room for some pairs, so its shear and rolling
-    arrays are empty only without those laws.)"""
+    """A copy of `pairs` with room for `capacity` pairs; the listed pairs, their histories,
+    contact normals and the particle index kept. (A list always has room for some pairs, so
+    its shear and rolling arrays are empty only without those laws.)"""
     bigger = empty_pairs(
         pairs.start.shape[0] - 1,
         capacity,
@@ -283,7 +283,7 @@ def grown(pairs: Pairs, capacity: int) -> Pairs:
         predicting=pairs.earlier.shape[0] > 0,
     )
     n = int(pairs.count[0])
-    for name in ("i", "j", "force") + PAIR_HISTORY:
+    for name in ("i", "j", "force", "normal") + PAIR_HISTORY:
         if getattr(pairs, name).shape[0] > 0:
             getattr(bigger, name)[:n] = getattr(pairs, name)[:n]
     bigger.count[:] = pairs.count

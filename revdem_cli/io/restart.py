@@ -26,6 +26,7 @@ from revdem_cli.io import (
     write_file,
 )
 from revdem_cli.kernels.arrays import Cell, Fixed, Pairs, Particles, Walls
+from revdem_cli.kernels.forces import note_normals
 from revdem_cli.kernels.neighbours import index_by_particle
 from revdem_cli.state import (
     State,
@@ -266,6 +267,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     step = int(meta.attrs["step"])
     _check_state(path, scenario, particles, pairs, walls, step, int(meta.attrs["stage_first_step"]))
     index_by_particle(pairs.i, pairs.j, n, pairs.first, pairs.start, pairs.slots)
+    note_normals(particles, pairs, cell)  # as the step's pair loop left them
     return Restart(
         state=State(particles, pairs, walls, cell, integers, step=step),
         scenario_json=str(meta.attrs["scenario_json"]),

@@ -362,7 +362,6 @@ def advance(
     direction = 1 if stop > step else -1
     rows = 0
     finding = Finding(HEALTHY, -1, -1, 0.0)
-    note_normals(p, pairs, cell)  # of a state just restored, or its list just grown
     if tape.mode == tp.RECORD and tape.span[4] != 0:  # the step before, recorded again
         tape.span[4] = 0
         system = (p, pairs, walls, cell, fixed, law, moduli, dyn, events)
