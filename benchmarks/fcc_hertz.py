@@ -151,14 +151,16 @@ def loop_seconds(state, model, steps: int) -> float:
     return seconds
 
 
-def measured_apart(module: str, *args, threads: int | None = None) -> dict:
-    """`measure(*args)` of benchmarks/`module`.py in a fresh process (its own memory, and
+def measured_apart(
+    module: str, *args, threads: int | None = None, function: str = "measure"
+) -> dict:
+    """`function(*args)` of benchmarks/`module`.py in a fresh process (its own memory, and
     `threads` threads where given), its result read back as JSON."""
     env = os.environ | ({"NUMBA_NUM_THREADS": str(threads)} if threads else {})
     call = ", ".join(repr(a) for a in args)
     code = (
-        f"import json, sys; sys.path.insert(0, 'benchmarks'); from {module} import measure; "
-        f"print(json.dumps(measure({call})))"
+        f"import json, sys; sys.path.insert(0, 'benchmarks'); from {module} import {function}; "
+        f"print(json.dumps({function}({call})))"
     )
     done = subprocess.run(
         [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, check=True

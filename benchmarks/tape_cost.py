@@ -10,8 +10,11 @@ were made, and for the tape its bytes and bits per step. The REPEATS timings fol
 another from the same start, so that with the tape each covers other steps of one run:
 with history the lattice's contacts start to slip after some 150 steps (n = 24), and
 the tape's cost then grows with its entries; each timing's cost is reported beside the
-entries per step it recorded (`cost_each`, `entries_per_step_each`). Results:
-OUT/tape_cost.json.
+entries per step it recorded (`cost_each`, `entries_per_step_each`). The costs come from
+a process of their own that steps the run without the tape and the run with it in turns
+of TURN steps (`interleaved`), so that both meet the same machine: on a shared one the
+speed of separate processes moves by a tenth and more from minute to minute. `cost` is
+that of the benchmark's own steps, the first timing. Results: OUT/tape_cost.json.
 
     NUMBA_NUM_THREADS=1 python benchmarks/tape_cost.py [--n 10 24]
 """
@@ -40,9 +43,14 @@ def taped(n: int, variant: str, steps: int, tape: bool) -> dict:
     return data
 
 
-def stepped(state, model, steps: int, recorder) -> float:
+TURN = 20
+"""Steps of each turn of the interleaved runs (`interleaved`)."""
+
+
+def stepped(state, model, steps: int, recorder, finish: bool = True) -> float:
     """Seconds of `steps` forward steps of the compiled stage loop, recording into
-    `recorder` (`io.tape.Recorder`, its blocks written out as they fill) or without a tape."""
+    `recorder` (`io.tape.Recorder`, its blocks written out as they fill; `finish`: the last
+    block too, waited for) or without a tape."""
     from revdem_cli.io.tape import no_tape
     from revdem_cli.kernels.integrate import OK, TAPE_FULL, advance
     from revdem_cli.stage import stepping_bundles
@@ -64,9 +72,22 @@ def stepped(state, model, steps: int, recorder) -> float:
             recorder.flush()
         elif status != OK:
             raise RuntimeError(f"the stepping loop stopped with status {status}")
-    if recorder:
+    if recorder and finish:
         recorder.flush(wait=True)
     return time.perf_counter() - started
+
+
+def warm_up(folder: Path, variant: str, tape: bool) -> None:
+    """Compile the stepping loop (or load it from the cache): one step of a small lattice."""
+    from revdem_cli.config import Scenario
+    from revdem_cli.io.tape import Recorder
+    from revdem_cli.stage import Model
+    from revdem_cli.state import initial_state
+
+    warm = Scenario.model_validate(taped(2, variant, 1, tape))
+    state = initial_state(warm)
+    recorder = Recorder(folder / "warm.h5", "run", (0, 0.0, 1.0e-6), state) if tape else None
+    stepped(state, Model.of(warm), 1, recorder)
 
 
 def measure(n: int, variant: str, tape: bool) -> dict:
@@ -77,11 +98,8 @@ def measure(n: int, variant: str, tape: bool) -> dict:
 
     steps = STEPS.get(n, 200)
     with tempfile.TemporaryDirectory() as folder:
-        warm = Scenario.model_validate(taped(2, variant, 1, tape))  # compile or load
-        state = initial_state(warm)
+        warm_up(Path(folder), variant, tape)
         clock = (0, 0.0, 1.0e-6)
-        warming = Recorder(Path(folder) / "w.h5", "run", clock, state) if tape else None
-        stepped(state, Model.of(warm), 1, warming)
         baseline = _rss("VmRSS")
         Path("/proc/self/clear_refs").write_text("5")  # peak memory from here on
         scenario = Scenario.model_validate(taped(n, variant, steps * REPEATS, tape))
@@ -115,6 +133,36 @@ def measure(n: int, variant: str, tape: bool) -> dict:
     return row
 
 
+def interleaved(n: int, variant: str) -> dict:
+    """Seconds of each of REPEATS stretches of the benchmark's steps without the tape and
+    with it: two runs from one start in this process, stepped in turns of TURN steps, the
+    tape's writer finishing each stretch inside its time."""
+    from revdem_cli.config import Scenario
+    from revdem_cli.io.tape import Recorder
+    from revdem_cli.stage import Model
+    from revdem_cli.state import initial_state
+
+    steps = STEPS.get(n, 200)
+    seconds = {False: [0.0] * REPEATS, True: [0.0] * REPEATS}
+    with tempfile.TemporaryDirectory() as folder:
+        runs = {}
+        for tape in (False, True):
+            scenario = Scenario.model_validate(taped(n, variant, steps * REPEATS, tape))
+            state = initial_state(scenario)
+            clock = (0, 0.0, 1.0e-6)
+            recorder = Recorder(Path(folder) / "tape.h5", "run", clock, state) if tape else None
+            runs[tape] = (state, Model.of(scenario), recorder)
+            warm_up(Path(folder), variant, tape)
+        for stretch in range(REPEATS):
+            for turn in range(0, steps, TURN):
+                last = turn + TURN >= steps
+                for tape in (False, True):
+                    state, model, recorder = runs[tape]
+                    took = stepped(state, model, min(TURN, steps - turn), recorder, last)
+                    seconds[tape][stretch] += took
+    return {"without_s_each": seconds[False], "with_s_each": seconds[True]}
+
+
 def in_process(n: int, variant: str, tape: bool) -> dict:
     return measured_apart("tape_cost", n, variant, tape)
 
@@ -130,8 +178,12 @@ def main() -> None:
     for n in arguments.n:
         for variant in ("frictionless", "history"):
             bare, recorded = in_process(n, variant, False), in_process(n, variant, True)
-            recorded["cost"] = bare["particle_steps_per_s"] / recorded["particle_steps_per_s"]
-            recorded["cost_each"] = [t / bare["loop_s"] for t in recorded["loop_s_each"]]
+            turns = measured_apart("tape_cost", n, variant, function="interleaved")
+            recorded["interleaved"] = turns
+            recorded["cost_each"] = [
+                t / b for t, b in zip(turns["with_s_each"], turns["without_s_each"], strict=True)
+            ]
+            recorded["cost"] = recorded["cost_each"][0]
             rows += [bare, recorded]
             print(
                 f"{n:3d} {variant:>12} {bare['particle_steps_per_s']:10.3g} "
