@@ -290,3 +290,27 @@ def test_a_shear_history_lies_on_the_grid_of_its_own_contact(tmp_path):
     steps = history / step
     assert np.all(steps == np.round(steps)), steps
     assert np.abs(steps).max() > 2**20  # resolved far below the force it carries
+
+
+def test_the_normals_a_step_turns_from_are_kept_by_a_restart_and_a_grown_list(tmp_path):
+    """In fixed point with shear each pair keeps its contact normal at the current positions
+    (`Pairs.normal`), which the next step turns its history from. The stepping loop does not
+    find them again when it is called, so a restart read back and a grown list must hold the
+    normals the pair loop left, to the bit."""
+    from revdem_cli.io.restart import Restart, read_restart, write_restart
+    from revdem_cli.state import grown
+    from tests.conftest import stepped
+
+    contact = {"model": "hertz", "tangential": "mindlin", "friction": 0.3}
+    scenario = _three_touching(contact=contact)
+    state = list(stepped(scenario, 200, 200))[-1]
+    count = int(state.pairs.count[0])
+    normals = state.pairs.normal[:count].copy()
+    assert np.count_nonzero(normals.any(axis=1)) == 2  # 0 and 1, 1 and 2 touch
+    bigger = grown(state.pairs, 2 * state.pairs.i.shape[0])
+    np.testing.assert_array_equal(bigger.normal[:count], normals)
+    clock = (0, 0.0, 1e-7)  # the stage's first step, its time there and its time step
+    restart = Restart(state, scenario.model_dump_json(), "", ".toml", "collide", "", *clock)
+    write_restart(tmp_path / "state.restart.h5", restart)
+    read = read_restart(tmp_path / "state.restart.h5").state.pairs
+    np.testing.assert_array_equal(read.normal[:count], normals)
