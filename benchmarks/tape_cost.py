@@ -147,12 +147,12 @@ def interleaved(n: int, variant: str) -> dict:
     with tempfile.TemporaryDirectory() as folder:
         runs = {}
         for tape in (False, True):
+            warm_up(Path(folder), variant, tape)
             scenario = Scenario.model_validate(taped(n, variant, steps * REPEATS, tape))
             state = initial_state(scenario)
             clock = (0, 0.0, 1.0e-6)
             recorder = Recorder(Path(folder) / "tape.h5", "run", clock, state) if tape else None
             runs[tape] = (state, Model.of(scenario), recorder)
-            warm_up(Path(folder), variant, tape)
         for stretch in range(REPEATS):
             for turn in range(0, steps, TURN):
                 last = turn + TURN >= steps

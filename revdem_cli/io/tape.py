@@ -9,8 +9,8 @@ MIN_ENTRIES) and grows only for a step that needs more: that step's entries are 
 recorded again (`Recorder.flush`). Blocks lie on pages mapped for them alone
 (`_untouched`), which take memory only where entries are written and go back to the system
 once written out, so that the tape holds about two steps' entries however large its blocks.
-Layout (HDF5, every dataset
-chunked, shuffled and compressed with Zstandard through hdf5plugin):
+Layout (HDF5, every dataset chunked, shuffled and compressed with Zstandard through
+hdf5plugin):
 
     /entries/what    int8   (E,)  the array, an index into `kernels.tape.COMPARED`
     /entries/where   int64  (E,)  its place (pair arrays: (i N + j) 3 + axis)
