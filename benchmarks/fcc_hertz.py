@@ -22,8 +22,11 @@ installs it when missing) run the same workload at the sizes of --peer-sizes, wi
 MPI ranks or OpenMP threads as revdem has threads, right after revdem's measurement; beside
 each figure its ratio to each peer and to the fastest of them (`--peers` with no names runs
 none). Before them ../shared/bench/check.sh runs the three on a small case from one velocity
-field; its output goes to OUT/peers_check.txt. Results go to OUT/fcc_hertz.json; --scaling
-adds the time per particle-step against N, OUT/scaling.png.
+field; its output goes to OUT/peers_check.txt. The cost of fixed-point arithmetic (n = 24,
+the most threads) comes from a process of its own that steps a floating-point run and a
+fixed-point one in turns of TURN steps (`arithmetic_cost`), so that both meet the same
+machine. Results go to OUT/fcc_hertz.json; --scaling adds the time per particle-step
+against N, OUT/scaling.png.
 """
 
 from __future__ import annotations
@@ -127,6 +130,40 @@ def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict
         "peak_bytes_per_particle": (_rss("VmHWM") - baseline) / count,
         "pairs": int(state.pairs.count[0]),
         "digest": digest.hexdigest()[:16],
+    }
+
+
+TURN = 20
+"""Steps of each turn of the interleaved runs (`arithmetic_cost`)."""
+
+
+def arithmetic_cost(n: int, variant: str, steps: int) -> dict:
+    """How much slower fixed-point arithmetic steps than floating point: a run of each from
+    one start in this process, stepped in turns of TURN steps, the best of REPEATS timings of
+    `steps` steps each."""
+    from revdem_cli.config import Scenario
+    from revdem_cli.stage import Model
+    from revdem_cli.state import initial_state
+
+    runs = {}
+    for arithmetic in ("float", "fixed"):
+        warm = Scenario.model_validate(scenario_data(2, variant, 1, arithmetic))
+        loop_seconds(initial_state(warm), Model.of(warm), 1)  # compile or load
+        scenario = Scenario.model_validate(scenario_data(n, variant, steps, arithmetic))
+        runs[arithmetic] = (initial_state(scenario), Model.of(scenario))
+    seconds = {arithmetic: [] for arithmetic in runs}
+    for _ in range(REPEATS):
+        took = dict.fromkeys(runs, 0.0)
+        for turn in range(0, steps, TURN):
+            for arithmetic, (state, model) in runs.items():
+                took[arithmetic] += loop_seconds(state, model, min(TURN, steps - turn))
+        for arithmetic in runs:
+            seconds[arithmetic].append(took[arithmetic])
+    best = {arithmetic: min(each) for arithmetic, each in seconds.items()}
+    return {
+        "float_s_each": seconds["float"],
+        "fixed_s_each": seconds["fixed"],
+        "slowdown_against_float": best["fixed"] / best["float"],
     }
 
 
@@ -349,12 +386,17 @@ def main() -> None:
             for r in results["runs"]
             if (r["n"], r["variant"], r["threads"]) == (n, variant, threads)
         )
-        ratio = floating["particle_steps_per_s"] / fixed["particle_steps_per_s"]
-        fixed["slowdown_against_float"] = ratio
+        apart = floating["particle_steps_per_s"] / fixed["particle_steps_per_s"]
+        turns = measured_apart(
+            "fcc_hertz", n, variant, steps, threads=threads, function="arithmetic_cost"
+        )
+        ratio = turns["slowdown_against_float"]
+        fixed |= {"slowdown_against_float": ratio, "slowdown_apart": apart, "interleaved": turns}
         results["fixed_point"].append(fixed)
         print(
             f"fixed-point {variant:13} n = {n}, {threads} threads: "
-            f"{fixed['particle_steps_per_s']:.4g} particle-steps/s, {ratio:.2f} x slower than float"
+            f"{fixed['particle_steps_per_s']:.4g} particle-steps/s, {ratio:.2f} x slower than "
+            f"float in turns ({apart:.2f} x from the rates of separate processes)"
         )
     if args.scaling:
         threads = max(args.threads)
