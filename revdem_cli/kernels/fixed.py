@@ -20,7 +20,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, inline, inline_arrays, jit
+from revdem_cli.kernels import by_parts, by_size, inline, inline_arrays, jit
 
 RANGE = 2**62 - 1
 """Largest magnitude of a value on a grid, in grid steps: the sum of two such values still
@@ -220,13 +220,13 @@ def kick_row(n, mirror, f, inv_m, q, h, step):
     return ok
 
 
-def _kick(n, mirror, f, inv_m, h, step):
-    """`kick_row` of every particle. Returns (values out of range, the last particle with
-    one)."""
+def _kick(begin, end, n, mirror, f, inv_m, h, step):
+    """`kick_row` of particles `begin` to `end` - 1 (`by_parts`). Returns (particles with a
+    value out of range, the last of them)."""
     out = 0
     last = -1
-    for q in numba.prange(n.shape[0]):
-        if not kick_row(n, mirror, f, inv_m, q, h, step):
+    for q in range(begin, end):  # indexed unsigned: no wraparound, which stops LLVM
+        if not kick_row(n, mirror, f, inv_m, np.uint64(q), h, step):
             out += 1
             last = max(last, q)
     return out, last
@@ -250,19 +250,21 @@ def _drift(n, v, h, step, mid, in_cell):
     return out, last
 
 
-def _drift_uniform(n, x, v, h, step):
+def _drift_uniform(begin, end, n, x, v, h, step):
     """`_drift` of positions outside a deforming cell whose axes share one grid step, over
-    the flat arrays of all their coordinates (n, x, v reshaped to one row), with the
-    positions the integers give, x = n step (`_mirror_positions`), in the same pass: unit
-    strides, which LLVM vectorises (3.0 against 7.3 ns a sphere for `_drift` and the mirror,
-    n = 24 fcc, one core). Returns as `_kick`; its last is the particle."""
+    the flat arrays of all their coordinates (n, x, v reshaped to one row), from `begin` to
+    `end` - 1 of those (`by_parts`), with the positions the integers give, x = n step
+    (`_mirror_positions`), in the same pass: unit strides, which LLVM vectorises (3.0
+    against 7.3 ns a sphere for `_drift` and the mirror, n = 24 fcc, one core). Returns the
+    coordinates out of range and the particle of the last of them."""
     per = 1.0 / step  # a power of two: multiplying by it divides exactly, as `_drift` does
     out = 0
     last = -1
-    for k in numba.prange(n.shape[0]):
-        moved, fine = moved_on_grid(n[k], h * v[k] * per)
-        n[k] = moved
-        x[k] = moved * step
+    for k in range(begin, end):
+        i = np.uint64(k)  # unsigned: no wraparound, which stops LLVM
+        moved, fine = moved_on_grid(n[i], h * v[i] * per)
+        n[i] = moved
+        x[i] = moved * step
         out += not fine
         last = max(last, -1 if fine else k)  # the coordinate: a division here stops LLVM
     return out, last // 3 if last >= 0 else -1
@@ -281,9 +283,9 @@ def _mirror_positions(n, x, s, step, length):
                 x[q, d] = n[q, d] * step[d]
 
 
-kick = by_size(_kick)
+kick = by_parts(_kick)
 drift = by_size(_drift)
-drift_uniform = by_size(_drift_uniform)
+drift_uniform = by_parts(_drift_uniform)
 mirror = by_size(_mirror_positions)
 
 

@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import h5py
+import numba
 import numpy as np
 import pytest
 
@@ -314,3 +315,28 @@ def test_the_normals_a_step_turns_from_are_kept_by_a_restart_and_a_grown_list(tm
     write_restart(tmp_path / "state.restart.h5", restart)
     read = read_restart(tmp_path / "state.restart.h5").state.pairs
     np.testing.assert_array_equal(read.normal[:count], normals)
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
+def test_the_drift_cut_into_a_part_a_thread_gives_the_same_integers_and_overflows():
+    """The fixed-point drift runs in one part a thread (`kernels.by_parts`): the integers,
+    the positions they give, and which coordinates left their grid (how many, and the
+    particle of the last) are the same on one thread and two."""
+    from revdem_cli.kernels import fixed
+
+    count = 1000  # above kernels.PARALLEL_FROM
+    v = np.random.default_rng(5).uniform(-1.0, 1.0, 3 * count)
+    v[[3 * 10 + 1, 3 * 900 + 2]] = 1e300  # off the grid, one in each thread's part
+    results = []
+    try:
+        for threads in (1, 2):
+            numba.set_num_threads(threads)
+            n, x = np.arange(3 * count, dtype=np.int64), np.zeros(3 * count)
+            results.append((fixed.drift_uniform(count, n, x, v, 1e-3, 2.0**-30), n, x))
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    (one, n1, x1), (two, n2, x2) = results
+    assert one == two == (2, 900)
+    np.testing.assert_array_equal(n1, n2)
+    np.testing.assert_array_equal(x1, x2)
+    assert n1[3 * 10 + 1] == 3 * 10 + 1  # a value that would leave its grid stays
