@@ -132,7 +132,8 @@ def _by_size(n, *args):
 def by_size(loop, threshold=PARALLEL_FROM):
     """One compiled entry to a `prange` loop, called as f(n, *args): its parallel build for
     n >= threshold items when the calling thread computes with more than one thread
-    (`revdem_cli.threads`), its serial build otherwise. The one place the choice is made."""
+    (`revdem_cli.threads`), its serial build otherwise. The choice is made here and, alike, in
+    `by_parts`."""
     name = loop.__name__.lstrip("_")
     serial = jit(renamed(loop, name + "_serial"))
     parallel = pjit(renamed(loop, name + "_parallel"))
