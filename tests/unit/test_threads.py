@@ -91,15 +91,6 @@ def test_the_stepper_computes_on_the_thread_count_that_steps_faster(quick, slow,
     assert stepper.steps_with[fast] > 0.9 * 40000, stepper.steps_with
 
 
-def test_a_slow_first_call_is_not_taken_for_the_rate_of_its_thread_count(quick):
-    """One thread five times faster, but its first call slowed by a warm-up ten times a
-    step of two threads (a first call finds its code and its threads): the steps still go
-    to one thread."""
-    stepper, (_, reached, _, _), _ = step_with({1: 2e-5, 2: 1e-4}, 40000, first_call={1: 1e-3})
-    assert reached == 40000
-    assert stepper.steps_with[1] > 0.9 * 40000, stepper.steps_with
-
-
 def test_a_new_stage_times_its_thread_counts_afresh(quick):
     """A stage after one where two threads lost every trial: its first call on one thread
     is slowed by a warm-up (its code loaded), which is not taken for one thread's rate, so
