@@ -100,8 +100,7 @@ def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict
     from revdem_cli.stage import Model
     from revdem_cli.state import initial_state
 
-    warm = Scenario.model_validate(scenario_data(2, variant, 1, arithmetic))  # compile or load
-    loop_seconds(initial_state(warm), Model.of(warm), 1)
+    warm_up(variant, arithmetic)
     baseline = _rss("VmRSS")
     Path("/proc/self/clear_refs").write_text("5")  # peak memory from here on
     started = time.perf_counter()
@@ -134,31 +133,47 @@ def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict
 
 
 TURN = 20
-"""Steps of each turn of the interleaved runs (`arithmetic_cost`)."""
+"""Steps of each turn of runs stepped in turns (`in_turns`)."""
+
+
+def in_turns(runs: dict, steps: int) -> dict:
+    """Seconds of each of REPEATS stretches of `steps` steps of each run, the runs stepped in
+    turns of TURN steps in this process, so that all meet the same machine: runs[key](count,
+    last) steps a run `count` steps (`last`: the stretch's last turn) and returns its
+    seconds."""
+    seconds = {key: [0.0] * REPEATS for key in runs}
+    for stretch in range(REPEATS):
+        for turn in range(0, steps, TURN):
+            for key, step in runs.items():
+                seconds[key][stretch] += step(min(TURN, steps - turn), turn + TURN >= steps)
+    return seconds
+
+
+def warm_up(variant: str, arithmetic: str) -> None:
+    """Compile the stepping loop (or load it from the cache): one step of a small lattice."""
+    from revdem_cli.config import Scenario
+    from revdem_cli.stage import Model
+    from revdem_cli.state import initial_state
+
+    warm = Scenario.model_validate(scenario_data(2, variant, 1, arithmetic))
+    loop_seconds(initial_state(warm), Model.of(warm), 1)
 
 
 def arithmetic_cost(n: int, variant: str, steps: int) -> dict:
     """How much slower fixed-point arithmetic steps than floating point: a run of each from
-    one start in this process, stepped in turns of TURN steps, the best of REPEATS timings of
-    `steps` steps each."""
+    one start, stepped in turns (`in_turns`), the best of REPEATS timings of `steps` steps
+    each."""
     from revdem_cli.config import Scenario
     from revdem_cli.stage import Model
     from revdem_cli.state import initial_state
 
     runs = {}
     for arithmetic in ("float", "fixed"):
-        warm = Scenario.model_validate(scenario_data(2, variant, 1, arithmetic))
-        loop_seconds(initial_state(warm), Model.of(warm), 1)  # compile or load
+        warm_up(variant, arithmetic)
         scenario = Scenario.model_validate(scenario_data(n, variant, steps, arithmetic))
-        runs[arithmetic] = (initial_state(scenario), Model.of(scenario))
-    seconds = {arithmetic: [] for arithmetic in runs}
-    for _ in range(REPEATS):
-        took = dict.fromkeys(runs, 0.0)
-        for turn in range(0, steps, TURN):
-            for arithmetic, (state, model) in runs.items():
-                took[arithmetic] += loop_seconds(state, model, min(TURN, steps - turn))
-        for arithmetic in runs:
-            seconds[arithmetic].append(took[arithmetic])
+        state, model = initial_state(scenario), Model.of(scenario)
+        runs[arithmetic] = lambda count, last, s=state, m=model: loop_seconds(s, m, count)
+    seconds = in_turns(runs, steps)
     best = {arithmetic: min(each) for arithmetic, each in seconds.items()}
     return {
         "float_s_each": seconds["float"],

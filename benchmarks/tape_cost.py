@@ -12,9 +12,9 @@ with history the lattice's contacts start to slip after some 150 steps (n = 24),
 the tape's cost then grows with its entries; each timing's cost is reported beside the
 entries per step it recorded (`cost_each`, `entries_per_step_each`). The costs come from
 a process of their own that steps the run without the tape and the run with it in turns
-of TURN steps (`interleaved`), so that both meet the same machine: on a shared one the
-speed of separate processes moves by a tenth and more from minute to minute. `cost` is
-that of the benchmark's own steps, the first timing. Results: OUT/tape_cost.json.
+(`interleaved`, `fcc_hertz.in_turns`), so that both meet the same machine: on a shared
+one the speed of separate processes moves by a tenth and more from minute to minute.
+`cost` is that of the benchmark's own steps, the first timing. Results: OUT/tape_cost.json.
 
     NUMBA_NUM_THREADS=1 python benchmarks/tape_cost.py [--n 10 24]
 """
@@ -34,17 +34,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from fcc_hertz import REPEATS, STEPS, _rss, measured_apart, scenario_data  # noqa: E402
+from fcc_hertz import REPEATS, STEPS, _rss, in_turns, measured_apart, scenario_data  # noqa: E402
 
 
 def taped(n: int, variant: str, steps: int, tape: bool) -> dict:
     data = scenario_data(n, variant, steps, "fixed")
     data["reversal"] = {"tape": tape}
     return data
-
-
-TURN = 20
-"""Steps of each turn of the interleaved runs (`interleaved`)."""
 
 
 def stepped(state, model, steps: int, recorder, finish: bool = True) -> float:
@@ -135,15 +131,14 @@ def measure(n: int, variant: str, tape: bool) -> dict:
 
 def interleaved(n: int, variant: str) -> dict:
     """Seconds of each of REPEATS stretches of the benchmark's steps without the tape and
-    with it: two runs from one start in this process, stepped in turns of TURN steps, the
-    tape's writer finishing each stretch inside its time."""
+    with it: two runs from one start, stepped in turns (`fcc_hertz.in_turns`), the tape's
+    writer finishing each stretch inside its time."""
     from revdem_cli.config import Scenario
     from revdem_cli.io.tape import Recorder
     from revdem_cli.stage import Model
     from revdem_cli.state import initial_state
 
     steps = STEPS.get(n, 200)
-    seconds = {False: [0.0] * REPEATS, True: [0.0] * REPEATS}
     with tempfile.TemporaryDirectory() as folder:
         runs = {}
         for tape in (False, True):
@@ -152,14 +147,11 @@ def interleaved(n: int, variant: str) -> dict:
             state = initial_state(scenario)
             clock = (0, 0.0, 1.0e-6)
             recorder = Recorder(Path(folder) / "tape.h5", "run", clock, state) if tape else None
-            runs[tape] = (state, Model.of(scenario), recorder)
-        for stretch in range(REPEATS):
-            for turn in range(0, steps, TURN):
-                last = turn + TURN >= steps
-                for tape in (False, True):
-                    state, model, recorder = runs[tape]
-                    took = stepped(state, model, min(TURN, steps - turn), recorder, last)
-                    seconds[tape][stretch] += took
+            model = Model.of(scenario)
+            runs[tape] = lambda count, last, s=state, m=model, r=recorder: stepped(
+                s, m, count, r, last
+            )
+        seconds = in_turns(runs, steps)
     return {"without_s_each": seconds[False], "with_s_each": seconds[True]}
 
 
