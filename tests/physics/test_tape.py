@@ -323,11 +323,15 @@ def test_a_tape_in_small_blocks_streams_to_disk_and_back(tmp_path, monkeypatch):
 
 def test_a_step_with_more_entries_than_the_block_holds_is_recorded_again(tmp_path, monkeypatch):
     """A block with room for 2 entries: the first step that makes more overflows it, is
-    left out of the block written, and is recorded again once the block has grown; the tape
-    is the one a block with room to spare records, entry for entry, and still exact."""
-    roomy = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path / "roomy")
+    left out of the block written, and is recorded again once the block has grown (to room
+    for 64 steps of the most entries a step has made, not 1.5: the collision would then
+    write a block every step); the tape is the one a block with room to spare records,
+    entry for entry, and still exact."""
+    experiment = _fixed(_shear_collision(0.3), tape=True).changed({"stages.0.output_every": 1000})
+    roomy = revdem.run(experiment, tmp_path / "roomy")
     monkeypatch.setattr(tape_file, "MIN_ENTRIES", 2)
     monkeypatch.setattr(tape_file, "ENTRIES_PER_PARTICLE", 0)
+    monkeypatch.setattr(tape_file, "ROOM_FOR_STEPS", 64)
     retaken = []
     flush = tape_file.Recorder.flush
     monkeypatch.setattr(
@@ -335,7 +339,7 @@ def test_a_step_with_more_entries_than_the_block_holds_is_recorded_again(tmp_pat
         "flush",
         lambda r, **wait: flush(r, **wait) or retaken.append(r.retaking),
     )
-    cramped = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path / "cramped")
+    cramped = revdem.run(experiment, tmp_path / "cramped")
     assert cramped.comparison["bitwise_identical"]
     assert any(retaken)  # a step was recorded again
     name = "collision_shear.tape.h5"

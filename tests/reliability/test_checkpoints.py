@@ -34,12 +34,12 @@ CASES = {
     # two spheres forward then reversed: kills land in either phase
     "collision": (
         CONFIGS / "smoke" / "collision.yaml",
-        ["stages.0.steps=60000", "stages.0.output_every=500"],
+        ["stages.0.steps=60000", "stages.0.output_every=1500"],
     ),
     # the same in fixed-point arithmetic, whose round trip is bit for bit
     "collision_fixed": (
         CONFIGS / "smoke" / "collision.yaml",
-        ["stages.0.steps=60000", "stages.0.output_every=500", "integrator.arithmetic=fixed"],
+        ["stages.0.steps=60000", "stages.0.output_every=1500", "integrator.arithmetic=fixed"],
     ),
     # 4 stages: packing, pour with local damping and a stop condition, moving platen, reversal
     "oedometer": (CONFIGS / "smoke" / "oedometer.toml", []),
