@@ -368,8 +368,8 @@ def advance(
             tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step - 1, first
         )
     # the bundles go to each call as they are: a tuple of them built at each step would take
-    # and give back a reference to each of their arrays, an atomic update each (about 150
-    # a step, of the 1 400 that make three quarters of a two-sphere step's 11 us)
+    # and give back a reference to each of their arrays, an atomic update each (with two
+    # spheres, 360 of the 1 390 updates a step; ARCHITECTURE.md, per-step calls)
     while step != until:
         if stepping.halt[0] != 0:
             return HALTED, step, rows, finding
