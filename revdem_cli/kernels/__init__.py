@@ -124,7 +124,7 @@ SERIAL = PARALLEL = FROM = None  # the globals `_by_size` sees as constants in e
 
 
 def _by_size(n, *args):
-    if n >= FROM and threads_here() > 1:
+    if threads_for(n, FROM) > 1:
         return PARALLEL(*args)
     return SERIAL(*args)
 
@@ -132,8 +132,8 @@ def _by_size(n, *args):
 def by_size(loop, threshold=PARALLEL_FROM):
     """One compiled entry to a `prange` loop, called as f(n, *args): its parallel build for
     n >= threshold items when the calling thread computes with more than one thread
-    (`revdem_cli.threads`), its serial build otherwise. The choice is made here and, alike, in
-    `by_parts`."""
+    (`revdem_cli.threads`), its serial build otherwise (`threads_for`, which `by_parts` asks
+    too)."""
     name = loop.__name__.lstrip("_")
     serial = jit(renamed(loop, name + "_serial"))
     parallel = pjit(renamed(loop, name + "_parallel"))
@@ -155,7 +155,7 @@ def _over_parts(parts, *args):
 
 
 def _in_parts(n, *args):
-    parts = threads_here() if n >= FROM else 1
+    parts = threads_for(n, FROM)
     if parts > 1:
         return PARALLEL(parts, *args)
     return PART(0, args[0].shape[0], *args)
@@ -165,11 +165,11 @@ def by_parts(part, threshold=PARALLEL_FROM):
     """One compiled entry to a loop over the items of its first array, each item on its
     own, written over a range of them: part(begin, end, *args) -> (items that left their
     range, the last of them or -1). Called as f(n, *args), n the particles: at n >= threshold
-    with more than one thread (`by_size`'s choice) the items are cut into one contiguous
-    part a thread, each run by the serial build, else all at once. A `prange` over single
-    items is not vectorised by LLVM where it counts and keeps its reductions (the fixed-point
-    drift at n = 24 fcc: 4.0-6.1 ns a sphere on two threads, against 2.5 on one); each part
-    is."""
+    with more than one thread (`threads_for`, as `by_size` chooses) the items are cut into
+    one contiguous part a thread, each run by the serial build, else all at once. A `prange`
+    over single items is not vectorised by LLVM where it counts and keeps its reductions
+    (the fixed-point drift at n = 24 fcc: 4.0-6.1 ns a sphere on two threads, against 2.5 on
+    one); each part is."""
     name = part.__name__.lstrip("_")
     serial = jit(part)
     parallel = pjit(renamed(_over_parts, name + "_parallel", PART=serial))
@@ -241,6 +241,14 @@ def threads_here(typingctx):
         return builder.sext(builder.call(get, []), context.get_value_type(numba.types.intp))
 
     return numba.types.intp(), codegen
+
+
+@inline
+def threads_for(n, threshold):
+    """The threads a loop over n items computes with: those of the calling thread
+    (`threads_here`) from `threshold` items on, one below; the one place `by_size` and
+    `by_parts` choose."""
+    return threads_here() if n >= threshold else 1
 
 
 @intrinsic
