@@ -63,6 +63,7 @@ class Model:
     moduli: Moduli
     dynamics: Dynamics
     skin: float
+    solid_volume: float  # of all the spheres, m^3
 
     @classmethod
     def of(cls, scenario: Scenario) -> Model:
@@ -72,6 +73,7 @@ class Model:
             moduli(scenario),
             dynamics(scenario),
             default_skin(scenario),
+            float((4.0 / 3.0 * np.pi * scenario.spheres.radius**3).sum()),
         )
 
     def stepping(
@@ -128,11 +130,6 @@ class Model:
             scenario.solid_fraction is not None,
             scenario.reversal.tape,
         )
-
-    @cached_property
-    def solid_volume(self) -> float:
-        """Volume of all the spheres, m^3."""
-        return float((4.0 / 3.0 * np.pi * self.scenario.spheres.radius**3).sum())
 
     def wall_index(self, name: str) -> int:
         return [wall.name for wall in self.scenario.walls].index(name)

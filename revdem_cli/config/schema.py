@@ -746,6 +746,12 @@ class Scenario(_Model):
             self._spheres = generate(self)
         return self._spheres
 
+    def forget_spheres(self) -> None:
+        """Drop the generated spheres, once a state holds them (`state.initial_state`), so that
+        a run does not keep their starting positions and velocities twice; they are generated
+        again if asked for."""
+        self._spheres = None
+
     @property
     def reversed_stage(self) -> Stage | None:
         return next((stage for stage in self.stages if stage.reverse), None)

@@ -287,8 +287,7 @@ def float_model(model: Model) -> Model:
     `Model.during`)."""
     scenario = model.scenario
     integrator = scenario.integrator.model_copy(update={"arithmetic": "float"})
-    floating = Model.of(scenario.model_copy(update={"integrator": integrator}))
-    return replace(floating, law=model.law)
+    return replace(model, scenario=scenario.model_copy(update={"integrator": integrator}))
 
 
 def _at_rest_copy(state: State, model: Model) -> State:
