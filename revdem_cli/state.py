@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import ctypes
 import math
 from dataclasses import dataclass
 
@@ -29,6 +28,7 @@ from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, rebuild_pairs
 from revdem_cli.kernels.neighbours import build_pairs
 from revdem_cli.kernels.pairs import MISSED_COLUMNS, empty_blocks
 from revdem_cli.kernels.sums import empty_partials
+from revdem_cli.memory import release_freed_memory, untouched
 
 
 def youngs_modulus(material: Material) -> float:
@@ -261,11 +261,11 @@ def empty_pairs(
         rolled=np.zeros(per_rolling),
         normal_new=np.zeros((per_shear if reversing else 0, 3)),
         normal=np.zeros((per_shear if turning else 0, 3)),
-        earlier=np.zeros((per_shear if predicting else 0, MISSED_COLUMNS)),
-        first=np.zeros(n_particles + 1, dtype=np.int64),
-        start=np.zeros(n_particles + 1, dtype=np.int64),
+        earlier=untouched((per_shear if predicting else 0, MISSED_COLUMNS)),
+        first=np.zeros(n_particles + 1, dtype=np.int32),
+        start=np.zeros(n_particles + 1, dtype=np.int32),
         slots=np.zeros(capacity, dtype=np.int32),
-        x_built=np.zeros((n_particles, 3)),
+        x_built=np.zeros((n_particles, 3), dtype=np.float32),
         blocks=empty_blocks(numba.config.NUMBA_NUM_THREADS),
         partials=empty_partials(n_particles),
     )
@@ -495,20 +495,6 @@ def initial_state(scenario: Scenario) -> State:
     scenario.forget_spheres()  # the state's now
     release_freed_memory()
     return state
-
-
-def release_freed_memory() -> None:
-    """Give the pages of freed memory back to the system (glibc's `malloc_trim`). A state is
-    built through temporaries of its own size (the spheres generated, the pair list found
-    twice); glibc's allocator keeps the pages they leave for its next allocations, so that
-    they stay resident and add to a run's peak memory: 90 B a sphere on the fcc benchmark
-    (n = 24, history). Other C libraries have no such call, and nothing here to give back."""
-    trim = getattr(_LIBC, "malloc_trim", None)
-    if trim is not None:
-        trim(0)
-
-
-_LIBC = ctypes.CDLL(None)
 
 
 def default_skin(scenario: Scenario) -> float:

@@ -7,8 +7,9 @@ most entries a step has made so far), and a thread of its own appends the block 
 while the loop fills a fresh one. The block holds one entry a particle (at least
 MIN_ENTRIES) and grows only for a step that needs more: that step's entries are then
 recorded again (`Recorder.flush`). Blocks lie on pages mapped for them alone
-(`_untouched`), which take memory only where entries are written and go back to the system
-once written out, so that the tape holds about two steps' entries however large its blocks.
+(`memory.untouched`), which take memory only where entries are written and go back to the
+system once written out, so that the tape holds about two steps' entries however large its
+blocks.
 Layout (HDF5, every dataset chunked, shuffled and compressed with Zstandard through
 hdf5plugin):
 
@@ -27,7 +28,6 @@ which `summary` sets the tape beside), `compared` and `mechanisms`. Going backwa
 
 from __future__ import annotations
 
-import mmap
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -45,6 +45,7 @@ from revdem_cli.kernels.tape import (
     Tape,
     predictable,
 )
+from revdem_cli.memory import release, untouched
 
 SCHEMA_VERSION = 1
 STEPS_PER_BLOCK = 4096
@@ -192,17 +193,9 @@ class _Buffers:
     def renew(self, capacity: int) -> None:
         """A fresh block of room for `capacity` entries, the one before left to whoever holds
         it (the writer thread)."""
-        self.what = _untouched(capacity, np.int8)
-        self.where = _untouched(capacity, np.int64)
-        self.amount = _untouched(capacity, np.int64)
-
-
-def _untouched(count: int, dtype) -> np.ndarray:
-    """`count` zeros of `dtype` on anonymously mapped pages of their own: resident only where
-    written, and unmapped when the array is dropped (not kept by the allocator, which holds
-    freed blocks of this size for the next and so would hold several blocks' pages)."""
-    size = count * np.dtype(dtype).itemsize
-    return np.frombuffer(mmap.mmap(-1, max(size, 1)), dtype=dtype, count=count)
+        self.what = untouched(capacity, np.int8)
+        self.where = untouched(capacity, np.int64)
+        self.amount = untouched(capacity, np.int64)
 
 
 def _like(copies: tuple, arrays: tuple) -> tuple:
@@ -273,8 +266,15 @@ class Recorder:
 
     def bundle(self, state, events, law, dyn) -> Tape:
         """The tape the stepping loop records into, under the stage's contact law and
-        dynamics: by prediction where they allow it (`kernels.tape.predictable`)."""
+        dynamics: by prediction where they allow it (`kernels.tape.predictable`). The pages
+        of the list of histories the reversal would miss (`Pairs.earlier`) go back to the
+        system first, unless a step is to be recorded again from it, so that the list takes
+        memory for the rows of one call, not for the most each chunk of the pairs has listed
+        in any call: where the contacts of one part of a packing slide before another's,
+        that nearly doubled it on two threads."""
         predicting = predictable(state.particles, state.pairs, state.walls, state.cell, law, dyn)
+        if predicting and not self.retaking:  # the list the last call predicted from is spent
+            release(state.pairs.earlier)
         return self.buffers.bundle(state, events, RECORD, predicting)
 
     def flush(self, wait: bool = False) -> None:

@@ -58,10 +58,13 @@ Pairs = namedtuple(
         # the reversed step would miss at the earlier positions, listed by a forward pair
         # loop that predicts it (`kernels.tape.predict`; columns `pairs.MISSED` to
         # `pairs.SPACING`), (P, 8): only the rows listed are written
-        "first",  # the pairs (q, j) of particle q are slots first[q] to first[q + 1], (N + 1,)
-        "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, (N + 1,)
+        "first",  # the pairs (q, j) of particle q are slots first[q] to first[q + 1], int32
+        # (N + 1,)
+        "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, int32
+        # (N + 1,)
         "slots",  # the slots of the pairs (p, q) of each particle q, ascending in p, int32 (P,)
-        "x_built",  # positions at the last build, m, (N, 3)
+        "x_built",  # positions at the last build, single precision (a rebuild's test allows
+        # for it: `neighbours.BUILT_ROUNDING`), m, float32 (N, 3)
         "blocks",  # working rows of the pair loop, one block per chunk of the list (forces.py)
         "partials",  # partial sums of each block of particles (sums.py)
     ],

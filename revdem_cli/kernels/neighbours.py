@@ -238,23 +238,35 @@ def index_by_particle(pair_i, pair_j, n_pairs, first, start, slots):
         fill[pair_j[k]] += 1
 
 
+BUILT_ROUNDING = 2.0**-23
+"""At most how far, relative, a position at the last build lies from its single-precision
+copy (`Pairs.x_built`, rounded to nearest: 2^-24), with room for the product that carries it
+with the cell."""
+
+
 def _largest_reach(x, x_built, v, f, inv_mass, dt, direction, length, built):
     """Largest distance a particle can be from its position at the last build, carried with
     the cell, after the next drift: |x - x_built L / L_built| + dt |v + direction dt/2 f/m|
-    (half-step velocity, Hanley 2020 Eq 1)."""
+    (half-step velocity, Hanley 2020 Eq 1), plus how far x_built, single precision, can be
+    from the position it was (`BUILT_ROUNDING`)."""
     r0 = length[0] / built[0]
     r1 = length[1] / built[1]
     r2 = length[2] / built[2]
     worst = 0.0
     for p in numba.prange(x.shape[0]):
-        d0 = x[p, 0] - x_built[p, 0] * r0
-        d1 = x[p, 1] - x_built[p, 1] * r1
-        d2 = x[p, 2] - x_built[p, 2] * r2
+        b0 = x_built[p, 0] * r0
+        b1 = x_built[p, 1] * r1
+        b2 = x_built[p, 2] * r2
+        d0 = x[p, 0] - b0
+        d1 = x[p, 1] - b1
+        d2 = x[p, 2] - b2
+        rounding = BUILT_ROUNDING * (abs(b0) + abs(b1) + abs(b2))
         step = 0.0
         for d in range(3):
             vh = v[p, d] + direction * 0.5 * dt * f[p, d] * inv_mass[p]
             step += vh * vh
-        worst = max(worst, math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) + dt * math.sqrt(step))
+        moved = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) + rounding
+        worst = max(worst, moved + dt * math.sqrt(step))
     return worst
 
 

@@ -40,6 +40,7 @@ from revdem_cli.kernels.contact import (
     rolling_moment,
 )
 from revdem_cli.kernels.fixed import magnitude_bits, snapped_in_range
+from revdem_cli.kernels.information import grid_bits, ordered
 from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
 
 STREAM_FROM = 200_000
@@ -119,13 +120,15 @@ SPACING_THEN = 54  # and the grid step of the pair's history there
 ROWS = 55
 
 MISSED = 0  # `Pairs.earlier`: the slot of a pair whose earlier history the reversal misses
-WAS = 1  # the history it had at the earlier positions: 3 columns
-FOUND = 4  # the one the reversed step would find there: 3 columns
-SPACING = 7  # the grid step of its history there
-MISSED_COLUMNS = 8
+AMOUNT = 1  # the tape's entry of each axis: the history it had at the earlier positions
+# less the one the reversed step would find there, in doubles (`information.ordered`),
+# int64 bits: 3 columns
+BITS = 4  # the bits of each entry on the history's grid there (`information.grid_bits`): 3
+MISSED_COLUMNS = 7
 """Columns of `Pairs.earlier`, each chunk of the list's pairs (`pair_loop`) listing from its
 first slot on those whose history the reversed step would miss, in slot order, ended by a
-MISSED of -1 where they are fewer than the chunk's pairs."""
+MISSED of -1 where they are fewer than the chunk's pairs. What the tape records of them is
+found here, so that a row holds only that: 56 B."""
 
 
 def empty_blocks(chunks: int) -> np.ndarray:
@@ -356,22 +359,20 @@ def snap_forces(block, size, step):
 
 
 @inline
-def enter_row(a, k, column, vector):
-    """Columns `column` to `column` + 2 of row k of `a` <- the 3-vector."""
-    a[k, column], a[k, column + 1], a[k, column + 2] = vector
-
-
-@inline
 def list_missed(earlier, listed, slot, was, found, spacing):
     """Row `listed` of `Pairs.earlier` <- pair `slot`, where the history the reversed step
-    would find, `found`, is not bit for bit the one it had, `was` (and its grid step
-    `spacing`); returns the next row."""
+    would find, `found`, is not bit for bit the one it had, `was`: each axis's entry and its
+    bits on the grid of step `spacing` (0 where the axis is found); returns the next row."""
     for d in range(3):
         if np.float64(was[d]).view(np.int64) != np.float64(found[d]).view(np.int64):
             earlier[listed, MISSED] = slot
-            enter_row(earlier, listed, WAS, was)
-            enter_row(earlier, listed, FOUND, found)
-            earlier[listed, SPACING] = spacing
+            for axis in range(3):
+                had = np.float64(was[axis]).view(np.int64)
+                now = np.float64(found[axis]).view(np.int64)
+                amount = ordered(had) - ordered(now)
+                earlier[listed, AMOUNT + axis] = np.int64(amount).view(np.float64)
+                bits = grid_bits(had, now, spacing) if amount != 0 else 0.0
+                earlier[listed, BITS + axis] = bits
             return listed + 1
     return listed
 

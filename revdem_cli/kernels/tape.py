@@ -54,7 +54,8 @@ from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import inline, inline_arrays, jit
 from revdem_cli.kernels.cell import deforms
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law
-from revdem_cli.kernels.pairs import FOUND, MISSED, SPACING, WAS
+from revdem_cli.kernels.information import bits_of, grid_bits, ordered, unordered
+from revdem_cli.kernels.pairs import AMOUNT, BITS, MISSED
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -141,36 +142,6 @@ Tape = namedtuple(
 label n, and the reversed step to n applies it. The helpers of one entry take no bundle, and
 those that take arrays are inlined by numba (`inline_arrays`): a compiled call pays a
 reference-count update for each array it receives, which would cost more than the entry."""
-
-
-@inline
-def ordered(bits):
-    """The bits of a double as an integer in the order of the doubles: consecutive doubles
-    are consecutive integers, -0.0 is -1 and +0.0 is 0."""
-    return bits if bits >= 0 else ~(bits & np.int64(0x7FFFFFFFFFFFFFFF))
-
-
-@inline
-def unordered(number):
-    """The bits of the double that `ordered` numbers so."""
-    return number if number >= 0 else (~number) | np.int64(-0x8000000000000000)
-
-
-@inline
-def bits_of(amount):
-    """log2(1 + 2|amount|): the bits that tell an integer from the others of at most its size."""
-    return np.log2(1.0 + 2.0 * abs(float(amount)))
-
-
-@inline
-def grid_bits(was, now, step):
-    """log2(1 + 2|was - now| / step): the bits of a history entry (the doubles' bits `was`
-    and `now`) on its contact's grid of `step`; with no grid (step 0, a contact apart), as
-    `bits_of` counts doubles."""
-    if step == 0.0:
-        return bits_of(ordered(was) - ordered(now))
-    apart = abs(np.int64(was).view(np.float64) - np.int64(now).view(np.float64))
-    return np.log2(1.0 + 2.0 * apart / step)
 
 
 @inline
@@ -457,8 +428,8 @@ def predict(tape, p, pairs, law):
     """Record the entries of the forward step just taken (S_n to S_{n+1}) of a run whose
     reversal finds all but the pairs' shear histories again (`predictable`), with no shadow
     reversal: of each pair the forward pair loop listed in `Pairs.earlier`
-    (`pairs.list_missed`), the history it had at S_n against the one the reversed step
-    would find there (`contact.earlier_shear`), the list left as it is, so that a step can
+    (`pairs.list_missed`), the history it had at S_n less the one the reversed step would
+    find there (`contact.earlier_shear`) and its bits, the list left as it is, so that a step can
     be recorded again. What it records is what the shadow reversal would, entry for entry
     and bit for bit."""
     if law.tangential == NO_SHEAR:
@@ -478,13 +449,11 @@ def predict(tape, p, pairs, law):
             tape.contacts[label, cause] += 1
             key = _keyed(pairs.i[k], pairs.j[k], n)
             for axis in range(3):
-                was = np.float64(listed[row, WAS + axis]).view(np.int64)
-                found = np.float64(listed[row, FOUND + axis]).view(np.int64)
-                if was == found:
+                amount = np.float64(listed[row, AMOUNT + axis]).view(np.int64)
+                if amount == 0:
                     continue
-                used = _entry(tape.what, tape.where, tape.amount, used, SHEAR, key + axis,
-                              ordered(was) - ordered(found))  # fmt: skip
-                tape.bits[label, cause] += grid_bits(was, found, listed[row, SPACING])
+                used = _entry(tape.what, tape.where, tape.amount, used, SHEAR, key + axis, amount)
+                tape.bits[label, cause] += listed[row, BITS + axis]
     tape.span[2] = used
 
 

@@ -13,7 +13,8 @@ from revdem_cli import api as revdem
 from revdem_cli.errors import InputError, RunFailed
 from revdem_cli.io import tape as tape_file
 from revdem_cli.io.tape import summary
-from revdem_cli.kernels.tape import COMPARED, MECHANISMS, ordered, unordered
+from revdem_cli.kernels.information import ordered, unordered
+from revdem_cli.kernels.tape import COMPARED, MECHANISMS
 from tests.conftest import FLOOR, PLANE, SPHERE, crashed_after
 
 
