@@ -3,7 +3,12 @@ import pytest
 
 from revdem_cli.io.tape import no_tape
 from revdem_cli.kernels import PARALLEL_FROM
-from revdem_cli.kernels.neighbours import build_pairs, carry_history, index_by_particle
+from revdem_cli.kernels.neighbours import (
+    build_pairs,
+    carry_history,
+    index_by_particle,
+    largest_reach,
+)
 
 OPEN = (np.zeros(3, np.int64), np.ones(3))
 
@@ -78,6 +83,20 @@ def test_history_follows_its_pair_across_rebuilds_in_place():
         carry_history(old_i, old_j, len(old), new_i, new_j, len(new), history)
         for m, pair in enumerate(new_pairs):
             np.testing.assert_array_equal(history[m], before.get(pair, np.zeros(3)))
+
+
+def test_the_reach_allows_for_the_single_precision_of_the_positions_at_the_build():
+    """A sphere built at 1 + 3 2^-26 m, which single precision rounds to 1 m, has moved
+    3 2^-26 m when it reaches 1 m: the reach says at least that, not the 0 of the rounded
+    copy, so that the list is rebuilt before a contact can be missed."""
+    built_at = np.array([[1.0 + 3 * 2.0**-26, 0.5, 0.5]])
+    x_built = built_at.astype(np.float32)
+    assert x_built[0, 0] == 1.0  # rounded towards where the sphere goes
+    x = np.array([[1.0, 0.5, 0.5]])
+    still = np.zeros((1, 3))
+    edges = np.ones(3)
+    reach = largest_reach(1, x, x_built, still, still, np.ones(1), 0.0, 1, edges, edges)
+    assert reach >= built_at[0, 0] - x[0, 0] > 0.0
 
 
 def test_each_particle_lists_its_pairs_in_partner_order():
