@@ -27,11 +27,18 @@ def bits_of(amount):
 
 
 @inline
-def grid_bits(was, now, step):
-    """log2(1 + 2|was - now| / step): the bits of a history entry (the doubles' bits `was`
-    and `now`) on its contact's grid of `step`; with no grid (step 0, a contact apart), as
-    `bits_of` counts doubles."""
+def grid_spread(was, now, step):
+    """2|was - now| / step, where a history entry (the doubles' bits `was` and `now`) lies
+    on its contact's grid of `step`; with no grid (step 0, a contact apart), 2|amount| in
+    doubles (as `bits_of`): what `grid_bits` takes the logarithm of."""
     if step == 0.0:
-        return bits_of(ordered(was) - ordered(now))
+        return 2.0 * abs(float(ordered(was) - ordered(now)))
     apart = abs(np.int64(was).view(np.float64) - np.int64(now).view(np.float64))
-    return np.log2(1.0 + 2.0 * apart / step)
+    return 2.0 * apart / step
+
+
+@inline
+def grid_bits(was, now, step):
+    """log2(1 + 2|was - now| / step): the bits of a history entry on its contact's grid
+    (`grid_spread`)."""
+    return np.log2(1.0 + grid_spread(was, now, step))

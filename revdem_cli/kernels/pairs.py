@@ -40,7 +40,7 @@ from revdem_cli.kernels.contact import (
     rolling_moment,
 )
 from revdem_cli.kernels.fixed import magnitude_bits, snapped_in_range
-from revdem_cli.kernels.information import grid_bits, ordered
+from revdem_cli.kernels.information import grid_spread, ordered
 from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
 
 STREAM_FROM = 200_000
@@ -123,7 +123,8 @@ MISSED = 0  # `Pairs.earlier`: the slot of a pair whose earlier history the reve
 AMOUNT = 1  # the tape's entry of each axis: the history it had at the earlier positions
 # less the one the reversed step would find there, in doubles (`information.ordered`),
 # int64 bits: 3 columns
-BITS = 4  # the bits of each entry on the history's grid there (`information.grid_bits`): 3
+SPREAD = 4  # how far apart on the history's grid there (`information.grid_spread`, whose
+# bits `tape.predict` counts): 3 columns
 MISSED_COLUMNS = 7
 """Columns of `Pairs.earlier`, each chunk of the list's pairs (`pair_loop`) listing from its
 first slot on those whose history the reversed step would miss, in slot order, ended by a
@@ -361,8 +362,9 @@ def snap_forces(block, size, step):
 @inline
 def list_missed(earlier, listed, slot, was, found, spacing):
     """Row `listed` of `Pairs.earlier` <- pair `slot`, where the history the reversed step
-    would find, `found`, is not bit for bit the one it had, `was`: each axis's entry and its
-    bits on the grid of step `spacing` (0 where the axis is found); returns the next row."""
+    would find, `found`, is not bit for bit the one it had, `was`: each axis's entry and how
+    far apart the two lie on the grid of step `spacing` (0 where the axis is found; no
+    logarithm here, which would put a call in the pair loop); returns the next row."""
     for d in range(3):
         if np.float64(was[d]).view(np.int64) != np.float64(found[d]).view(np.int64):
             earlier[listed, MISSED] = slot
@@ -371,8 +373,8 @@ def list_missed(earlier, listed, slot, was, found, spacing):
                 now = np.float64(found[axis]).view(np.int64)
                 amount = ordered(had) - ordered(now)
                 earlier[listed, AMOUNT + axis] = np.int64(amount).view(np.float64)
-                bits = grid_bits(had, now, spacing) if amount != 0 else 0.0
-                earlier[listed, BITS + axis] = bits
+                spread = grid_spread(had, now, spacing) if amount != 0 else 0.0
+                earlier[listed, SPREAD + axis] = spread
             return listed + 1
     return listed
 

@@ -55,7 +55,7 @@ from revdem_cli.kernels import inline, inline_arrays, jit
 from revdem_cli.kernels.cell import deforms
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law
 from revdem_cli.kernels.information import bits_of, grid_bits, ordered, unordered
-from revdem_cli.kernels.pairs import AMOUNT, BITS, MISSED
+from revdem_cli.kernels.pairs import AMOUNT, MISSED, SPREAD
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -429,7 +429,8 @@ def predict(tape, p, pairs, law):
     reversal finds all but the pairs' shear histories again (`predictable`), with no shadow
     reversal: of each pair the forward pair loop listed in `Pairs.earlier`
     (`pairs.list_missed`), the history it had at S_n less the one the reversed step would
-    find there (`contact.earlier_shear`) and its bits, the list left as it is, so that a step can
+    find there (`contact.earlier_shear`) and its bits (`information.grid_bits`, from the
+    spread the list holds), the list left as it is, so that a step can
     be recorded again. What it records is what the shadow reversal would, entry for entry
     and bit for bit."""
     if law.tangential == NO_SHEAR:
@@ -453,7 +454,7 @@ def predict(tape, p, pairs, law):
                 if amount == 0:
                     continue
                 used = _entry(tape.what, tape.where, tape.amount, used, SHEAR, key + axis, amount)
-                tape.bits[label, cause] += listed[row, BITS + axis]
+                tape.bits[label, cause] += np.log2(1.0 + listed[row, SPREAD + axis])
     tape.span[2] = used
 
 
