@@ -57,7 +57,8 @@ Pairs = namedtuple(
         "earlier",  # a run with the information tape and shear: the pairs whose shear history
         # the reversed step would miss at the earlier positions, listed by a forward pair
         # loop that predicts it (`kernels.tape.predict`; columns `pairs.MISSED` to
-        # `pairs.SPACING`), (P, 8): only the rows listed are written
+        # `pairs.SPREAD`), (P, 7), on private pages of its own (`memory.untouched`): only the
+        # rows listed are written, and its pages go back before each call (`io.tape.Recorder`)
         "first",  # the pairs (q, j) of particle q are slots first[q] to first[q + 1], int32
         # (N + 1,)
         "start",  # CSR offsets into `slots` of each particle's pairs (p, q), p < q, int32
