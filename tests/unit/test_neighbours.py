@@ -101,7 +101,7 @@ def test_the_reach_allows_for_the_single_precision_of_the_positions_at_the_build
 
 def test_each_particle_lists_its_pairs_in_partner_order():
     pi, pj = np.array([0, 0, 1, 2], np.int32), np.array([1, 3, 2, 3], np.int32)
-    first, start, slots = np.zeros(5, np.int64), np.zeros(5, np.int64), np.zeros(4, np.int32)
+    first, start, slots = np.zeros(5, np.int32), np.zeros(5, np.int32), np.zeros(4, np.int32)
     index_by_particle(pi, pj, 4, first, start, slots)
     below = [slots[start[p] : start[p + 1]].tolist() for p in range(4)]
     above = [list(range(first[p], first[p + 1])) for p in range(4)]
