@@ -5,7 +5,8 @@ The pair loop works in blocks of BLOCK pairs, so that LLVM can vectorise the con
 physics (AVX-512: eight pairs at a time). A block is ROWS x BLOCK doubles, a row per
 quantity and a column per pair, and goes through three stages:
 - gather: each pair's separation, radii, moduli, velocities and history into its column
-  (scalar: the particles' rows are scattered in memory);
+  (scalar: the particles' rows are scattered in memory), then the separations' nearest
+  periodic images in a vector loop of their own (`to_nearest_images`);
 - contact stage: `contact.contact_force` and its geometry and kinematics, column by column,
   reading and writing the block only, so the loop is elementwise over contiguous rows (with
   the spin correction's cos and sin as their series; a block where some angle is too large
