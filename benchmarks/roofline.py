@@ -2,7 +2,8 @@
 loop, against the memory traffic each loop cannot avoid: a roofline of the stepping loop.
 
 Each loop of a forward step is timed alone on the benchmark's state (one thread, best of
-REPEATS): the pair loop, the gather (the net force of each sphere and its second half kick),
+REPEATS): the pair loop (in floating point with the sums of each sphere's
+forces: `pairs.sum_in_order`), the gather (the net force of each sphere and its half kick),
 the first half kick, the drift (in fixed-point arithmetic with the positions the integers
 give), and the check for a rebuild of the pair list; the rest of the step is what the whole
 step takes beyond them. Beside each loop, the bytes it must move at least, each array it
@@ -56,9 +57,12 @@ def _best(call, times: int) -> float:
     return min(_timed(lambda: [call() for _ in range(times)]) for _ in range(REPEATS)) / times
 
 
-def traffic(state) -> dict[str, int]:
+def traffic(state, summed: bool) -> dict[str, int]:
     """The bytes each loop must move at least (see the module docstring): the arrays it
-    reads, and those it writes, each once (the pair arrays as far as the list goes)."""
+    reads, and those it writes, each once (the pair arrays as far as the list goes). Where
+    the pair loop `summed` the particles' forces and moments (one thread, floating point:
+    `pairs.sum_in_order`), it writes those and no pair forces, n x f or overlaps, and the
+    gather reads no pair arrays."""
     p, pairs, fixed = state.particles, state.pairs, state.fixed
     count = int(pairs.count[0])
     listed = [a[:count] for a in (pairs.i, pairs.j, pairs.force, pairs.slots)]
@@ -71,13 +75,18 @@ def traffic(state) -> dict[str, int]:
     pair_reads = [i, j, p.x, p.radius, p.material]
     pair_writes = [force]
     gather_reads = [pairs.first, pairs.start, slots, force, p.mass, p.inv_mass, p.v]
+    if summed:
+        pair_reads.append(p.mass)
+        pair_writes = [p.f]
+        gather_reads = [pairs.first, pairs.start, p.f, p.inv_mass, p.v]
     gather_writes = [p.f, p.v]
     kick_reads, kick_writes = [p.f, p.inv_mass, p.v], [p.v]
     drift_reads, drift_writes = [p.v, p.x], [p.x]
     if shear:
         pair_reads += [p.v, p.omega, history]
-        pair_writes += [history, kept, overlap, destroyed]
-        gather_reads += [kept, overlap, p.radius, p.inv_inertia, p.omega]
+        pair_writes += [history, destroyed] + ([p.torque] if summed else [kept, overlap])
+        gather_reads += [p.torque] if summed else [kept, overlap, p.radius]
+        gather_reads += [p.inv_inertia, p.omega]
         gather_writes += [p.torque, p.omega]
         kick_reads += [p.torque, p.inv_inertia, p.omega]
         kick_writes += [p.omega]
@@ -141,10 +150,11 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
     length = cell.length
     image = (length[0], length[1], length[2], 1 / length[0], 1 / length[1], 1 / length[2])
     count = len(p.x)
-    largest = pair_loop(count, *particle_args, image, *pair_args)[1]  # what the gather sums by
+    pair_call = (*particle_args, image, *pair_args, False)  # as between observables rows
+    _, largest, summed = pair_loop(count, *pair_call)  # what the gather takes
     seconds = {
-        "pair loop": _best(lambda: pair_loop(count, *particle_args, image, *pair_args), STEPS),
-        "gather": _best(lambda: gather_loop(count, *gather_args, largest), STEPS),
+        "pair loop": _best(lambda: pair_loop(count, *pair_call), STEPS),
+        "gather": _best(lambda: gather_loop(count, *gather_args, largest, summed), STEPS),
         "first half kick": _best(lambda: kick_particles(p, fixed, law, 0.0), STEPS),
         "drift": _best(lambda: drift(p, cell, fixed, 0.0, events, state.step), STEPS),
         "rebuild check": _best(lambda: needs_rebuild(p, pairs, cell, dt, skin, 1), STEPS),
@@ -159,7 +169,7 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
         "step_s": step_s,
         "particle_steps_per_s": count / step_s,
         "seconds": seconds,
-        "bytes": traffic(state),
+        "bytes": traffic(state, summed),
     }
 
 

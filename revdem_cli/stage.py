@@ -284,6 +284,7 @@ def run_stage(
             0.0,
             empty_events(),
             state.step,
+            True,  # the pair arrays: read by the stage's first row
         )
     every = clock.stage.observable_interval
     buffer, buffer_steps = model.buffers(clock.stage.output_every // every + 2)

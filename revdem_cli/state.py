@@ -491,6 +491,7 @@ def initial_state(scenario: Scenario) -> State:
         0.0,
         empty_events(),
         0,
+        True,  # the pair arrays: read by the first frame
     )
     scenario.forget_spheres()  # the state's now
     release_freed_memory()

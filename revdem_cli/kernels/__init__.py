@@ -129,13 +129,14 @@ def _by_size(n, *args):
     return SERIAL(*args)
 
 
-def by_size(loop, threshold=PARALLEL_FROM):
+def by_size(loop, threshold=PARALLEL_FROM, **serial_constants):
     """One compiled entry to a `prange` loop, called as f(n, *args): its parallel build for
     n >= threshold items when the calling thread computes with more than one thread
     (`revdem_cli.threads`), its serial build otherwise (`threads_for`, which `by_parts` asks
-    too)."""
+    too); the serial build sees `serial_constants` in place of its module's globals
+    (`renamed`)."""
     name = loop.__name__.lstrip("_")
-    serial = jit(renamed(loop, name + "_serial"))
+    serial = jit(renamed(loop, name + "_serial", **serial_constants))
     parallel = pjit(renamed(loop, name + "_parallel"))
     return jit(renamed(_by_size, name, SERIAL=serial, PARALLEL=parallel, FROM=threshold))
 

@@ -62,6 +62,9 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         mode,
         dt,
         pairs.blocks,
+        dyn.gravity,
+        p.f,
+        p.torque,
     )
     wall_args = (
         p.x,
@@ -125,22 +128,26 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
 
 
 @jit
-def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, events, step):
+def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, events, step, keep):
     """Forces at the current positions (Hanley 2020 Eq 4-10 and 21 forward, Eq 19 reversed),
     the half kick h that follows them, and the stress a servo needs; the shear force and
-    rolling moment the step destroyed go into the event log at `step`."""
+    rolling moment the step destroyed go into the event log at `step`. The pair arrays
+    (`Pairs.force`, `.moment`, `.overlap`) get each pair's where `keep`, or where the
+    gather reads them (`pairs.pair_loop`): something reads them before the next step."""
     particle_args, pair_args, wall_args, gather_args = loop_arguments(
         p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h
     )
     n = p.x.shape[0]
+    stressed = holds_stress(cell)  # a servo's stress, which `stress_of` finds from the pairs'
+    keep = keep or stressed
     if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
-        pair_events, largest = pair_loop(n, *particle_args, images(cell), *pair_args)
+        pair_events, largest, summed = pair_loop(n, *particle_args, images(cell), *pair_args, keep)
     else:  # an open system's pairs skip the nearest image: a build of its own
-        pair_events, largest = pair_loop(n, *particle_args, None, *pair_args)
+        pair_events, largest, summed = pair_loop(n, *particle_args, None, *pair_args, keep)
     wall_events = wall_loop(n, *wall_args)
-    if holds_stress(cell):
+    if stressed:
         stress_of(p, pairs, cell, cell.stress)
-    out, last, quantity = gather_loop(n, *gather_args, largest)
+    out, last, quantity = gather_loop(n, *gather_args, largest, summed)
     fx.note_overflow(fixed, quantity, (out, last))
     servo_forces(cell, dyn.local_damping)
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)

@@ -1,6 +1,7 @@
 """The gather: each particle sums the forces and moments on it in a fixed order (its
 weight, its pairs by partner index, its walls in order), applies local damping, and takes
-its half kick; in fixed-point arithmetic on integer grids."""
+its half kick; in fixed-point arithmetic on integer grids. A serial pair loop in floating
+point has summed the weight and the pairs already, in the same order (`pairs.sum_in_order`)."""
 
 import numba
 import numpy as np
@@ -54,6 +55,7 @@ def _gather_loop(
     fixed_w,
     grid,
     largest_pair,
+    summed,
 ):
     """Net force and moment on each particle: weight, pairs by partner index, walls in order
     (Hanley 2020 Eq 4-5), local damping of each component, f - gamma_l |f| sgn(v) (Eq 21; v
@@ -63,7 +65,10 @@ def _gather_loop(
     where `of_normals` (fixed point, `Pairs.normal`) its rows are the pairs' contact normals
     n, crossed with their forces f on the grid; without a tangential law (no `moment`) every
     moment is zero; with a rolling law (`rolling`, the rolling moment on the pair's first
-    particle) each pair adds its rolling moment, on i, and its opposite, on j.
+    particle) each pair adds its rolling moment, on i, and its opposite, on j. Where
+    `summed`, f_out and t_out hold the weight and the pairs' terms already, added in this
+    order and by this arithmetic by the pair loop (`pairs.sum_in_order`), and the pair
+    arrays are not read.
 
     In fixed-point arithmetic (fixed_v not empty) each force term is on the force grid and
     the sum is their integer sum, so that the pairs' forces cancel to the integer (momentum
@@ -94,7 +99,7 @@ def _gather_loop(
     worst = -1  # QUANTITIES x particle + quantity of the last particle off its grid
     n = f_out.shape[0]
     for q in numba.prange(n):
-        if q + AHEAD < n:
+        if q + AHEAD < n and not summed:
             for s in range(start[q + AHEAD], start[q + AHEAD + 1]):
                 k = np.uint32(slots[s])
                 prefetch(pair_force, k)
@@ -105,6 +110,11 @@ def _gather_loop(
         f_int = (np.int64(0), np.int64(0), np.int64(0))
         f = ZERO if on_grid else weight
         t = ZERO
+        pairs_from, own_from = start[q], first[q]  # the first of its partners to add
+        if summed:  # weight and pairs, summed in this order by the pair loop
+            f = row(f_out, q)
+            t = row(t_out, q) if torques else ZERO
+            pairs_from, own_from = start[q + 1], first[q + 1]  # none left
         ok = True  # the force sum on its grid
         integer = False  # summed as integers, not in doubles
         largest_f = 0.0  # summed as integers: its largest term so far, in grid steps
@@ -118,7 +128,7 @@ def _gather_loop(
                 f = fx.add_rounded(f, weight, f_step, per_f)
         # the two partner loops are written out: one helper for both, returning the four
         # sums, made this loop 1.4 to 2.6 times slower (n = 24 fcc, float and fixed point)
-        for s in range(start[q], start[q + 1]):  # partners p < q, the reaction -f
+        for s in range(pairs_from, start[q + 1]):  # partners p < q, the reaction -f
             k = np.uint32(slots[s])  # unsigned, as in `gather_pairs`
             if integer:
                 f_int, largest_f = fx.add_snapped(f_int, row(pair_force, k), -1.0, per_f, largest_f)
@@ -131,7 +141,7 @@ def _gather_loop(
                 t = axpy(radius[q] - 0.5 * overlaps[k], n_x_f, t)
             if rolls:  # the opposite of the rolling moment on p
                 t = axpy(-1.0, row(rolling, k), t)
-        for kk in range(first[q], first[q + 1]):  # partners j > q
+        for kk in range(own_from, first[q + 1]):  # partners j > q
             k = np.uint64(kk)
             if integer:
                 f_int, largest_f = fx.add_snapped(f_int, row(pair_force, k), 1.0, per_f, largest_f)

@@ -180,11 +180,12 @@ def drift(p, cell, fixed, h, events, step):
 
 
 @jit
-def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed):
+def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed, keep):
     """One forward step from `step` (Hanley 2020 Eq 1-12, with drag Eq 25-26); `elapsed`
     is the stage's time at its end. The damping forces at the new positions read the
     half-step velocity (velocity Verlet) or, with a velocity predictor, its prediction of
-    the velocity there (`predictor.predict`)."""
+    the velocity there (`predictor.predict`). `keep`: the pair arrays keep the step's
+    forces (`forces.compute_forces`)."""
     h = 0.5 * dt
     kick_particles(p, fixed, law, h)
     kick_cell(cell, fixed, h)
@@ -195,13 +196,15 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     drift(p, cell, fixed, dt, events, step + 1)
     place_walls(walls, elapsed)
     predict(p)  # v_P(t + dt) from v(t + dt/2) and the k before (Kolafa & Lisal 2011)
-    compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, FORWARD, dt, h, events, step + 1)
+    compute_forces(
+        p, pairs, walls, cell, fixed, law, moduli, dyn, FORWARD, dt, h, events, step + 1, keep
+    )
     note_damping(events, step + 1, law, dyn)
     kick_cell(cell, fixed, h)
 
 
 @jit
-def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed):
+def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed, keep):
     """One reversed step from `step`: the forward step's operations undone in reverse order.
 
     Kick back with the stored force (Eq 17, 27); undo the shear increment and spin
@@ -212,7 +215,7 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     half-step velocities of the later steps, as going forward from the earlier ones, so
     the reversed step is the forward one with dt -> -dt. Mechanisms that destroy information
     (Coulomb cap, local and viscous damping, shear force lost at separation) run mirrored
-    and are logged.
+    and are logged. `keep` as in `forward_step`.
     """
     h = -0.5 * dt
     kick_particles(p, fixed, law, h)
@@ -225,7 +228,9 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
         note_fixed_points(p.v, p.v_drift, step - 1, events)
         drag(p, fixed, 1.0 / dyn.drag)
     predict(p)  # the same predictor on the reversed run's own history: dt -> -dt
-    compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, REVERSE, dt, h, events, step - 1)
+    compute_forces(
+        p, pairs, walls, cell, fixed, law, moduli, dyn, REVERSE, dt, h, events, step - 1, keep
+    )
     note_damping(events, step - 1, law, dyn)
     kick_cell(cell, fixed, h)
 
@@ -254,7 +259,7 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
         tp.unkick(p, fixed, h)
         scratch = np.zeros((len(KINDS), len(COLUMNS)))  # logged once, by the step itself
         compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, SETTLED, dt, h, scratch,
-                       step)  # fmt: skip
+                       step, True)  # fmt: skip
     if recording:
         tp.record(tape, p, pairs, walls, cell, fixed, law, moduli.estar, h, False, damped)
         tp.close_step(tape)
@@ -276,7 +281,9 @@ def record_step(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt
     tp.classify(tape, pairs, walls)
     tp.hold(tape)
     elapsed = (step - first) * dt
-    reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step + 1, elapsed)
+    reverse_step(
+        p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step + 1, elapsed, True
+    )
     settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, True)
     tp.restore(tape, p, cell, fixed)
 
@@ -370,8 +377,9 @@ def advance(
     # the bundles go to each call as they are: a tuple of them built at each step would take
     # and give back a reference to each of their arrays, an atomic update each (with two
     # spheres, 360 of the 1 390 updates a step; ARCHITECTURE.md, per-step calls)
+    kept = False  # the pair arrays hold the forces of the step reached (unknown on entry)
     while step != until:
-        if stepping.halt[0] != 0:
+        if stepping.halt[0] != 0 and kept:  # else one more step first, which keeps them
             return HALTED, step, rows, finding
         if tape.mode == tp.RECORD and not tp.has_room(tape):
             return TAPE_FULL, step, rows, finding
@@ -385,16 +393,30 @@ def advance(
             if status != OK:
                 return status, step, rows, finding
         elapsed = (step + direction - first) * dt
+        after = step + direction
+        kept = (  # whatever reads the pair arrays before the next step: the tape, an
+            # observation, the caller (at `until`, `stop` or a halt)
+            tape.mode != tp.OFF
+            or (after - first) % every == 0
+            or after == last
+            or after == until
+            or after == stop
+            or stepping.halt[0] != 0
+        )
         if direction > 0:
             if tape.mode == tp.RECORD:
                 tp.keep(tape)
-            forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed)
+            forward_step(
+                p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed, kept
+            )
             if tape.mode == tp.RECORD:
                 record_step(
                     tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, first
                 )
         else:
-            reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed)
+            reverse_step(
+                p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed, kept
+            )
             if tape.mode == tp.REPLAY:
                 missing = settle(
                     tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step - 1, False

@@ -400,10 +400,11 @@ the two branches' stores into one plain store."""
 
 def _scatter_pairs(
     block, first, size, force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
-    predicting, listed, law, mode,
+    predicting, listed, law, mode, write,
 ):  # fmt: skip
-    """The block's results into the pair arrays (into `moment` what each pair keeps for its
-    moment, `Pairs.moment` or in fixed point `Pairs.normal`; `predicting`, each pair whose
+    """The block's results into the pair arrays (where `write`, its forces, overlaps and into
+    `moment` what each pair keeps for its moment, `Pairs.moment` or in fixed point
+    `Pairs.normal`; its histories and what was destroyed always; `predicting`, each pair whose
     history the reversed step would miss listed in `earlier` from row `listed` on,
     `list_missed`); returns the block's counts (`Destroyed`: slips, last pair that slipped,
     losses, last pair that lost its shear force, and the same for the rolling moment) and
@@ -421,9 +422,9 @@ def _scatter_pairs(
     for k in range(size):
         p = first + k
         u = np.uint64(p)  # unsigned, as in `gather_pairs`
-        if STREAMING:
+        if write and STREAMING:
             put_streaming(force, u, entries(block, FORCE, k))
-        else:
+        elif write:
             put(force, u, entries(block, FORCE, k))
         if shear_law:
             overlap = entry(block, OVERLAP, k)
@@ -433,10 +434,10 @@ def _scatter_pairs(
                 was, found = entries(block, SHEAR, k), entries(block, EARLIER, k)
                 spacing = entry(block, SPACING_THEN, k)
                 listed = list_missed(earlier, listed, p, was, found, spacing)
-            if STREAMING:
+            if write and STREAMING:
                 put_streaming(moment, u, entries(block, MOMENT, k))
                 stream(overlaps, u, overlap)
-            else:
+            elif write:
                 put(moment, u, entries(block, MOMENT, k))
                 overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
@@ -462,6 +463,46 @@ def _scatter_pairs(
                 drops += 1
                 last_drop = p
     return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop, listed
+
+
+@inline
+def sum_in_order(block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls):
+    """The block's pairs, first to first + size - 1, added to their particles' sums in the
+    list's order: the force f on i and -f on j; with moments (`torques`), on each the lever
+    arm r - overlap / 2 times n x f (Hanley 2020 Eq 5) and, with a rolling law (`rolls`), the
+    rolling moment on i and its opposite on j. The list is sorted by (i, j), so each
+    particle gets its terms in the gather's order (`gather._gather_loop`: its partners by
+    index, with the same arithmetic), and its sums are the gather's bits. Each particle's
+    own pairs are consecutive: its sums stay in registers while they last."""
+    current = np.uint32(pi[np.uint64(first)])
+    f_i = row(f_sum, current)
+    t_i = row(t_sum, current) if torques else ZERO
+    for k in range(size):
+        p = np.uint64(first + k)
+        i = np.uint32(pi[p])
+        j = np.uint32(pj[p])
+        if i != current:
+            put(f_sum, current, f_i)
+            f_i = row(f_sum, i)
+            if torques:
+                put(t_sum, current, t_i)
+                t_i = row(t_sum, i)
+            current = i
+        f = entries(block, FORCE, k)
+        f_i = axpy(1.0, f, f_i)
+        put(f_sum, j, axpy(-1.0, f, row(f_sum, j)))
+        if torques:
+            n_x_f = entries(block, MOMENT, k)
+            overlap = entry(block, OVERLAP, k)
+            t_i = axpy(radius[i] - 0.5 * overlap, n_x_f, t_i)
+            t_j = axpy(radius[j] - 0.5 * overlap, n_x_f, row(t_sum, j))
+            if rolls:
+                t_i = axpy(1.0, entries(block, NEW_ROLLING, k), t_i)
+                t_j = axpy(-1.0, entries(block, NEW_ROLLING, k), t_j)
+            put(t_sum, j, t_j)
+    put(f_sum, current, f_i)
+    if torques:
+        put(t_sum, current, t_i)
 
 
 scatter_pairs = inline(_scatter_pairs)
@@ -500,6 +541,10 @@ def _pair_loop(
     mode,
     dt,
     blocks,
+    gravity,
+    f_sum,
+    t_sum,
+    keep,
 ):
     """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
     law, what it keeps for its moment (`moment`: n x force, in fixed point its normal), the
@@ -511,9 +556,13 @@ def _pair_loop(
     with an `earlier` array (`Pairs.earlier`), the pairs whose history the reversed step
     would miss listed in it (`list_missed`, each chunk from its first slot on). The list is
     cut into as many chunks as there are `blocks`, each done block by block in its own:
-    gather, contact stage, scatter. Returns (the counts of `events.note_destroyed`, in
-    fixed point the largest magnitude of a component of a pair's force, N, which the gather
-    sums by: `gather._gather_loop`)."""
+    gather, contact stage, scatter. The serial build in floating point (IN_ORDER) also sums
+    each particle's weight, forces and moments into f_sum and t_sum, in the gather's order
+    (`sum_in_order`), and then writes the pair arrays' forces, moments and overlaps only
+    where `keep` (something reads them before the next step); the histories and what was
+    destroyed always. Returns (the counts of `events.note_destroyed`, in fixed point the
+    largest magnitude of a component of a pair's force, N, which the gather sums by:
+    `gather._gather_loop`, whether f_sum and t_sum hold the sums)."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
@@ -529,6 +578,15 @@ def _pair_loop(
     drops = 0
     last_drop = -1
     largest = 0.0  # fixed point: the largest component of a pair's force, N
+    summing = IN_ORDER and law.force_grid == 0.0
+    torques = moment.shape[0] > 0
+    rolls = rolling.shape[0] > 0
+    write = keep or not summing  # else nothing reads the pair arrays before the next step
+    if summing:
+        for q in range(f_sum.shape[0]):  # each particle's sum starts at its weight
+            put(f_sum, q, scaled(mass[q], (gravity[0], gravity[1], gravity[2])))
+            if torques:
+                put(t_sum, q, ZERO)
     for c in numba.prange(chunks):
         block = blocks[c]
         end = (c + 1) * n_pairs // chunks
@@ -548,7 +606,7 @@ def _pair_loop(
                 largest = max(largest, snap_forces(block, size, law.force_grid))
             results = (
                 force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
-                predicting, listed, law, mode,
+                predicting, listed, law, mode, write,
             )  # fmt: skip
             if streaming:
                 scattered = scatter_pairs_streaming(block, first, size, *results)
@@ -563,13 +621,21 @@ def _pair_loop(
             drops += scattered[6]
             last_drop = max(last_drop, scattered[7])
             listed = scattered[8]
+            if summing:
+                sum_in_order(block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls)
         if predicting and listed < end:
             earlier[listed, MISSED] = -1.0
         fence()  # any streamed results, before the gather reads them on other threads
-    return (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop), largest
+    counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
+    return counts, largest, summing
 
 
-pair_loop = by_size(_pair_loop)
+IN_ORDER = False
+"""Whether a build of the pair loop works through its chunks one after another, in the
+list's order, so that it can sum each particle's forces and moments itself (`sum_in_order`):
+the serial build's is True."""
+
+pair_loop = by_size(_pair_loop, IN_ORDER=True)
 
 
 def _contact_normals(x, radius, image, pi, pj, n_pairs, normals, overlaps):

@@ -322,7 +322,13 @@ amplitude grows at most 1/√(1 - (ωΔt/2)²) times (10 at 0.5 % below), above 
 def _advance(state: State, model: Model, dyn: Dynamics, dt: float, steps: int) -> bool:
     """Step `state` `steps` steps at dt; False if it blew up."""
     compute_forces(
-        *stepping_bundles(state, model, dyn, model.law), STATIC, dt, 0.0, empty_events(), state.step
+        *stepping_bundles(state, model, dyn, model.law),
+        STATIC,
+        dt,
+        0.0,
+        empty_events(),
+        state.step,
+        True,
     )
     stepping = model.stepping(dt, state.step, state.step + steps, steps)
     buffer, buffer_steps = model.buffers(2)

@@ -13,8 +13,9 @@ from revdem_cli.kernels import PARALLEL_FROM
 from tests.conftest import periodic_fcc
 
 
-def pile(n_side: int = 7) -> Scenario:
-    """n_side^3 frictional spheres on a jittered lattice, falling into a box of planes."""
+def pile(n_side: int = 7, rolling: bool = False) -> Scenario:
+    """n_side^3 frictional spheres on a jittered lattice, falling into a box of planes; with
+    `rolling`, rolling resistance too."""
     rng = np.random.default_rng(7)
     r, spacing = 0.005, 0.0102
     cells = np.array(
@@ -42,7 +43,12 @@ def pile(n_side: int = 7) -> Scenario:
                 "tangential": "mindlin",
                 "friction": 0.5,
                 "normal_damping": 0.1,
-            },
+            }
+            | (
+                {"rolling": "epsd", "rolling_stiffness": 1e-3, "rolling_friction": 0.1}
+                if rolling
+                else {}
+            ),
             "particles": [
                 {
                     "material": "m",
@@ -89,6 +95,8 @@ def lattice(arithmetic: str = "float") -> Scenario:
 
 
 def run_with_threads(threads: int, out, builder: str = "pile()") -> np.ndarray:
+    """The trajectory's positions, velocities and spins, and every observable (some found
+    from the pair arrays at their steps), of the scenario `builder` run on `threads`."""
     script = (
         "import sys; from pathlib import Path; from tests.physics.test_determinism import *;"
         "from revdem_cli.engine import run_scenario;"
@@ -98,18 +106,24 @@ def run_with_threads(threads: int, out, builder: str = "pile()") -> np.ndarray:
     subprocess.run([sys.executable, "-c", script, str(out)], check=True, env=env, cwd=os.getcwd())
     name = builder.split("(")[0]
     with h5py.File(out / f"{name}.forward.h5") as f:
-        return np.concatenate(
-            [
-                f[f"particles/all/{name}/value"][:].ravel()
-                for name in ("position", "velocity", "angular_velocity")
-            ]
+        kept = [
+            f"particles/all/{quantity}/value"
+            for quantity in ("position", "velocity", "angular_velocity")
+        ]
+        f["observables"].visit(
+            lambda path: kept.append(f"observables/{path}") if path.endswith("value") else None
         )
+        return np.concatenate([f[name][:].ravel() for name in kept])
 
 
-def test_one_and_two_threads_give_bitwise_identical_trajectories(tmp_path):
+@pytest.mark.parametrize("builder", ["pile()", "pile(rolling=True)"])
+def test_one_and_two_threads_give_bitwise_identical_trajectories(tmp_path, builder):
+    """One thread: the serial pair loop sums each sphere's forces and moments itself, and
+    fills the pair arrays only where something reads them (`pairs.sum_in_order`); two: the
+    parallel loops fill them at every step and the gather sums them."""
     assert len(pile().particles) >= PARALLEL_FROM  # the parallel loops are the ones tested
-    one = run_with_threads(1, tmp_path / "one")
-    two = run_with_threads(2, tmp_path / "two")
+    one = run_with_threads(1, tmp_path / "one", builder)
+    two = run_with_threads(2, tmp_path / "two", builder)
     assert np.array_equal(one, two)
     assert np.abs(one).max() > 0  # something moved and was compared
 

@@ -169,7 +169,7 @@ def test_an_overflow_names_the_quantity_that_left_its_grid():
     model, state = Model.of(scenario), initial_state(scenario)
     state.fixed.v[1, 0] = fixed.RANGE  # the weight's kick takes it past the end
     bundles = stepping_bundles(state, model, model.dynamics, model.law)
-    compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1)
+    compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1, True)
     assert list(state.fixed.overflow) == [1 + fixed.OF_VELOCITY, 1]
     assert "the velocity of particle 1 left the range" in str(OffGrid(1, state.fixed))
 
@@ -235,7 +235,7 @@ def test_a_net_force_is_the_integer_sum_of_its_terms_whichever_way_it_is_summed(
         bundles = stepping_bundles(
             state, model, model.dynamics, model.law._replace(force_grid=step)
         )
-        compute_forces(*bundles, FORWARD, 1e-7, 0.0, empty_events(), 1)
+        compute_forces(*bundles, FORWARD, 1e-7, 0.0, empty_events(), 1, True)
         count = int(state.pairs.count[0])
         terms = [state.pairs.force[k] for k in range(count) if state.pairs.i[k] == 0]
         assert len(terms) == 3 and state.fixed.overflow[0] == 0
@@ -262,7 +262,7 @@ def test_a_pair_force_beyond_its_grid_is_reported_as_the_force():
     state.fixed.grid[fixed.FORCE] = fine
     law = model.law._replace(force_grid=fine)
     bundles = stepping_bundles(state, model, model.dynamics, law)
-    compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1)
+    compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1, True)
     assert list(state.fixed.overflow) == [1 + fixed.OF_FORCE, 2]
     assert "the force of particle 2 left the range" in str(OffGrid(1, state.fixed))
 

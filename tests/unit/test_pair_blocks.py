@@ -64,7 +64,7 @@ def test_blocks_match_the_contact_law_pair_by_pair(spin):
     assert (largest_turn > 2 * SMALL_ANGLE) == (spin > 1.0)  # the slow path taken, or not
     compute_forces(
         *stepping_bundles(state, model, model.dynamics, model.law), FORWARD, DT, 0.0,
-        empty_events(), 1,
+        empty_events(), 1, True,
     )  # fmt: skip
     assert np.array_equal(pairs.force[:n_pairs], force)
     assert np.array_equal(pairs.history[:n_pairs], shear)
