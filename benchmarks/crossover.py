@@ -3,7 +3,7 @@ parallel build, measured on this machine for each numba threading layer.
 
 Two kinds of loop make up a step. Light loops do a few flops a particle (the half kick, the
 drift, the largest reach since the last pair-list build): measured here by timing the
-half kick's serial and parallel builds (`kernels.integrate._kick`) at sizes from 64 to
+half kick's serial and parallel builds (`kernels.gather._kick`) at sizes from 64 to
 262 144 particles, with 2 threads. Heavy loops (the pair loop, the gather, the walls) do
 tens of nanoseconds of work a particle: measured by the whole step of the fcc Hertz
 benchmark (`fcc_hertz.py`) with 1 and 2 threads, whose time they dominate.
@@ -36,7 +36,7 @@ def light_loop(layer: str) -> list[dict]:
     import numpy as np
 
     from revdem_cli.kernels import jit, pjit, renamed
-    from revdem_cli.kernels.integrate import _kick
+    from revdem_cli.kernels.gather import _kick
 
     serial = jit(renamed(_kick, "kick_bench_serial"))
     parallel = pjit(renamed(_kick, "kick_bench_parallel"))

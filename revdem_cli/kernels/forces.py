@@ -19,7 +19,7 @@ from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import deforms, holds_stress, images, servo_forces
 from revdem_cli.kernels.contact import REVERSE
 from revdem_cli.kernels.events import note_destroyed
-from revdem_cli.kernels.gather import gather_loop
+from revdem_cli.kernels.gather import damp_and_kick, gather_loop
 from revdem_cli.kernels.pairs import contact_normals, pair_loop
 from revdem_cli.kernels.stress import stress_of
 from revdem_cli.kernels.wall_contacts import wall_loop
@@ -29,7 +29,8 @@ from revdem_cli.kernels.wall_contacts import wall_loop
 def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
     """The plain arrays and settings the loops take, in their order: (the particles' part of
     the pair loop's, the rest of it after the periodic images, the wall loop's, the
-    gather's). Damping (local, viscous) reads the velocities p.v, p.omega, or with a
+    gather's, `gather.damp_and_kick`'s in its place where the pair loop summed and there are
+    no walls). Damping (local, viscous) reads the velocities p.v, p.omega, or with a
     velocity predictor its predicted ones (Kolafa & Lisal 2011); the shear spring's
     increment always reads p.v, p.omega."""
     deforming = deforms(cell)
@@ -124,7 +125,11 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         fixed.omega,
         fixed.grid,
     )
-    return particle_args, pair_args, wall_args, gather_args
+    end_args = (
+        p.f, p.torque, p.v, p.omega, v_damp, w_damp, p.inv_mass, p.inv_inertia,
+        dyn.local_damping, h, kept.shape[0] > 0,
+    )  # fmt: skip
+    return particle_args, pair_args, wall_args, gather_args, end_args
 
 
 @jit
@@ -134,7 +139,7 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
     rolling moment the step destroyed go into the event log at `step`. The pair arrays
     (`Pairs.force`, `.moment`, `.overlap`) get each pair's where `keep`, or where the
     gather reads them (`pairs.pair_loop`): something reads them before the next step."""
-    particle_args, pair_args, wall_args, gather_args = loop_arguments(
+    particle_args, pair_args, wall_args, gather_args, end_args = loop_arguments(
         p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h
     )
     n = p.x.shape[0]
@@ -147,7 +152,11 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
     wall_events = wall_loop(n, *wall_args)
     if stressed:
         stress_of(p, pairs, cell, cell.stress)
-    out, last, quantity = gather_loop(n, *gather_args, largest, summed)
+    if summed and walls.force.shape[1] == 0:  # nothing left to sum
+        damp_and_kick(*end_args)
+        out, last, quantity = 0, -1, 0  # in floating point nothing leaves a grid
+    else:
+        out, last, quantity = gather_loop(n, *gather_args, largest, summed)
     fx.note_overflow(fixed, quantity, (out, last))
     servo_forces(cell, dyn.local_damping)
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)

@@ -6,9 +6,17 @@ point has summed the weight and the pairs already, in the same order (`pairs.sum
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, inline_arrays, prefetch
+from revdem_cli.kernels import by_size, inline, inline_arrays, jit, prefetch
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, cross, row, scaled, sign
+
+
+@inline
+def locally_damped(f, v, local):
+    """A component f of a force or moment less local damping against the velocity's
+    component v: f - gamma_l |f| sgn(v) (Hanley 2020 Eq 21)."""
+    return f - local * abs(f) * sign(v)
+
 
 AHEAD = 8
 """The gather asks for the reactions of the particle this many ahead of the one it sums:
@@ -174,10 +182,10 @@ def _gather_loop(
             turned = fx.in_grid_range(t[0] * per_t, t[1] * per_t, t[2] * per_t)
             t = fx.snapped_in_range(t, t_step)
         for d in range(3):
-            f_out[q, d] = f[d] - local * abs(f[d]) * sign(v_damp[q, d])  # Hanley 2020 Eq 21
+            f_out[q, d] = locally_damped(f[d], v_damp[q, d], local)
         if torques:  # else the moments stay zero
             for d in range(3):
-                t_out[q, d] = t[d] - local * abs(t[d]) * sign(w_damp[q, d])
+                t_out[q, d] = locally_damped(t[d], w_damp[q, d], local)
         kicked = True
         spun = True
         if on_grid:
@@ -187,7 +195,7 @@ def _gather_loop(
                 spun = fx.kick_row(fixed_w, w, t_out, inv_inertia, q, h, step)
         else:
             for d in range(3):
-                v[q, d] += h * f_out[q, d] * inv_mass[q]
+                v[q, d] += h * f_out[q, d] * inv_mass[q]  # `_kick`
                 if torques:
                     w[q, d] += h * t_out[q, d] * inv_inertia[q]
         if not (ok and turned and kicked and spun):
@@ -206,3 +214,37 @@ def _gather_loop(
 
 
 gather_loop = by_size(_gather_loop)
+
+
+def _kick(v, f, inv_m, h):
+    """v += h f / m: a half kick, h = +dt/2 (Hanley 2020 Eq 1-2, 11-12) or -dt/2 (Eq 17, 20)."""
+    for q in numba.prange(v.shape[0]):
+        for d in range(3):
+            v[q, d] += h * f[q, d] * inv_m[q]
+
+
+def _damp(f, v, local):
+    """Local damping of each component of f against v (`locally_damped`)."""
+    for q in numba.prange(f.shape[0]):
+        for d in range(3):
+            f[q, d] = locally_damped(f[q, d], v[q, d], local)
+
+
+kick = by_size(_kick)
+damp = by_size(_damp)
+
+
+@jit
+def damp_and_kick(f, t, v, w, v_damp, w_damp, inv_mass, inv_inertia, local, h, torques):
+    """The gather's end where the serial pair loop has summed every term of each particle's
+    force and moment (`pairs.sum_in_order`) and no walls add to them: local damping and the
+    half kick as `_gather_loop` applies them, the same bits, one array at a time in loops
+    of their own, which LLVM vectorises (damping's velocities v_damp may be v itself, and
+    a loop that read the one and wrote the other would not be); the moments likewise where
+    there are (`torques`: a tangential law)."""
+    n = f.shape[0]
+    damp(n, f, v_damp, local)
+    kick(n, v, f, inv_mass, h)
+    if torques:
+        damp(n, t, w_damp, local)
+        kick(n, w, t, inv_inertia, h)

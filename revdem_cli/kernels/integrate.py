@@ -17,6 +17,7 @@ from revdem_cli.kernels.events import (
     note_fixed_points,
 )
 from revdem_cli.kernels.forces import compute_forces, note_normals
+from revdem_cli.kernels.gather import kick
 from revdem_cli.kernels.health import HEALTHY, Finding, examine
 from revdem_cli.kernels.neighbours import (
     build_pairs,
@@ -38,13 +39,6 @@ HALTED = 5
 TAPE_FULL = 6
 TAPE_EMPTY = 7
 TAPE_MISMATCH = 8
-
-
-def _kick(v, f, inv_m, h):
-    """v += h f / m: a half kick, h = +dt/2 (Hanley 2020 Eq 1-2, 11-12) or -dt/2 (Eq 17, 20)."""
-    for q in numba.prange(v.shape[0]):
-        for d in range(3):
-            v[q, d] += h * f[q, d] * inv_m[q]
 
 
 def _scale(v, factor):
@@ -102,7 +96,6 @@ def _drift_in_cell(x, s, v, h, mid, length):
     return lost, last
 
 
-kick = by_size(_kick)
 scale = by_size(_scale)
 scale_on_grid = by_size(_scale_fixed)
 drift_free = by_size(_drift)

@@ -68,8 +68,8 @@ def pile(n_side: int = 7, rolling: bool = False) -> Scenario:
 
 def lattice(arithmetic: str = "float") -> Scenario:
     """4 x 4 x 4 cells of a periodic fcc lattice pressed 1e-5 m into each other, shaken with
-    random velocities, frictional Mindlin contacts; the lateral edges held at 5 kPa by the
-    inertial servo while z is compressed."""
+    random velocities, frictional Mindlin contacts, local damping; the lateral edges held
+    at 5 kPa by the inertial servo while z is compressed."""
     spacing = 0.999 * 0.01 * 2**0.5
     fcc = periodic_fcc(4, spacing, random_velocity=0.01, seed=3)
     return Scenario.model_validate(
@@ -78,6 +78,7 @@ def lattice(arithmetic: str = "float") -> Scenario:
             **fcc,
             "cell": fcc["cell"] | {"servo_mass": 0.01},
             "integrator": {"dt": 1e-6, "arithmetic": arithmetic},
+            "damping": {"local": 0.1},
             "stages": [
                 {
                     "name": "squeeze",
