@@ -2,8 +2,9 @@
 computed once and written to its own slot, with the shear force it destroyed counted.
 
 The pair loop works in blocks of BLOCK pairs, so that LLVM can vectorise the contact
-physics (AVX-512: eight pairs at a time). A block is ROWS x BLOCK doubles, a row per
-quantity and a column per pair, and goes through three stages:
+physics (four pairs at a time in 256-bit vectors, which LLVM prefers on AVX-512 hosts
+too). A block is ROWS x BLOCK doubles, a row per quantity and a column per pair, and goes
+through three stages:
 - gather: each pair's separation, radii, moduli, velocities and history into its column
   (scalar: the particles' rows are scattered in memory), then the separations' nearest
   periodic images in a vector loop of their own (`to_nearest_images`);
@@ -13,7 +14,9 @@ quantity and a column per pair, and goes through three stages:
   for that is done again with them in full);
 - scatter: each column's force, history, moment (fixed point: normal) and overlap into the
   pair arrays, counting the shear force destroyed (scalar, branches); in a long list,
-  force, moment or normal and overlap with non-temporal stores (STREAM_FROM).
+  force, moment or normal and overlap with non-temporal stores (STREAM_FROM); in the
+  serial build in floating point, also each particle's sums (`sum_in_order`), and the
+  forces, moments and overlaps only at steps after which something reads them (`keep`).
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
 cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each chunk worked
 through with its own block, so the loop allocates nothing.
