@@ -152,15 +152,15 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
     count = len(p.x)
     pair_call = (*particle_args, image, *pair_args, False)  # as between observables rows
     _, largest, summed = pair_loop(count, *pair_call)  # what the gather takes
-    if summed:  # and no walls: what `forces.compute_forces` calls then
 
-        def gather(*_):
+    def gather():  # what `forces.compute_forces` calls without walls
+        if summed:
             return damp_and_kick(*end_args)
-    else:
-        gather = gather_loop
+        return gather_loop(count, *gather_args, largest, summed)
+
     seconds = {
         "pair loop": _best(lambda: pair_loop(count, *pair_call), STEPS),
-        "gather": _best(lambda: gather(count, *gather_args, largest, summed), STEPS),
+        "gather": _best(gather, STEPS),
         "first half kick": _best(lambda: kick_particles(p, fixed, law, 0.0), STEPS),
         "drift": _best(lambda: drift(p, cell, fixed, 0.0, events, state.step), STEPS),
         "rebuild check": _best(lambda: needs_rebuild(p, pairs, cell, dt, skin, 1), STEPS),

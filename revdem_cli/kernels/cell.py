@@ -21,6 +21,7 @@ import numpy as np
 
 from revdem_cli.kernels import inline, jit
 from revdem_cli.kernels.fixed import EDGE, EDGE_RATE, OF_CELL, moved_on_grid, note_overflow
+from revdem_cli.kernels.gather import locally_damped
 
 FIXED = 0
 STRAIN_RATE = 1
@@ -112,8 +113,7 @@ def servo_forces(cell, local_damping):
     for a in range(3):
         if cell.control[a] == STRESS:
             force = (cell.stress[a, a] - cell.target[a]) * volume(cell) / cell.length[a]
-            sign = 1.0 if cell.rate[a] > 0.0 else (-1.0 if cell.rate[a] < 0.0 else 0.0)
-            cell.force[a] = force - local_damping * abs(force) * sign
+            cell.force[a] = locally_damped(force, cell.rate[a], local_damping)
 
 
 @jit

@@ -18,6 +18,12 @@ def locally_damped(f, v, local):
     return f - local * abs(f) * sign(v)
 
 
+@inline
+def weight_of(m, gravity):
+    """The weight m g of a particle of mass m, where each of its force sums starts."""
+    return scaled(m, (gravity[0], gravity[1], gravity[2]))
+
+
 AHEAD = 8
 """The gather asks for the reactions of the particle this many ahead of the one it sums:
 they lie under earlier particles, far back in the pair arrays, and the hardware does not
@@ -114,7 +120,7 @@ def _gather_loop(
                 if torques:
                     prefetch(moment, k)
                     prefetch(overlaps, k)
-        weight = scaled(mass[q], (gravity[0], gravity[1], gravity[2]))
+        weight = weight_of(mass[q], gravity)
         f_int = (np.int64(0), np.int64(0), np.int64(0))
         f = ZERO if on_grid else weight
         t = ZERO

@@ -348,14 +348,15 @@ def advance(
     value left its fixed-point grid in the step just taken (fixed.overflow says which),
     BLOWN_UP that the state at the step reached is not physical (the finding says why; the
     rows recorded are of the steps before), HALTED that `stepping.halt` asked for a stop
-    (the state is at the whole step reached). With an information tape (`kernels.tape`)
-    recording, each forward step records its entries, and TAPE_FULL says that the block
-    must be written out before the next (where the step just taken made more entries than
-    the block had room for, `io.tape.Recorder.flush` leaves it out and asks for it again:
-    the loop then takes its `record_step` again first, even where `step` is `until`);
-    replaying, each reversed step applies them, and TAPE_EMPTY says that the block holds
-    no more, TAPE_MISMATCH that an entry's pair is not in the list (the finding's particle
-    and partner).
+    (the state is at the whole step reached; one step after the signal where the step it
+    came in did not write the pair arrays, which the checkpoint holds). With an information
+    tape (`kernels.tape`) recording, each forward step records its entries, and TAPE_FULL
+    says that the block must be written out before the next (where the step just taken made
+    more entries than the block had room for, `io.tape.Recorder.flush` leaves it out and
+    asks for it again: the loop then takes its `record_step` again first, even where `step`
+    is `until`); replaying, each reversed step applies them, and TAPE_EMPTY says that the
+    block holds no more, TAPE_MISMATCH that an entry's pair is not in the list (the
+    finding's particle and partner).
     """
     dt, skin, limit = stepping.dt, stepping.skin, stepping.overlap_limit
     first, last, every = stepping.first_step, stepping.last_step, stepping.every

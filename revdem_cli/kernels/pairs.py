@@ -44,6 +44,7 @@ from revdem_cli.kernels.contact import (
     rolling_moment,
 )
 from revdem_cli.kernels.fixed import magnitude_bits, snapped_in_range
+from revdem_cli.kernels.gather import weight_of
 from revdem_cli.kernels.information import grid_spread, ordered
 from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
 
@@ -213,6 +214,8 @@ def to_nearest_images(block, size, image):
     `image` None: none periodic), in a loop of their own, elementwise, which LLVM vectorises:
     in the scalar gather they cost about a tenth of the frictionless pair loop, and in the
     contact stage's loop the history stage ran slower."""
+    if image is None:
+        return
     for k in range(size):
         enter3(block, SEPARATION, k, nearest_image(entries(block, SEPARATION, k), image))
 
@@ -587,7 +590,7 @@ def _pair_loop(
     write = keep or not summing  # else nothing reads the pair arrays before the next step
     if summing:
         for q in range(f_sum.shape[0]):  # each particle's sum starts at its weight
-            put(f_sum, q, scaled(mass[q], (gravity[0], gravity[1], gravity[2])))
+            put(f_sum, q, weight_of(mass[q], gravity))
             if torques:
                 put(t_sum, q, ZERO)
     for c in numba.prange(chunks):
