@@ -47,6 +47,16 @@ def periodic_fcc(cells: int, spacing: float, random_velocity: float, seed: int) 
     }
 
 
+def on_threads(threads: int) -> str:
+    """Python that makes the stepper of the process it runs in step on `threads` at every
+    step: by itself it times one thread against them and steps on the faster, which at a few
+    hundred spheres is one, and a run meant for two would then test one."""
+    return (
+        "from revdem_cli.threads import Stepper;"
+        f"Stepper._counts = staticmethod(lambda particles: ({threads},));"
+    )
+
+
 def assert_one_line_error(result, *fragments):
     """A command that failed on bad input: exit 2, one line "error: ..." holding the
     fragments, no traceback."""

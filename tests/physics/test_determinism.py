@@ -10,7 +10,7 @@ import pytest
 
 from revdem_cli.config import Scenario
 from revdem_cli.kernels import PARALLEL_FROM
-from tests.conftest import periodic_fcc
+from tests.conftest import on_threads, periodic_fcc
 
 
 def pile(n_side: int = 7, rolling: bool = False) -> Scenario:
@@ -97,8 +97,9 @@ def lattice(arithmetic: str = "float") -> Scenario:
 
 def run_with_threads(threads: int, out, builder: str = "pile()") -> np.ndarray:
     """The trajectory's positions, velocities and spins, and every observable (some found
-    from the pair arrays at their steps), of the scenario `builder` run on `threads`."""
-    script = (
+    from the pair arrays at their steps), of the scenario `builder` run on `threads` at
+    every step."""
+    script = on_threads(threads) + (
         "import sys; from pathlib import Path; from tests.physics.test_determinism import *;"
         "from revdem_cli.engine import run_scenario;"
         f"run_scenario({builder}, '', '.toml', Path(sys.argv[1]), reverse=False)"

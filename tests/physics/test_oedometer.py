@@ -11,7 +11,7 @@ import pytest
 
 from revdem_cli.config import load_scenario
 from revdem_cli.kernels import PARALLEL_FROM
-from tests.conftest import CONFIGS
+from tests.conftest import CONFIGS, on_threads
 
 SMOKE = CONFIGS / "smoke" / "oedometer.toml"
 G = 9.81
@@ -105,7 +105,8 @@ def forward_state_with(threads: int, out) -> np.ndarray:
     env = {**os.environ, "NUMBA_NUM_THREADS": str(threads)}
     overrides = [arg for item in SHORTER for arg in ("--set", item)]
     subprocess.run(
-        [sys.executable, "-m", "revdem_cli.cli", "run", str(SMOKE), "--out", str(out), "-q"]
+        [sys.executable, "-c", on_threads(threads) + "from revdem_cli.cli import main; main()"]
+        + ["run", str(SMOKE), "--out", str(out), "-q"]
         + ["--no-reverse", *overrides],
         check=True,
         env=env,
