@@ -267,6 +267,7 @@ def empty_pairs(
         slots=np.zeros(capacity, dtype=np.int32),
         x_built=np.zeros((n_particles, 3), dtype=np.float32),
         blocks=empty_blocks(numba.config.NUMBA_NUM_THREADS),
+        foreign=np.zeros(n_particles, dtype=np.bool_),
         partials=empty_partials(n_particles),
     )
 

@@ -67,6 +67,8 @@ Pairs = namedtuple(
         "x_built",  # positions at the last build, single precision (a rebuild's test allows
         # for it: `neighbours.BUILT_ROUNDING`), m, float32 (N, 3)
         "blocks",  # working rows of the pair loop, one block per chunk of the list (forces.py)
+        "foreign",  # whether each particle has a partner in an earlier chunk of the pair
+        # loop's, which sums it apart (`pairs.sum_foreign`), bool (N,)
         "partials",  # partial sums of each block of particles (sums.py)
     ],
 )

@@ -5,7 +5,8 @@ Three loops, each writing only its own slots: pairs (`pairs.py`: each pair's for
 once), wall contacts (`wall_contacts.py`: each particle's, wall by wall), and the gather
 (`gather.py`: each particle sums its weight, its pairs in the order of its partners'
 indices, and its walls in order, then takes its half kick), so sums do not depend on the
-thread count. The pair and wall loops also count the contacts whose shear force was
+thread count; in floating point the pair loop sums the pairs' terms itself, in the same
+order. The pair and wall loops also count the contacts whose shear force was
 destroyed (integer sums and maxima, which do not depend on the order either), so the event
 log is scanned only when something happened.
 
@@ -66,6 +67,10 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         dyn.gravity,
         p.f,
         p.torque,
+        pairs.first,
+        pairs.start,
+        pairs.slots,
+        pairs.foreign,
     )
     wall_args = (
         p.x,

@@ -1,6 +1,6 @@
 """The gather: each particle sums the forces and moments on it in a fixed order (its
 weight, its pairs by partner index, its walls in order), applies local damping, and takes
-its half kick; in fixed-point arithmetic on integer grids. A serial pair loop in floating
+its half kick; in fixed-point arithmetic on integer grids. The pair loop in floating
 point has summed the weight and the pairs already, in the same order (`pairs.sum_in_order`)."""
 
 import numba
@@ -242,7 +242,7 @@ damp = by_size(_damp)
 
 @jit
 def damp_and_kick(f, t, v, w, v_damp, w_damp, inv_mass, inv_inertia, local, h, torques):
-    """The gather's end where the serial pair loop has summed every term of each particle's
+    """The gather's end where the pair loop has summed every term of each particle's
     force and moment (`pairs.sum_in_order`) and no walls add to them: local damping and the
     half kick as `_gather_loop` applies them, the same bits, one array at a time in loops
     of their own, which LLVM vectorises (damping's velocities v_damp may be v itself, and

@@ -14,12 +14,17 @@ through three stages:
   for that is done again with them in full);
 - scatter: each column's force, history, moment (fixed point: normal) and overlap into the
   pair arrays, counting the shear force destroyed (scalar, branches); in a long list,
-  force, moment or normal and overlap with non-temporal stores (STREAM_FROM); in the
-  serial build in floating point, also each particle's sums (`sum_in_order`), and the
-  forces, moments and overlaps only at steps after which something reads them (`keep`).
+  force, moment or normal and overlap with non-temporal stores (STREAM_FROM); in floating
+  point, also each particle's sums (`sum_in_order`), and the forces, moments and overlaps
+  only at steps after which something reads them (`keep`) or of pairs whose particles the
+  chunk does not sum (`Pairs.foreign`).
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
-cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each chunk worked
-through with its own block, so the loop allocates nothing.
+cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each particle's
+own pairs in one (`chunk_of`), each chunk worked through with its own block, so the loop
+allocates nothing. Summing, a chunk sums the particles all of whose pairs it holds; those
+with a partner in an earlier chunk are summed after every chunk is done, from the pair
+arrays (`sum_foreign`), so that every sum has the same terms in the same order on any
+thread count.
 """
 
 import math
@@ -472,14 +477,20 @@ def _scatter_pairs(
 
 
 @inline
-def sum_in_order(block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls):
+def sum_in_order(
+    block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond, foreign, force,
+    moment, overlaps,
+):  # fmt: skip
     """The block's pairs, first to first + size - 1, added to their particles' sums in the
     list's order: the force f on i and -f on j; with moments (`torques`), on each the lever
-    arm r - overlap / 2 times n x f (Hanley 2020 Eq 5) and, with a rolling law (`rolls`), the
-    rolling moment on i and its opposite on j. The list is sorted by (i, j), so each
+    arm r - overlap / 2 times n x f (Hanley 2020 Eq 5) and, with a rolling law (`rolls`),
+    the rolling moment on i and its opposite on j. The list is sorted by (i, j), so each
     particle gets its terms in the gather's order (`gather._gather_loop`: its partners by
     index, with the same arithmetic), and its sums are the gather's bits. Each particle's
-    own pairs are consecutive: its sums stay in registers while they last."""
+    own pairs are consecutive: its sums stay in registers while they last. A particle with
+    a partner in an earlier chunk (`foreign`, or `beyond` and above: a later chunk's) is
+    summed after (`sum_foreign`): its pairs' forces, moments and overlaps go to the pair
+    arrays, and a later chunk's particle is left alone."""
     current = np.uint32(pi[np.uint64(first)])
     f_i = row(f_sum, current)
     t_i = row(t_sum, current) if torques else ZERO
@@ -495,20 +506,65 @@ def sum_in_order(block, first, size, pi, pj, radius, f_sum, t_sum, torques, roll
                 t_i = row(t_sum, i)
             current = i
         f = entries(block, FORCE, k)
+        mine = j < beyond  # this chunk's particle; a later chunk's is foreign there, but
+        # that chunk marks it concurrently, so its flag is not read here
+        if foreign[i] or not mine or foreign[j]:  # for `sum_foreign`
+            put(force, p, f)
+            if torques:
+                put(moment, p, entries(block, MOMENT, k))
+                overlaps[p] = entry(block, OVERLAP, k)
         f_i = axpy(1.0, f, f_i)
-        put(f_sum, j, axpy(-1.0, f, row(f_sum, j)))
+        if mine:
+            put(f_sum, j, axpy(-1.0, f, row(f_sum, j)))
         if torques:
             n_x_f = entries(block, MOMENT, k)
             overlap = entry(block, OVERLAP, k)
             t_i = axpy(radius[i] - 0.5 * overlap, n_x_f, t_i)
-            t_j = axpy(radius[j] - 0.5 * overlap, n_x_f, row(t_sum, j))
+            t_j = axpy(radius[j] - 0.5 * overlap, n_x_f, row(t_sum, j)) if mine else ZERO
             if rolls:
                 t_i = axpy(1.0, entries(block, NEW_ROLLING, k), t_i)
                 t_j = axpy(-1.0, entries(block, NEW_ROLLING, k), t_j)
-            put(t_sum, j, t_j)
+            if mine:
+                put(t_sum, j, t_j)
     put(f_sum, current, f_i)
     if torques:
         put(t_sum, current, t_i)
+
+
+@inline
+def mark_foreign(foreign, lo, hi, pi, start, slots):
+    """foreign[q] of particles lo to hi - 1, a chunk's: whether q has a partner p < lo, in
+    an earlier chunk (its partners are ascending: the first is the least)."""
+    for q in range(lo, hi):
+        foreign[q] = start[q] < start[q + 1] and pi[np.uint32(slots[start[q]])] < lo
+
+
+@inline
+def sum_foreign(q, mass, gravity, radius, pi, first_pair, start, slots, force, moment,
+                overlaps, rolling, f_sum, t_sum, torques, rolls):  # fmt: skip
+    """Particle q's weight, forces and moments, summed from the pair arrays in the order and
+    by the arithmetic of `sum_in_order`: its partners p < q ascending (the reaction -f, the
+    lever arm r - overlap / 2 times n x f, Hanley 2020 Eq 5, the opposite of the rolling
+    moment on p), then its own pairs (q, j) (f, the lever-arm term, the rolling moment)."""
+    f = weight_of(mass[q], gravity)
+    t = ZERO
+    for s in range(start[q], start[q + 1]):
+        k = np.uint32(slots[s])
+        f = axpy(-1.0, row(force, k), f)
+        if torques:
+            t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
+            if rolls:
+                t = axpy(-1.0, row(rolling, k), t)
+    for kk in range(first_pair[q], first_pair[q + 1]):
+        k = np.uint64(kk)
+        f = axpy(1.0, row(force, k), f)
+        if torques:
+            t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
+            if rolls:
+                t = axpy(1.0, row(rolling, k), t)
+    put(f_sum, q, f)
+    if torques:
+        put(t_sum, q, t)
 
 
 scatter_pairs = inline(_scatter_pairs)
@@ -550,6 +606,10 @@ def _pair_loop(
     gravity,
     f_sum,
     t_sum,
+    first_pair,
+    start,
+    slots,
+    foreign,
     keep,
 ):
     """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
@@ -561,14 +621,16 @@ def _pair_loop(
     step's other end (`contacts`); stepping forward without damping or rolling resistance
     with an `earlier` array (`Pairs.earlier`), the pairs whose history the reversed step
     would miss listed in it (`list_missed`, each chunk from its first slot on). The list is
-    cut into as many chunks as there are `blocks`, each done block by block in its own:
-    gather, contact stage, scatter. The serial build in floating point (IN_ORDER) also sums
-    each particle's weight, forces and moments into f_sum and t_sum, in the gather's order
-    (`sum_in_order`), and then writes the pair arrays' forces, moments and overlaps only
-    where `keep` (something reads them before the next step); the histories and what was
-    destroyed always. Returns (the counts of `events.note_destroyed`, in fixed point the
-    largest magnitude of a component of a pair's force, N, which the gather sums by:
-    `gather._gather_loop`, whether f_sum and t_sum hold the sums)."""
+    cut into as many chunks as there are `blocks` (`chunk_of`: each particle's own pairs in
+    one), each done block by block in its own: gather, contact stage, scatter. In floating
+    point it also sums each particle's weight, forces and moments into f_sum and t_sum, in
+    the gather's order (`sum_in_order`; a particle with a partner in an earlier chunk,
+    marked in `foreign`, once every chunk is done, `sum_foreign`), the same bits on any
+    thread count, and then writes the pair arrays' forces, moments and overlaps only where
+    `keep` (something reads them before the next step) or `sum_foreign` reads them; the
+    histories and what was destroyed always. Returns (the counts of `events.note_destroyed`,
+    in fixed point the largest magnitude of a component of a pair's force, N, which the
+    gather sums by: `gather._gather_loop`, whether f_sum and t_sum hold the sums)."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
@@ -584,20 +646,23 @@ def _pair_loop(
     drops = 0
     last_drop = -1
     largest = 0.0  # fixed point: the largest component of a pair's force, N
-    summing = IN_ORDER and law.force_grid == 0.0
+    summing = law.force_grid == 0.0
     torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
     write = keep or not summing  # else nothing reads the pair arrays before the next step
     if summing:
-        for q in range(f_sum.shape[0]):  # each particle's sum starts at its weight
+        for q in numba.prange(f_sum.shape[0]):  # each particle's sum starts at its weight
             put(f_sum, q, weight_of(mass[q], gravity))
             if torques:
                 put(t_sum, q, ZERO)
     for c in numba.prange(chunks):
         block = blocks[c]
-        end = (c + 1) * n_pairs // chunks
-        listed = c * n_pairs // chunks  # the chunk's next row of `earlier`
-        for first in range(c * n_pairs // chunks, end, BLOCK):
+        lo, start_pair = chunk_of(c, chunks, first_pair, n_pairs)
+        beyond, end = chunk_of(c + 1, chunks, first_pair, n_pairs)
+        if summing and chunks > 1:  # one chunk: none (`foreign` stays all False)
+            mark_foreign(foreign, lo, beyond, pi, start, slots)
+        listed = start_pair  # the chunk's next row of `earlier`
+        for first in range(start_pair, end, BLOCK):
             size = min(BLOCK, end - first)
             gather_pairs(
                 block, first, size, x, v, w, v_damp, w_damp, predicted, radius, mass, material,
@@ -628,20 +693,43 @@ def _pair_loop(
             last_drop = max(last_drop, scattered[7])
             listed = scattered[8]
             if summing:
-                sum_in_order(block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls)
+                sum_in_order(
+                    block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond,
+                    foreign, force, moment, overlaps,
+                )  # fmt: skip
         if predicting and listed < end:
             earlier[listed, MISSED] = -1.0
         fence()  # any streamed results, before the gather reads them on other threads
+    if summing and chunks > 1:  # the particles with partners in an earlier chunk
+        for c in numba.prange(chunks):
+            lo = chunk_of(c, chunks, first_pair, n_pairs)[0]
+            for q in range(lo, chunk_of(c + 1, chunks, first_pair, n_pairs)[0]):
+                if foreign[q]:
+                    sum_foreign(
+                        q, mass, gravity, radius, pi, first_pair, start, slots, force, moment,
+                        overlaps, rolling, f_sum, t_sum, torques, rolls,
+                    )  # fmt: skip
     counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
     return counts, largest, summing
 
 
-IN_ORDER = False
-"""Whether a build of the pair loop works through its chunks one after another, in the
-list's order, so that it can sum each particle's forces and moments itself (`sum_in_order`):
-the serial build's is True."""
+@inline
+def chunk_of(c, chunks, first_pair, n_pairs):
+    """(first particle, first pair) of chunk c of the `chunks` the pair loop cuts the list
+    into (c = chunks: the ends): the particle whose own pairs reach pair c n_pairs / chunks,
+    so that each particle's own pairs lie in one chunk (`Pairs.first`: each particle's
+    first pair, ascending). The same cut in every build; the tape reads `Pairs.earlier` by
+    it (`tape.predict`)."""
+    n = first_pair.shape[0] - 1
+    if c == 0:
+        return np.int64(0), np.int64(0)
+    if c >= chunks:
+        return np.int64(n), np.int64(n_pairs)
+    q = np.searchsorted(first_pair, c * n_pairs // chunks)
+    return np.int64(q), np.int64(first_pair[q])
 
-pair_loop = by_size(_pair_loop, IN_ORDER=True)
+
+pair_loop = by_size(_pair_loop)
 
 
 def _contact_normals(x, radius, image, pi, pj, n_pairs, normals, overlaps):

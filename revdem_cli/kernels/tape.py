@@ -55,7 +55,7 @@ from revdem_cli.kernels import inline, inline_arrays, jit
 from revdem_cli.kernels.cell import deforms
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law
 from revdem_cli.kernels.information import bits_of, grid_bits, ordered, unordered
-from revdem_cli.kernels.pairs import AMOUNT, MISSED, SPREAD
+from revdem_cli.kernels.pairs import AMOUNT, MISSED, SPREAD, chunk_of
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -442,7 +442,8 @@ def predict(tape, p, pairs, law):
     chunks = pairs.blocks.shape[0]
     listed = pairs.earlier
     for c in range(chunks):  # each chunk's list, in slot order (`pairs.MISSED`)
-        for row in range(c * count // chunks, (c + 1) * count // chunks):
+        start = chunk_of(c, chunks, pairs.first, count)[1]
+        for row in range(start, chunk_of(c + 1, chunks, pairs.first, count)[1]):
             if listed[row, MISSED] < 0.0:
                 break
             k = np.int64(listed[row, MISSED])
