@@ -650,17 +650,17 @@ def _pair_loop(
     torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
     write = keep or not summing  # else nothing reads the pair arrays before the next step
-    if summing:
-        for q in numba.prange(f_sum.shape[0]):  # each particle's sum starts at its weight
-            put(f_sum, q, weight_of(mass[q], gravity))
-            if torques:
-                put(t_sum, q, ZERO)
     for c in numba.prange(chunks):
         block = blocks[c]
         lo, start_pair = chunk_of(c, chunks, first_pair, n_pairs)
         beyond, end = chunk_of(c + 1, chunks, first_pair, n_pairs)
-        if summing and chunks > 1:  # one chunk: none (`foreign` stays all False)
-            mark_foreign(foreign, lo, beyond, pi, start, slots)
+        if summing:  # each of the chunk's particles' sums starts at its weight
+            for q in range(lo, beyond):
+                put(f_sum, q, weight_of(mass[q], gravity))
+                if torques:
+                    put(t_sum, q, ZERO)
+            if chunks > 1:  # one chunk: none (`foreign` stays all False)
+                mark_foreign(foreign, lo, beyond, pi, start, slots)
         listed = start_pair  # the chunk's next row of `earlier`
         for first in range(start_pair, end, BLOCK):
             size = min(BLOCK, end - first)
