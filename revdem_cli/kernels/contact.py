@@ -64,8 +64,9 @@ def cos_sin(angle, small=False):
     it costs as much as the rest of the rotation, even where it is never taken)."""
     if not small and abs(angle) >= SMALL_ANGLE:
         return math.cos(angle), math.sin(angle)
-    a2 = angle * angle
-    return 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0)), angle * (1.0 - a2 * (1.0 / 6.0 - a2 / 120.0))
+    a2 = angle * angle  # the coefficients' reciprocals folded: no division in the series
+    sine = angle * (1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0)))
+    return 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0)), sine
 
 
 @inline
