@@ -10,7 +10,9 @@ step takes beyond them. Beside each loop, the bytes it must move at least, each 
 reads or writes touched once (a pair's particles' rows counted once per particle, a store
 once), and the time those bytes take at the copy bandwidth measured here by numpy on one core
 (read + write); a loop at 1.0 runs at that bandwidth. A loop far below it is bound by its
-arithmetic or by the latency of its scattered reads, not by memory.
+arithmetic or by the latency of its scattered reads, not by memory. The pair loop's
+arithmetic has a floor of its own: the square roots and divisions of its contact stage
+(ROOTS_AND_DIVISIONS) at the divide unit's throughput, measured here too (`divide_unit`).
 
     NUMBA_NUM_THREADS=1 python benchmarks/roofline.py [--n 24] [--out benchmarks/results]
 
@@ -37,6 +39,14 @@ STEPS = 100
 
 LOOPS = ("pair loop", "gather", "first half kick", "drift", "rebuild check", "rest of the step")
 
+ROOTS_AND_DIVISIONS = {"frictionless": (2, 2), "history": (4, 4)}
+"""Square roots and divisions a pair of the floating-point contact stage (`pairs.contacts`,
+stepping forward, each a vector operation of the divide unit, which the rest of the stage
+does not use): frictionless, the distance |d| and 1/|d| for the normal, R* = r_i r_j /
+(r_i + r_j) and the root sqrt(R* delta) of the Hertz law (Hanley 2020 Eq 6); with history
+also the remap's sqrt(|f_s|^2 / |f_s,projected|^2) (Eq 8, a root and a division) and the
+Coulomb cap's |f_s| and mu |f_n| / |f_s| (§2); Mindlin's sqrt(R* delta) (Eq 10) is Hertz's."""
+
 
 def copy_bandwidth(megabytes: int = 512) -> float:
     """Bytes per second one core copies between two arrays of `megabytes` (read + write)."""
@@ -44,6 +54,43 @@ def copy_bandwidth(megabytes: int = 512) -> float:
     b = np.empty_like(a)
     best = min(_timed(lambda: np.copyto(b, a)) for _ in range(5))
     return 2 * a.nbytes / best
+
+
+def divide_unit() -> dict[str, float]:
+    """Seconds per element of a vectorised square root and of a division (the divide unit's
+    throughput), each over 4 096 doubles held in the first-level cache, compiled as revdem's
+    kernels are (no fast math), the best of five runs."""
+    from revdem_cli.kernels import jit
+
+    @jit
+    def roots(a, b, times):
+        for _ in range(times):
+            for k in range(a.shape[0]):
+                b[k] = np.sqrt(a[k])
+
+    @jit
+    def divisions(a, b, times):
+        for _ in range(times):
+            for k in range(a.shape[0]):
+                b[k] = 1.5 / a[k]
+
+    a = 1.0 + np.random.default_rng(1).random(4096)
+    b = np.empty_like(a)
+    times = 20_000
+    seconds = {}
+    for name, kernel in (("square root", roots), ("division", divisions)):
+        kernel(a, b, 1)
+        best = min(_timed(lambda k=kernel: k(a, b, times)) for _ in range(5))
+        seconds[name] = best / times / a.size
+    return seconds
+
+
+def contact_floor(row: dict, unit: dict[str, float]) -> float:
+    """Seconds per particle-step the floating-point contact stage needs at least: its square
+    roots and divisions a pair (ROOTS_AND_DIVISIONS) at the divide unit's throughput."""
+    roots, divisions = ROOTS_AND_DIVISIONS[row["variant"]]
+    per_pair = roots * unit["square root"] + divisions * unit["division"]
+    return per_pair * row["pairs"] / row["particles"]
 
 
 def _timed(call) -> float:
@@ -218,6 +265,9 @@ def main() -> None:
     arguments = parser.parse_args()
     bandwidth = copy_bandwidth()
     print(f"copy bandwidth, one core: {bandwidth / 1e9:.1f} GB/s")
+    unit = divide_unit()
+    print(f"divide unit, one core: a square root {1e9 * unit['square root']:.2f} ns, "
+          f"a division {1e9 * unit['division']:.2f} ns (vectorised, an element)")  # fmt: skip
     rows = []
     for variant in ("frictionless", "history"):
         for arithmetic in ("float", "fixed"):
@@ -236,8 +286,14 @@ def main() -> None:
                 used = moved / seconds / bandwidth
                 print(f"  {loop:<18} {ns:11.1f} {share:6.1%} {moved / row['particles']:14.0f} "
                       f"{used:12.2f}")  # fmt: skip
+            if arithmetic == "float":
+                row["contact_floor_s"] = contact_floor(row, unit)
+                roots, divisions = ROOTS_AND_DIVISIONS[variant]
+                floor = 1e9 * row["contact_floor_s"]
+                print(f"  of the pair loop, its {roots} roots and {divisions} divisions a pair "
+                      f"at the divide unit's speed: {floor:.1f} ns/particle")  # fmt: skip
     arguments.out.mkdir(parents=True, exist_ok=True)
-    result = {"copy_bandwidth_bytes_per_s": bandwidth, "rows": rows}
+    result = {"copy_bandwidth_bytes_per_s": bandwidth, "divide_unit_s": unit, "rows": rows}
     (arguments.out / "roofline.json").write_text(json.dumps(result, indent=2) + "\n")
     print(figure(rows, bandwidth, arguments.out / "roofline.png"))
 
