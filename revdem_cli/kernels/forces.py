@@ -158,7 +158,7 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
     if stressed:
         stress_of(p, pairs, cell, cell.stress)
     if summed and walls.force.shape[1] == 0:  # nothing left to sum
-        damp_and_kick(*end_args)
+        damp_and_kick(n, *end_args)
         out, last, quantity = 0, -1, 0  # in floating point nothing leaves a grid
     else:
         out, last, quantity = gather_loop(n, *gather_args, largest, summed)

@@ -117,9 +117,7 @@ def kick_particles(p, fixed, law, h):
             moved = fx.kick(n, fixed.omega, p.omega, p.torque, p.inv_inertia, h, step)
             fx.note_overflow(fixed, fx.OF_ANGULAR_VELOCITY, moved)
         return
-    kick(n, p.v, p.f, p.inv_mass, h)
-    if moments:
-        kick(n, p.omega, p.torque, p.inv_inertia, h)
+    kick(n, p.v, p.omega, p.f, p.torque, p.inv_mass, p.inv_inertia, h, moments)
 
 
 @jit
