@@ -7,12 +7,14 @@ run removes it. `revdem run --resume DIR` continues from it, and the continued t
 is the one an uninterrupted run writes.
 
 SIGINT and SIGTERM stop a run at the next whole step, wherever it falls between frames,
-with a checkpoint there: the compiled stage loop runs in a worker thread (`threads.Stepper`)
-while the main thread takes the signal and sets the flag the loop reads at every step.
+with a checkpoint there: the compiled stage loop runs in the main thread (`threads.Stepper`),
+where Python's handler waits for it to return, so each signal also wakes a watcher thread
+(`signal.set_wakeup_fd`), which sets the flag the loop reads at every step.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 import time
@@ -67,30 +69,67 @@ class Checkpoints:
     def discard(self) -> None:
         self.path.unlink(missing_ok=True)
 
+    def ask(self, signum: int) -> None:
+        """A signal asks for a checkpoint and a stop: the stage loop halts at its next step."""
+        self.signal = signum
+        self.stepper.halt[0] = 1
+
     @contextmanager
     def on_signals(self) -> Iterator[None]:
         """While inside: SIGINT and SIGTERM ask for a checkpoint at the next whole step and a
-        stop (a second one stops at once). Only the main thread can take signals."""
+        stop (a second one stops at once). Only the main thread can take signals; it runs
+        their Python handler between bytecodes, not while it steps in compiled code, so a
+        watcher thread takes each from the wakeup pipe as the signal arrives (`watching`)."""
         if threading.current_thread() is not threading.main_thread():
             yield
             return
         kinds = (signal.SIGINT, signal.SIGTERM)
         before = {kind: signal.getsignal(kind) for kind in kinds}
 
-        def ask(signum, frame):
-            self.signal = signum
-            self.stepper.halt[0] = 1
+        def handler(signum, frame):
+            self.ask(signum)
             for kind in kinds:
                 signal.signal(kind, before[kind])
 
         for kind in kinds:
-            signal.signal(kind, ask)
+            signal.signal(kind, handler)
         try:
-            with self.stepper.in_worker():
+            with watching(kinds, self.ask):
                 yield
         finally:
             for kind in kinds:
                 signal.signal(kind, before[kind])
+
+
+_DONE = b"\0"  # no signal is numbered 0: what ends the watcher
+
+
+@contextmanager
+def watching(kinds: tuple[int, ...], ask) -> Iterator[None]:
+    """While inside: `ask(signum)` as soon as one of the signals `kinds` arrives, from a
+    thread of its own that reads the byte Python's C-level handler writes for it to a pipe
+    (`signal.set_wakeup_fd`: whichever thread the signal interrupts, and while the main
+    thread is in compiled code that released the GIL). Call from the main thread."""
+    read, write = os.pipe()
+    os.set_blocking(write, False)
+    previous = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+
+    def watch():
+        while (byte := os.read(read, 1)) != _DONE:
+            if byte[0] in kinds:
+                ask(byte[0])
+
+    watcher = threading.Thread(target=watch, name="revdem-signals", daemon=True)
+    watcher.start()
+    try:
+        yield
+    finally:
+        signal.set_wakeup_fd(previous)
+        os.set_blocking(write, True)
+        os.write(write, _DONE)
+        watcher.join()
+        os.close(read)
+        os.close(write)
 
 
 def find_checkpoints(out_dir: Path) -> list[Path]:

@@ -19,9 +19,6 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
 
 import numba
 import numpy as np
@@ -89,16 +86,17 @@ class Stepper:
     It returns to Python about every `PAUSE` seconds, and there chooses the thread count of
     the next stretch: the one of the fastest recent stepping, with a short trial of the other
     now and then; the calling thread's own kernel calls between stretches (frames, stop
-    conditions) take the same count. While signals are taken
-    (`checkpoint.Checkpoints.on_signals`), the loop runs in one worker thread, kept for the
-    whole run so that the threading layer keeps its team, and the main thread waits for it:
-    a signal's handler then runs at once and sets `halt`, which the loop reads at every step
-    (`integrate.HALTED`)."""
+    conditions) take the same count. The loop runs in the calling thread, the one thread of
+    the run that computes in parallel: a second thread with parallel loops of its own (the
+    stage loop in a worker, the frames in the main thread) gives OpenMP more threads than
+    cores, and its threads then sleep between regions (libgomp's throttled spinning): the fcc
+    benchmark at 4 000 spheres stepped at 626-829 us a step on two threads that way, against
+    378-390 from one thread. A signal sets `halt`, which the loop reads at every step
+    (`integrate.HALTED`), from a thread of its own (`checkpoint.Checkpoints.on_signals`)."""
 
     def __init__(self):
         self.halt = np.zeros(1, dtype=np.int64)
         self.steps_with: dict[int, int] = {}  # steps stepped on each thread count
-        self._worker: ThreadPoolExecutor | None = None
         self._rate: dict[int, float] = {}  # steps a second, the latest stretch on each count
         self._stretch: dict[int, int] = {}  # steps of the next stretch on each count
         self._warm: set[int] = set()  # counts past their first stretch
@@ -189,21 +187,7 @@ class Stepper:
             won = rate > self._rate[was_best]
             self._probe_every = PROBE_EVERY if won else min(2 * self._probe_every, PROBE_EVERY_MOST)
 
-    def _call(self, count: int, loop, *args):
-        def stepped():
-            numba.set_num_threads(count)
-            return loop(*args)
-
-        if self._worker is None:
-            return stepped()
-        return self._worker.submit(stepped).result()
-
-    @contextmanager
-    def in_worker(self) -> Iterator[None]:
-        """While inside: the loop runs in a worker thread of its own."""
-        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="revdem-steps")
-        try:
-            yield
-        finally:
-            self._worker.shutdown()
-            self._worker = None
+    @staticmethod
+    def _call(count: int, loop, *args):
+        numba.set_num_threads(count)
+        return loop(*args)
