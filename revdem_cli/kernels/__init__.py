@@ -76,8 +76,8 @@ if os.environ.get("NUMBA_THREADING_LAYER", "default").lower() == "default" and n
 numba.get_num_threads()  # loads the layer now: compiled code (`threads_here`) links to it
 
 jit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", nogil=True)
-"""Serial compiled function. It runs without the GIL, so that the stage loop can run in a
-worker thread while the main thread takes signals (`checkpoint.Stepper`)."""
+"""Serial compiled function. It runs without the GIL, so that while the main thread steps,
+the thread that watches for signals can set the loop's halt flag (`checkpoint.watching`)."""
 
 inline = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", forceinline=True)
 """Serial compiled helper over scalars and tuples, always inlined into its callers (LLVM's

@@ -74,7 +74,7 @@ def _wall_loop(
     last_cap = -1
     drops = 0
     last_drop = -1
-    if walls == 0:  # no parallel region for nothing (`integrate.advance`: regions a step)
+    if walls == 0:  # no parallel region for nothing: each costs microseconds a step
         return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
     for q in numba.prange(x.shape[0]):
         for b in range(walls):
