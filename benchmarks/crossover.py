@@ -3,8 +3,8 @@ parallel build, measured on this machine for each numba threading layer.
 
 Two kinds of loop make up a step. Light loops do a few flops a particle (the half kick, the
 drift, the largest reach since the last pair-list build): measured here by timing the
-half kick's serial and parallel builds (`kernels.gather._kick`) at sizes from 64 to
-262 144 particles, with 2 threads. Heavy loops (the pair loop, the gather, the walls) do
+half kick's serial and parallel builds (`kernels.gather._kick`, a part a thread) at sizes
+from 64 to 262 144 particles, with 2 threads. Heavy loops (the pair loop, the gather, the walls) do
 tens of nanoseconds of work a particle: measured by the whole step of the fcc Hertz
 benchmark (`fcc_hertz.py`) with 1 and 2 threads, whose time they dominate.
 
@@ -31,28 +31,30 @@ CALLS = 200
 
 
 def light_loop(layer: str) -> list[dict]:
-    """Microseconds a call of the half kick, serial and on 2 threads, at each size."""
+    """Microseconds a call of the half kick of the velocities, on 1 thread and on 2 threads
+    (its part-a-thread build from any size: `kernels.by_parts` with threshold 1), at each
+    size."""
     import numba
     import numpy as np
 
-    from revdem_cli.kernels import jit, pjit, renamed
+    from revdem_cli.kernels import by_parts, renamed
     from revdem_cli.kernels.gather import _kick
 
-    serial = jit(renamed(_kick, "kick_bench_serial"))
-    parallel = pjit(renamed(_kick, "kick_bench_parallel"))
-    numba.set_num_threads(2)
+    kick = by_parts(renamed(_kick, "_kick_bench"), threshold=1)
     rows = []
     for n in SIZES:
         v, f = np.zeros((n, 3)), np.ones((n, 3))
         inv_m = np.ones(n)
+        args = (n, v, v, f, f, inv_m, inv_m, 1e-9, False)  # the velocities alone
         timings = {}
-        for name, loop in (("serial", serial), ("parallel", parallel)):
-            loop(v, f, inv_m, 1e-9)  # compile or load
+        for name, threads in (("serial", 1), ("parallel", 2)):
+            numba.set_num_threads(threads)
+            kick(*args)  # compile or load
             samples = []
             for _ in range(REPEATS):
                 started = time.perf_counter()
                 for _ in range(CALLS):
-                    loop(v, f, inv_m, 1e-9)
+                    kick(*args)
                 samples.append((time.perf_counter() - started) / CALLS * 1e6)
             timings[name] = float(np.median(samples))
         rows.append(

@@ -202,7 +202,7 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
 
     def gather():  # what `forces.compute_forces` calls without walls
         if summed:
-            return damp_and_kick(*end_args)
+            return damp_and_kick(count, *end_args)
         return gather_loop(count, *gather_args, largest, summed)
 
     seconds = {
