@@ -323,6 +323,43 @@ def test_a_signal_stops_at_a_whole_step_with_a_checkpoint_from_which_the_run_res
     kills[signal.Signals(signum).name] = kills.get(signal.Signals(signum).name, 0) + 1
 
 
+def test_a_signal_halts_the_compiled_loop_in_the_main_thread_within_a_step(tmp_path):
+    """The stage loop steps in the main thread, where Python's handler cannot run until the
+    loop returns: the watcher thread (`checkpoint.watching`) must set the halt flag as the
+    signal arrives. Two spheres asked for 10^6 steps in one call (seconds of stepping); a
+    SIGTERM 0.2 s in must halt it within a second."""
+    import os
+    import threading
+
+    from revdem_cli.checkpoint import Checkpoints
+    from revdem_cli.io.tape import no_tape
+    from revdem_cli.kernels.integrate import HALTED, advance
+    from revdem_cli.stage import stepping_bundles
+
+    scenario = two_spheres()
+    model, state = Model.of(scenario), initial_state(scenario)
+    checkpoints = Checkpoints(tmp_path / "pair.checkpoint.h5", interval=1e9)
+    steps = 10**6
+    stepping = model.stepping(1e-9, 0, steps, steps, checkpoints.stepper.halt)
+    (obs, obs_steps), bundles = (
+        model.buffers(2),
+        stepping_bundles(state, model, model.dynamics, model.law),
+    )
+    advance(*bundles, empty_events(), no_tape(), stepping, 0, 10, 10, obs, obs_steps)  # compiled
+    with checkpoints.on_signals():
+        sender = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGTERM))
+        started = time.monotonic()
+        sender.start()
+        status, reached, _, _ = advance(
+            *bundles, empty_events(), no_tape(), stepping, 10, steps, steps, obs, obs_steps
+        )
+        seconds = time.monotonic() - started
+        sender.join()
+    assert status == HALTED and reached < steps, (status, reached)
+    assert seconds < 1.2, f"halted {seconds - 0.2:.2f} s after the signal"
+    assert checkpoints.signal == signal.SIGTERM
+
+
 def _unfinished(tmp_path: Path) -> Path:
     """An output directory with a checkpoint, as a killed collision leaves it."""
     process = subprocess.Popen(
