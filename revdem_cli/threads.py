@@ -90,7 +90,7 @@ class Stepper:
     the run that computes in parallel: a second thread with parallel loops of its own (the
     stage loop in a worker, the frames in the main thread) gives OpenMP more threads than
     cores, and its threads then sleep between regions (libgomp's throttled spinning): the fcc
-    benchmark at 4 000 spheres stepped at 626-829 us a step on two threads that way, against
+    benchmark at 4 000 spheres stepped at 614-829 us a step on two threads that way, against
     378-390 from one thread. A signal sets `halt`, which the loop reads at every step
     (`integrate.HALTED`), from a thread of its own (`checkpoint.Checkpoints.on_signals`)."""
 
