@@ -341,10 +341,8 @@ def test_a_signal_halts_the_compiled_loop_in_the_main_thread_within_a_step(tmp_p
     checkpoints = Checkpoints(tmp_path / "pair.checkpoint.h5", interval=1e9)
     steps = 10**6
     stepping = model.stepping(1e-9, 0, steps, steps, checkpoints.stepper.halt)
-    (obs, obs_steps), bundles = (
-        model.buffers(2),
-        stepping_bundles(state, model, model.dynamics, model.law),
-    )
+    obs, obs_steps = model.buffers(2)
+    bundles = stepping_bundles(state, model, model.dynamics, model.law)
     advance(*bundles, empty_events(), no_tape(), stepping, 0, 10, 10, obs, obs_steps)  # compiled
     with checkpoints.on_signals():
         sender = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGTERM))
