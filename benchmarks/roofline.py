@@ -2,7 +2,7 @@
 loop, against the memory traffic each loop cannot avoid: a roofline of the stepping loop.
 
 Each loop of a forward step is timed alone on the benchmark's state (one thread, best of
-REPEATS): the pair loop (in floating point with the sums of each sphere's
+REPEATS): the pair loop (with the sums of each sphere's
 forces: `pairs.sum_in_order`), the gather (the net force of each sphere and its half kick),
 the first half kick, the drift (in fixed-point arithmetic with the positions the integers
 give), and the check for a rebuild of the pair list; the rest of the step is what the whole
@@ -104,49 +104,43 @@ def _best(call, times: int) -> float:
     return min(_timed(lambda: [call() for _ in range(times)]) for _ in range(REPEATS)) / times
 
 
-def traffic(state, summed: bool) -> dict[str, int]:
+def traffic(state) -> dict[str, int]:
     """The bytes each loop must move at least (see the module docstring): the arrays it
-    reads, and those it writes, each once (the pair arrays as far as the list goes). Where
-    the pair loop `summed` the particles' forces and moments (one thread, floating point:
-    `pairs.sum_in_order`), it writes those and no pair forces, n x f or overlaps, and the
-    gather reads no pair arrays."""
+    reads, and those it writes, each once (the pair arrays as far as the list goes). The
+    pair loop sums the particles' forces and moments (`pairs.sum_in_order`); in floating
+    point it writes no pair forces, n x f or overlaps (fixed point writes them, and the
+    normals the next step turns the histories from), and the gather reads no pair arrays."""
     p, pairs, fixed = state.particles, state.pairs, state.fixed
     count = int(pairs.count[0])
-    listed = [a[:count] for a in (pairs.i, pairs.j, pairs.force, pairs.slots)]
-    i, j, force, slots = listed
+    i, j, force = (a[:count] for a in (pairs.i, pairs.j, pairs.force))
     shear = pairs.history.shape[0] > 0
-    kept = pairs.normal if pairs.normal.shape[0] else pairs.moment  # n x f, or n (fixed)
-    history, kept, overlap, destroyed = (
-        a[:count] for a in (pairs.history, kept, pairs.overlap, pairs.destroyed)
+    history, overlap, destroyed = (
+        a[:count] for a in (pairs.history, pairs.overlap, pairs.destroyed)
     )
-    pair_reads = [i, j, p.x, p.radius, p.material]
-    pair_writes = [force]
-    gather_reads = [pairs.first, pairs.start, slots, force, p.mass, p.inv_mass, p.v]
-    if summed:
-        pair_reads.append(p.mass)
-        pair_writes = [p.f]
-        gather_reads = [pairs.first, pairs.start, p.f, p.inv_mass, p.v]
+    pair_reads = [i, j, p.x, p.radius, p.material, p.mass]
+    pair_writes = [p.f]
+    gather_reads = [p.f, p.inv_mass, p.v]
     gather_writes = [p.f, p.v]
     kick_reads, kick_writes = [p.f, p.inv_mass, p.v], [p.v]
     drift_reads, drift_writes = [p.v, p.x], [p.x]
     if shear:
         pair_reads += [p.v, p.omega, history]
-        pair_writes += [history, destroyed] + ([p.torque] if summed else [kept, overlap])
-        gather_reads += [p.torque] if summed else [kept, overlap, p.radius]
-        gather_reads += [p.inv_inertia, p.omega]
+        pair_writes += [history, destroyed, p.torque]
+        gather_reads += [p.torque, p.inv_inertia, p.omega]
         gather_writes += [p.torque, p.omega]
         kick_reads += [p.torque, p.inv_inertia, p.omega]
         kick_writes += [p.omega]
     if fixed.v.shape[0] > 0:  # the integers read and written beside their images
         spins = [fixed.omega] if shear else []
-        gather_reads += [fixed.v] + spins
+        pair_writes.append(force)
+        gather_reads += [pairs.first, pairs.start, p.mass, fixed.v] + spins
         gather_writes += [fixed.v] + spins
         kick_reads += [fixed.v] + spins
         kick_writes += [fixed.v] + spins
         drift_reads, drift_writes = [p.v, fixed.x], [fixed.x, p.x]
         if pairs.normal.shape[0] > 0:  # the normals the histories turn from, and to
             pair_reads.append(pairs.normal[:count])
-            pair_writes.append(pairs.normal[:count])
+            pair_writes += [pairs.normal[:count], overlap]
 
     def size(arrays: list) -> int:
         return sum(a.nbytes for a in arrays)
@@ -166,7 +160,7 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
     from revdem_cli.io.tape import no_tape
     from revdem_cli.kernels.contact import FORWARD
     from revdem_cli.kernels.forces import loop_arguments
-    from revdem_cli.kernels.gather import damp_and_kick, gather_loop
+    from revdem_cli.kernels.gather import complete_sums, damp_and_kick, damp_and_kick_on_grids
     from revdem_cli.kernels.integrate import OK, advance, drift, kick_particles, needs_rebuild
     from revdem_cli.kernels.pairs import pair_loop
     from revdem_cli.stage import Model, stepping_bundles
@@ -191,19 +185,20 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
 
     steps(2)  # compile or load, and a first rebuild
     step_s = min(_timed(lambda: steps(STEPS)) for _ in range(REPEATS)) / STEPS
-    particle_args, pair_args, _, gather_args, end_args = loop_arguments(
+    particle_args, pair_args, _, sum_args, end_args = loop_arguments(
         p, pairs, walls, cell, fixed, law, moduli, dyn, FORWARD, dt, 0.0
     )
     length = cell.length
     image = (length[0], length[1], length[2], 1 / length[0], 1 / length[1], 1 / length[2])
     count = len(p.x)
     pair_call = (*particle_args, image, *pair_args, False)  # as between observables rows
-    _, largest, summed = pair_loop(count, *pair_call)  # what the gather takes
+    _, largest = pair_loop(count, *pair_call)  # what the gather takes
 
     def gather():  # what `forces.compute_forces` calls without walls
-        if summed:
+        if arithmetic == "float":
             return damp_and_kick(count, *end_args)
-        return gather_loop(count, *gather_args, largest, summed)
+        complete_sums(count, *sum_args, largest)
+        return damp_and_kick_on_grids(count, *end_args, fixed.v, fixed.omega, fixed.grid)
 
     seconds = {
         "pair loop": _best(lambda: pair_loop(count, *pair_call), STEPS),
@@ -222,7 +217,7 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
         "step_s": step_s,
         "particle_steps_per_s": count / step_s,
         "seconds": seconds,
-        "bytes": traffic(state, summed),
+        "bytes": traffic(state),
     }
 
 

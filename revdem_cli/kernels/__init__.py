@@ -211,22 +211,6 @@ def choice(functions, name):
     return chain or inline(renamed(_nothing, f"{name}_of_nothing"))
 
 
-def _pointer(context, builder, array_type, array, indices):
-    """LLVM pointer to an element of an array, from its index values (no wraparound)."""
-    data = context.make_array(array_type)(context, builder, array)
-    return cgutils.get_item_pointer2(
-        context,
-        builder,
-        data=data.data,
-        shape=cgutils.unpack_tuple(builder, data.shape),
-        strides=cgutils.unpack_tuple(builder, data.strides),
-        layout=array_type.layout,
-        inds=indices,
-        wraparound=False,
-        boundscheck=False,
-    )
-
-
 @intrinsic
 def threads_here(typingctx):
     """The thread count of the calling thread (`numba.set_num_threads`), read from the
@@ -250,64 +234,3 @@ def threads_for(n, threshold):
     (`threads_here`) from `threshold` items on, one below; the one place `by_size` and
     `by_parts` choose."""
     return threads_here() if n >= threshold else 1
-
-
-@intrinsic
-def prefetch(typingctx, array, index):
-    """Ask the memory system for row `index` of an array ahead of its use (llvm.prefetch:
-    a read, kept in every cache level); a hint only: it changes no value."""
-    if not isinstance(array, numba.types.Array):
-        return None
-
-    def codegen(context, builder, signature, args):
-        array_type, index_type = signature.args
-        row = context.cast(builder, args[1], index_type, numba.types.intp)
-        zero = context.get_constant(numba.types.intp, 0)
-        indices = [row] + [zero] * (array_type.ndim - 1)
-        pointer = _pointer(context, builder, array_type, args[0], indices)
-        i32 = ir.IntType(32)
-        hint = ir.FunctionType(ir.VoidType(), [pointer.type, i32, i32, i32])
-        fn = cgutils.get_or_insert_function(builder.module, hint, "llvm.prefetch.p0")
-        builder.call(fn, [pointer, ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)])
-        return context.get_dummy_value()
-
-    return numba.types.void(array, index), codegen
-
-
-@intrinsic
-def stream(typingctx, array, index, value):
-    """array[index] = value (index an integer or a tuple of them) with a non-temporal store:
-    the value goes to memory without first reading its cache line in, for arrays written
-    whole and read back only after the loop. Other threads see it after a `fence`."""
-    if not isinstance(array, numba.types.Array):
-        return None
-
-    def codegen(context, builder, signature, args):
-        array_type, index_type, value_type = signature.args
-        if isinstance(index_type, numba.types.BaseTuple):
-            values, kinds = cgutils.unpack_tuple(builder, args[1]), index_type.types
-        else:
-            values, kinds = [args[1]], [index_type]
-        indices = [
-            context.cast(builder, v, kind, numba.types.intp)
-            for v, kind in zip(values, kinds, strict=True)
-        ]
-        pointer = _pointer(context, builder, array_type, args[0], indices)
-        item = context.cast(builder, args[2], value_type, array_type.dtype)
-        store = builder.store(item, pointer)
-        store.set_metadata("nontemporal", builder.module.add_metadata([ir.IntType(32)(1)]))
-        return context.get_dummy_value()
-
-    return numba.types.void(array, index, value), codegen
-
-
-@intrinsic
-def fence(typingctx):
-    """A full memory fence: every store before it, non-temporal ones too, is visible to every
-    thread before any memory access after it."""
-
-    def codegen(context, builder, signature, args):
-        builder.fence("seq_cst")
-        return context.get_dummy_value()
-
-    return numba.types.void(), codegen

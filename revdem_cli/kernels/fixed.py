@@ -284,6 +284,8 @@ def _mirror_positions(n, x, s, step, length):
 
 
 kick = by_parts(_kick)
+kick_part = inline_arrays(_kick)
+"""`_kick` inlined into another loop's part (`gather.damp_and_kick_on_grids`)."""
 drift = by_size(_drift)
 drift_uniform = by_parts(_drift_uniform)
 mirror = by_size(_mirror_positions)

@@ -20,7 +20,7 @@ from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import deforms, holds_stress, images, servo_forces
 from revdem_cli.kernels.contact import REVERSE
 from revdem_cli.kernels.events import note_destroyed
-from revdem_cli.kernels.gather import damp_and_kick, gather_loop
+from revdem_cli.kernels.gather import complete_sums, damp_and_kick, damp_and_kick_on_grids
 from revdem_cli.kernels.pairs import contact_normals, pair_loop
 from revdem_cli.kernels.stress import stress_of
 from revdem_cli.kernels.wall_contacts import wall_loop
@@ -29,11 +29,11 @@ from revdem_cli.kernels.wall_contacts import wall_loop
 @jit
 def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
     """The plain arrays and settings the loops take, in their order: (the particles' part of
-    the pair loop's, the rest of it after the periodic images, the wall loop's, the
-    gather's, `gather.damp_and_kick`'s in its place where the pair loop summed and there are
-    no walls). Damping (local, viscous) reads the velocities p.v, p.omega, or with a
-    velocity predictor its predicted ones (Kolafa & Lisal 2011); the shear spring's
-    increment always reads p.v, p.omega."""
+    the pair loop's, the rest of it after the periodic images, the wall loop's,
+    `gather.complete_sums`'s, `gather.damp_and_kick`'s, which `damp_and_kick_on_grids` takes
+    followed by the integers and their grids). Damping (local, viscous) reads the
+    velocities p.v, p.omega, or with a velocity predictor its predicted ones (Kolafa &
+    Lisal 2011); the shear spring's increment always reads p.v, p.omega."""
     deforming = deforms(cell)
     of_normals = pairs.normal.shape[0] > 0  # fixed point with shear: no `Pairs.moment`
     kept = pairs.normal if of_normals else pairs.moment  # what the pairs keep for moments
@@ -102,39 +102,16 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         mode,
         dt,
     )
-    gather_args = (
-        p.mass,
-        p.inv_mass,
-        p.inv_inertia,
-        p.radius,
-        p.v,
-        p.omega,
-        v_damp,
-        w_damp,
-        dyn.gravity,
-        dyn.local_damping,
-        pairs.first,
-        pairs.start,
-        pairs.slots,
-        pairs.force,
-        kept,
-        of_normals,
-        pairs.overlap,
-        pairs.rolling,
-        walls.force,
-        walls.torque,
-        p.f,
-        p.torque,
-        h,
-        fixed.v,
-        fixed.omega,
+    sum_args = (
+        p.mass, dyn.gravity, pairs.first, pairs.start, pairs.slots, pairs.force,
+        kept.shape[0] > 0, walls.force, walls.torque, p.f, p.torque, fixed.v.shape[0] > 0,
         fixed.grid,
-    )
+    )  # fmt: skip
     end_args = (
         p.f, p.torque, p.v, p.omega, v_damp, w_damp, p.inv_mass, p.inv_inertia,
         dyn.local_damping, h, kept.shape[0] > 0,
     )  # fmt: skip
-    return particle_args, pair_args, wall_args, gather_args, end_args
+    return particle_args, pair_args, wall_args, sum_args, end_args
 
 
 @jit
@@ -144,25 +121,29 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
     rolling moment the step destroyed go into the event log at `step`. The pair arrays
     (`Pairs.force`, `.moment`, `.overlap`) get each pair's where `keep`, or where the
     gather reads them (`pairs.pair_loop`): something reads them before the next step."""
-    particle_args, pair_args, wall_args, gather_args, end_args = loop_arguments(
+    particle_args, pair_args, wall_args, sum_args, end_args = loop_arguments(
         p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h
     )
     n = p.x.shape[0]
     stressed = holds_stress(cell)  # a servo's stress, which `stress_of` finds from the pairs'
     keep = keep or stressed
     if cell.periodic[0] or cell.periodic[1] or cell.periodic[2]:
-        pair_events, largest, summed = pair_loop(n, *particle_args, images(cell), *pair_args, keep)
+        pair_events, largest = pair_loop(n, *particle_args, images(cell), *pair_args, keep)
     else:  # an open system's pairs skip the nearest image: a build of its own
-        pair_events, largest, summed = pair_loop(n, *particle_args, None, *pair_args, keep)
+        pair_events, largest = pair_loop(n, *particle_args, None, *pair_args, keep)
     wall_events = wall_loop(n, *wall_args)
     if stressed:
         stress_of(p, pairs, cell, cell.stress)
-    if summed and walls.force.shape[1] == 0:  # nothing left to sum
-        damp_and_kick(n, *end_args)
-        out, last, quantity = 0, -1, 0  # in floating point nothing leaves a grid
+    on_grid = fixed.v.shape[0] > 0
+    if walls.force.shape[1] > 0 or on_grid:  # walls to add, or sums to judge on their grid
+        out, last, quantity = complete_sums(n, *sum_args, largest)
+        fx.note_overflow(fixed, quantity, (out, last))
+    if on_grid:
+        out, last = damp_and_kick_on_grids(n, *end_args, fixed.v, fixed.omega, fixed.grid)
+        quantity = fx.OF_VELOCITY if last % 2 else fx.OF_ANGULAR_VELOCITY
+        fx.note_overflow(fixed, quantity, (out, last // 2))
     else:
-        out, last, quantity = gather_loop(n, *gather_args, largest, summed)
-    fx.note_overflow(fixed, quantity, (out, last))
+        damp_and_kick(n, *end_args)
     servo_forces(cell, dyn.local_damping)
     note_destroyed(events, step, pairs, walls, pair_events, wall_events)
 

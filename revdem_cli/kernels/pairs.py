@@ -13,11 +13,12 @@ through three stages:
   the spin correction's cos and sin as their series; a block where some angle is too large
   for that is done again with them in full);
 - scatter: each column's force, history, moment (fixed point: normal) and overlap into the
-  pair arrays, counting the shear force destroyed (scalar, branches); in a long list,
-  force, moment or normal and overlap with non-temporal stores (STREAM_FROM); in floating
-  point, also each particle's sums (`sum_in_order`), and the forces, moments and overlaps
-  only at steps after which something reads them (`keep`) or of pairs whose particles the
-  chunk does not sum (`Pairs.foreign`).
+  pair arrays, counting the shear force destroyed (scalar, branches), and each particle's
+  sums (`sum_in_order`); in floating point the forces, moments and overlaps only at steps
+  after which something reads them (`keep`) or of pairs whose particles the chunk does not
+  sum (`Pairs.foreign`). Plain stores: non-temporal ones, which an Intel host gained by
+  when the pair loop wrote every force, made the fixed-point pair loop 37-41 % slower on
+  an AMD EPYC (Zen 4) at n = 24 and 32 fcc, whose pair results exceed its L3 cache at 32.
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
 cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each particle's
 own pairs in one (`chunk_of`), each chunk worked through with its own block, so the loop
@@ -32,7 +33,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, fence, inline, renamed, stream
+from revdem_cli.kernels import by_size, inline
 from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.cell import affine_velocity, nearest_image, strain_rates
 from revdem_cli.kernels.contact import (
@@ -49,17 +50,9 @@ from revdem_cli.kernels.contact import (
     rolling_moment,
 )
 from revdem_cli.kernels.fixed import magnitude_bits, snapped_in_range
-from revdem_cli.kernels.gather import weight_of
+from revdem_cli.kernels.gather import weight_summed
 from revdem_cli.kernels.information import grid_spread, ordered
-from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, put_streaming, row, scaled
-
-STREAM_FROM = 200_000
-"""Lists of at least this many pairs send the pair loop's results (force, n x f, overlap)
-to memory with non-temporal stores: read back only by the gather, after the loop, they
-would not stay in cache, and a store that first reads its cache line in costs twice the
-traffic (the pair loop takes 9-20 % less time at n = 24 and 64 fcc). Smaller lists keep
-them in cache (at n = 10 and 14 streaming made the gather 20-30 % slower, at n = 18 it
-broke even)."""
+from revdem_cli.kernels.vectors import ZERO, axpy, cross, dot, norm, put, row, scaled
 
 APART = 1.0 + 1e-12
 """Pairs farther apart than (1 + 1e-12) (r_i + r_j) are certainly not touching, so their
@@ -115,7 +108,7 @@ NORMAL_THEN = 20  # the normal at the step's other end: reversed, the later posi
 FORCE = 23  # 3 rows
 NEW_SHEAR = 26  # the new shear history: 3 rows
 MOMENT = 29  # with shear, what a pair keeps for its moment: n x force, or where `turned` (fixed
-# point) the contact normal n, which the gather crosses with the force (zero apart): 3 rows
+# point) the contact normal n, which `sum_in_order` crosses with the force (zero apart): 3 rows
 OVERLAP = 32
 SLIPPED = 33  # shear force removed by the Coulomb cap
 ROLLING = 34  # rolling laws: the rolling history: 3 rows
@@ -403,13 +396,8 @@ def list_missed(earlier, listed, slot, was, found, spacing):
     return listed
 
 
-STREAMING = False
-"""Whether `scatter_pairs` streams (see STREAM_FROM); its streaming build has it True. A
-constant, not an argument: numba optimises the helper before inlining it, and LLVM merges
-the two branches' stores into one plain store."""
-
-
-def _scatter_pairs(
+@inline
+def scatter_pairs(
     block, first, size, force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
     predicting, listed, law, mode, write,
 ):  # fmt: skip
@@ -433,9 +421,7 @@ def _scatter_pairs(
     for k in range(size):
         p = first + k
         u = np.uint64(p)  # unsigned, as in `gather_pairs`
-        if write and STREAMING:
-            put_streaming(force, u, entries(block, FORCE, k))
-        elif write:
+        if write:
             put(force, u, entries(block, FORCE, k))
         if shear_law:
             overlap = entry(block, OVERLAP, k)
@@ -445,10 +431,7 @@ def _scatter_pairs(
                 was, found = entries(block, SHEAR, k), entries(block, EARLIER, k)
                 spacing = entry(block, SPACING_THEN, k)
                 listed = list_missed(earlier, listed, p, was, found, spacing)
-            if write and STREAMING:
-                put_streaming(moment, u, entries(block, MOMENT, k))
-                stream(overlaps, u, overlap)
-            elif write:
+            if write:
                 put(moment, u, entries(block, MOMENT, k))
                 overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
@@ -479,14 +462,15 @@ def _scatter_pairs(
 @inline
 def sum_in_order(
     block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond, foreign, force,
-    moment, overlaps,
+    moment, overlaps, turned,
 ):  # fmt: skip
     """The block's pairs, first to first + size - 1, added to their particles' sums in the
     list's order: the force f on i and -f on j; with moments (`torques`), on each the lever
-    arm r - overlap / 2 times n x f (Hanley 2020 Eq 5) and, with a rolling law (`rolls`),
-    the rolling moment on i and its opposite on j. The list is sorted by (i, j), so each
-    particle gets its terms in the gather's order (`gather._gather_loop`: its partners by
-    index, with the same arithmetic), and its sums are the gather's bits. Each particle's
+    arm r - overlap / 2 times n x f (Hanley 2020 Eq 5; where `turned`, fixed point, the
+    MOMENT rows hold the normal n, crossed here with the force on its grid) and, with a
+    rolling law (`rolls`), the rolling moment on i and its opposite on j. The list is sorted
+    by (i, j), so each particle gets its terms in one order on any thread count: its
+    partners p < q by index, then its own pairs (q, j) by index. Each particle's
     own pairs are consecutive: its sums stay in registers while they last. A particle with
     a partner in an earlier chunk (`foreign`, or `beyond` and above: a later chunk's) is
     summed after (`sum_foreign`): its pairs' forces, moments and overlaps go to the pair
@@ -518,6 +502,8 @@ def sum_in_order(
             put(f_sum, j, axpy(-1.0, f, row(f_sum, j)))
         if torques:
             n_x_f = entries(block, MOMENT, k)
+            if turned:
+                n_x_f = cross(n_x_f, f)
             overlap = entry(block, OVERLAP, k)
             t_i = axpy(radius[i] - 0.5 * overlap, n_x_f, t_i)
             t_j = axpy(radius[j] - 0.5 * overlap, n_x_f, row(t_sum, j)) if mine else ZERO
@@ -540,35 +526,39 @@ def mark_foreign(foreign, lo, hi, pi, start, slots):
 
 
 @inline
+def n_cross_f(moment, force, k, turned):
+    """n x f of pair k from what it keeps for its moment: `Pairs.moment`, or where `turned`
+    (fixed point) its normal, `Pairs.normal`, crossed with its force."""
+    return cross(row(moment, k), row(force, k)) if turned else row(moment, k)
+
+
+@inline
 def sum_foreign(q, mass, gravity, radius, pi, first_pair, start, slots, force, moment,
-                overlaps, rolling, f_sum, t_sum, torques, rolls):  # fmt: skip
+                overlaps, rolling, f_sum, t_sum, torques, rolls, f_step, turned):  # fmt: skip
     """Particle q's weight, forces and moments, summed from the pair arrays in the order and
     by the arithmetic of `sum_in_order`: its partners p < q ascending (the reaction -f, the
     lever arm r - overlap / 2 times n x f, Hanley 2020 Eq 5, the opposite of the rolling
-    moment on p), then its own pairs (q, j) (f, the lever-arm term, the rolling moment)."""
-    f = weight_of(mass[q], gravity)
+    moment on p), then its own pairs (q, j) (f, the lever-arm term, the rolling moment);
+    where `turned` (fixed point) n x f from the pair's normal and force (`n_cross_f`)."""
+    f = weight_summed(mass[q], gravity, f_step)
     t = ZERO
     for s in range(start[q], start[q + 1]):
         k = np.uint32(slots[s])
         f = axpy(-1.0, row(force, k), f)
         if torques:
-            t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
+            t = axpy(radius[q] - 0.5 * overlaps[k], n_cross_f(moment, force, k, turned), t)
             if rolls:
                 t = axpy(-1.0, row(rolling, k), t)
     for kk in range(first_pair[q], first_pair[q + 1]):
         k = np.uint64(kk)
         f = axpy(1.0, row(force, k), f)
         if torques:
-            t = axpy(radius[q] - 0.5 * overlaps[k], row(moment, k), t)
+            t = axpy(radius[q] - 0.5 * overlaps[k], n_cross_f(moment, force, k, turned), t)
             if rolls:
                 t = axpy(1.0, row(rolling, k), t)
     put(f_sum, q, f)
     if torques:
         put(t_sum, q, t)
-
-
-scatter_pairs = inline(_scatter_pairs)
-scatter_pairs_streaming = inline(renamed(_scatter_pairs, "_scatter_streaming", STREAMING=True))
 
 
 def _pair_loop(
@@ -622,20 +612,22 @@ def _pair_loop(
     with an `earlier` array (`Pairs.earlier`), the pairs whose history the reversed step
     would miss listed in it (`list_missed`, each chunk from its first slot on). The list is
     cut into as many chunks as there are `blocks` (`chunk_of`: each particle's own pairs in
-    one), each done block by block in its own: gather, contact stage, scatter. In floating
-    point it also sums each particle's weight, forces and moments into f_sum and t_sum, in
-    the gather's order (`sum_in_order`; a particle with a partner in an earlier chunk,
-    marked in `foreign`, once every chunk is done, `sum_foreign`), the same bits on any
-    thread count, and then writes the pair arrays' forces, moments and overlaps only where
-    `keep` (something reads them before the next step) or `sum_foreign` reads them; the
-    histories and what was destroyed always. Returns (the counts of `events.note_destroyed`,
-    in fixed point the largest magnitude of a component of a pair's force, N, which the
-    gather sums by: `gather._gather_loop`, whether f_sum and t_sum hold the sums)."""
+    one), each done block by block in its own: gather, contact stage, scatter. It also sums
+    each particle's weight, forces and moments into f_sum and t_sum, in the gather's order
+    (`sum_in_order`; a particle with a partner in an earlier chunk, marked in `foreign`,
+    once every chunk is done, `sum_foreign`), the same bits on any thread count; in fixed
+    point the weight rounded onto the force grid and the forces summed in doubles, which
+    `gather.complete_sums` keeps where that is exact. Floating point then writes the pair
+    arrays' forces, moments and overlaps only where `keep` (something reads them before the
+    next step) or `sum_foreign` reads them; fixed point always (the next step turns its
+    histories from the normals, and the gather sums a particle's forces again from them
+    where the sum in doubles may have rounded); the histories and what was destroyed
+    always. Returns (the counts of `events.note_destroyed`, in fixed point the largest
+    magnitude of a component of a pair's force, N, which the gather judges the sums by)."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
     predicting = mode == FORWARD and earlier.shape[0] > 0 and plain
-    streaming = n_pairs >= STREAM_FROM
     chunks = blocks.shape[0]
     slips = 0
     last_slip = -1
@@ -646,21 +638,21 @@ def _pair_loop(
     drops = 0
     last_drop = -1
     largest = 0.0  # fixed point: the largest component of a pair's force, N
-    summing = law.force_grid == 0.0
+    f_step = law.force_grid  # fixed point: the force grid's step; 0 in floating point
+    turned = law.history_grid != 0.0  # fixed point: `moment` holds the pairs' normals
     torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
-    write = keep or not summing  # else nothing reads the pair arrays before the next step
+    write = keep or f_step != 0.0  # else nothing reads the pair arrays before the next step
     for c in numba.prange(chunks):
         block = blocks[c]
         lo, start_pair = chunk_of(c, chunks, first_pair, n_pairs)
         beyond, end = chunk_of(c + 1, chunks, first_pair, n_pairs)
-        if summing:  # each of the chunk's particles' sums starts at its weight
-            for q in range(lo, beyond):
-                put(f_sum, q, weight_of(mass[q], gravity))
-                if torques:
-                    put(t_sum, q, ZERO)
-            if chunks > 1:  # one chunk: none (`foreign` stays all False)
-                mark_foreign(foreign, lo, beyond, pi, start, slots)
+        for q in range(lo, beyond):  # each of the chunk's particles' sums starts at its weight
+            put(f_sum, q, weight_summed(mass[q], gravity, f_step))
+            if torques:
+                put(t_sum, q, ZERO)
+        if chunks > 1:  # one chunk: none (`foreign` stays all False)
+            mark_foreign(foreign, lo, beyond, pi, start, slots)
         listed = start_pair  # the chunk's next row of `earlier`
         for first in range(start_pair, end, BLOCK):
             size = min(BLOCK, end - first)
@@ -673,16 +665,13 @@ def _pair_loop(
             contact_stage(
                 block, size, law, mode, dt, strain, deforming, then, predicted, predicting
             )
-            if law.force_grid != 0.0:
-                largest = max(largest, snap_forces(block, size, law.force_grid))
+            if f_step != 0.0:
+                largest = max(largest, snap_forces(block, size, f_step))
             results = (
                 force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
                 predicting, listed, law, mode, write,
             )  # fmt: skip
-            if streaming:
-                scattered = scatter_pairs_streaming(block, first, size, *results)
-            else:
-                scattered = scatter_pairs(block, first, size, *results)
+            scattered = scatter_pairs(block, first, size, *results)
             slips += scattered[0]
             last_slip = max(last_slip, scattered[1])
             losses += scattered[2]
@@ -692,25 +681,23 @@ def _pair_loop(
             drops += scattered[6]
             last_drop = max(last_drop, scattered[7])
             listed = scattered[8]
-            if summing:
-                sum_in_order(
-                    block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond,
-                    foreign, force, moment, overlaps,
-                )  # fmt: skip
+            sum_in_order(
+                block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond,
+                foreign, force, moment, overlaps, turned,
+            )  # fmt: skip
         if predicting and listed < end:
             earlier[listed, MISSED] = -1.0
-        fence()  # any streamed results, before the gather reads them on other threads
-    if summing and chunks > 1:  # the particles with partners in an earlier chunk
+    if chunks > 1:  # the particles with partners in an earlier chunk
         for c in numba.prange(chunks):
             lo = chunk_of(c, chunks, first_pair, n_pairs)[0]
             for q in range(lo, chunk_of(c + 1, chunks, first_pair, n_pairs)[0]):
                 if foreign[q]:
                     sum_foreign(
                         q, mass, gravity, radius, pi, first_pair, start, slots, force, moment,
-                        overlaps, rolling, f_sum, t_sum, torques, rolls,
+                        overlaps, rolling, f_sum, t_sum, torques, rolls, f_step, turned,
                     )  # fmt: skip
     counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
-    return counts, largest, summing
+    return counts, largest
 
 
 @inline

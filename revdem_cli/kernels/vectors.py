@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from revdem_cli.kernels import inline, jit, stream
+from revdem_cli.kernels import inline, jit
 
 ZERO = (0.0, 0.0, 0.0)
 
@@ -52,14 +52,6 @@ def row(a, k):
 @inline
 def put(a, k, vector):
     a[k, 0], a[k, 1], a[k, 2] = vector
-
-
-@inline
-def put_streaming(a, k, vector):
-    """`put` with non-temporal stores (`kernels.stream`)."""
-    stream(a, (k, 0), vector[0])
-    stream(a, (k, 1), vector[1])
-    stream(a, (k, 2), vector[2])
 
 
 @jit
