@@ -16,8 +16,8 @@ through three stages:
   pair arrays, counting the shear force destroyed (scalar, branches), and each particle's
   sums (`sum_in_order`); in floating point the forces, moments and overlaps only at steps
   after which something reads them (`keep`) or of pairs whose particles the chunk does not
-  sum (`Pairs.foreign`). Plain stores: non-temporal ones, which an Intel host gained by
-  when the pair loop wrote every force, made the fixed-point pair loop 37-41 % slower on
+  sum (`Pairs.foreign`). Plain stores: non-temporal ones, which gained on an Intel host
+  when the pair loop wrote every force, made the fixed-point pair loop 36-50 % slower on
   an AMD EPYC (Zen 4) at n = 24 and 32 fcc, whose pair results exceed its L3 cache at 32.
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
 cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each particle's
@@ -364,8 +364,8 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, then, predicted
 @inline
 def snap_forces(block, size, step):
     """Fixed-point arithmetic: the block's forces on the force grid of `step`
-    (`fixed.snapped_in_range`), once a pair, so that the gather sums each exactly for both
-    its particles. Returns the largest magnitude of a component of them (N), found from
+    (`fixed.snapped_in_range`), once a pair, so that each particle's sum adds it exactly for
+    both its particles. Returns the largest magnitude of a component of them (N), found from
     their bits (a double's magnitude orders as its bits do, and integers LLVM vectorises)."""
     largest = np.int64(0)
     for k in range(size):
@@ -613,7 +613,7 @@ def _pair_loop(
     would miss listed in it (`list_missed`, each chunk from its first slot on). The list is
     cut into as many chunks as there are `blocks` (`chunk_of`: each particle's own pairs in
     one), each done block by block in its own: gather, contact stage, scatter. It also sums
-    each particle's weight, forces and moments into f_sum and t_sum, in the gather's order
+    each particle's weight, forces and moments into f_sum and t_sum, in one fixed order
     (`sum_in_order`; a particle with a partner in an earlier chunk, marked in `foreign`,
     once every chunk is done, `sum_foreign`), the same bits on any thread count; in fixed
     point the weight rounded onto the force grid and the forces summed in doubles, which

@@ -121,8 +121,9 @@ def run_with_threads(threads: int, out, builder: str = "pile()") -> np.ndarray:
 @pytest.mark.parametrize("builder", ["pile()", "pile(rolling=True)"])
 def test_one_and_two_threads_give_bitwise_identical_trajectories(tmp_path, builder):
     """One thread: the serial pair loop sums each sphere's forces and moments itself, and
-    fills the pair arrays only where something reads them (`pairs.sum_in_order`); two: the
-    parallel loops fill them at every step and the gather sums them."""
+    fills the pair arrays only where something reads them (`pairs.sum_in_order`); two: one
+    chunk of the list a thread, each summing its own spheres, those with a partner in an
+    earlier chunk summed after from the pair arrays (`pairs.sum_foreign`)."""
     assert len(pile().particles) >= PARALLEL_FROM  # the parallel loops are the ones tested
     one = run_with_threads(1, tmp_path / "one", builder)
     two = run_with_threads(2, tmp_path / "two", builder)

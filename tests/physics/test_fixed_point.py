@@ -188,7 +188,7 @@ def _three_touching(**changes):
 
 def test_a_pair_force_is_rounded_once_and_summed_exactly():
     """The pair loop rounds each pair's force to the force grid once (fixed.snapped_in_range)
-    and the gather sums those integers exactly: each sphere's net force is the sum of its
+    and each sphere's sum adds those integers exactly: each sphere's net force is the sum of its
     pairs' forces, in whole grid steps."""
     from revdem_cli.kernels import fixed
     from revdem_cli.state import initial_state
@@ -207,8 +207,9 @@ def test_a_pair_force_is_rounded_once_and_summed_exactly():
 
 
 def test_a_net_force_is_the_integer_sum_of_its_terms_whichever_way_it_is_summed():
-    """The gather sums a sphere's forces in doubles where every partial sum is an integer a
-    double holds (fixed.sum_exact), else as integers: a sphere pressed by three neighbours
+    """A sphere's forces are summed in doubles (the pair loop) and kept where every partial
+    sum is an integer a double holds (fixed.sum_exact), else summed again as integers (the
+    gather, `complete_sums`): a sphere pressed by three neighbours
     with forces of 2^50 to 2^52 force-grid steps, whose sum in doubles rounds, gets the
     integer sum rounded once; on a grid 16 times coarser, where the doubles are exact, the
     integer sum as well."""
