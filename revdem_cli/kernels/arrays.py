@@ -178,4 +178,5 @@ Stepping = namedtuple(
     ],
 )
 """How the compiled stage loop steps a stage (`integrate.advance`); steps are integers. `halt`
-is read at every step: a signal handler sets it while the loop runs in another thread."""
+is read at every step: the thread that watches for signals sets it while the loop runs in
+the main thread (`checkpoint.watching`)."""
