@@ -2,8 +2,8 @@
 
 How many threads the parallel loops may use (`use`, `--threads`), and the threading layer
 numba loaded (in the order `kernels.LAYERS` gives), for the run's header and
-`revdem info --system`. Whatever the layer, loops too small to pay for a parallel region run
-serially (`kernels.by_size`), and with one thread every loop does.
+`revdem info --system`. Loops too small to pay for a parallel region on the loaded layer run
+serially (`kernels.by_size`, `kernels.CROSSOVERS`), and with one thread every loop does.
 
 Results do not depend on the thread count (every sum is in a fixed order), so the `Stepper`
 may change it between any two steps: it steps in pauses of about `PAUSE` seconds, times each,
@@ -142,10 +142,11 @@ class Stepper:
     def _counts(particles: int) -> tuple[int, ...]:
         """The thread counts worth timing: one, and the count in use where loops of this
         many particles run in parallel at all."""
-        from revdem_cli.kernels import PARALLEL_FROM
+        from revdem_cli.kernels import HEAVY, parallel_from
 
         most_now = _count or numba.get_num_threads()
-        return (1, most_now) if most_now > 1 and particles >= PARALLEL_FROM else (most_now,)
+        parallel = most_now > 1 and particles >= parallel_from[HEAVY]
+        return (1, most_now) if parallel else (most_now,)
 
     def _next(self, counts: tuple[int, ...]) -> tuple[int, int]:
         """The thread count and the length in steps of the next stretch."""

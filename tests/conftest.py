@@ -9,6 +9,7 @@ import pytest
 from revdem_cli.config import Scenario, load_scenario
 from revdem_cli.engine import run_scenario
 from revdem_cli.io.tape import no_tape
+from revdem_cli.kernels import parallel_from
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -49,12 +50,25 @@ def periodic_fcc(cells: int, spacing: float, random_velocity: float, seed: int) 
 
 def on_threads(threads: int) -> str:
     """Python that makes the stepper of the process it runs in step on `threads` at every
-    step: by itself it times one thread against them and steps on the faster, which at a few
-    hundred spheres is one, and a run meant for two would then test one."""
+    step, every loop in parallel whatever its size: by itself it times one thread against
+    them and steps on the faster, which at a few hundred spheres is one, and a run meant for
+    two would then test one; and a loop runs in parallel only from its crossover on
+    (`kernels.CROSSOVERS`: thousands of particles for light loops)."""
     return (
-        "from revdem_cli.threads import Stepper;"
+        "from revdem_cli.threads import Stepper; from revdem_cli import kernels;"
         f"Stepper._counts = staticmethod(lambda particles: ({threads},));"
+        "kernels.parallel_from[:] = [1, 1];"
     )
+
+
+@pytest.fixture
+def every_loop_parallel():
+    """Every loop in parallel whatever its size, as `on_threads` makes it
+    (`kernels.parallel_from`), restored after."""
+    crossovers = parallel_from[:]
+    parallel_from[:] = [1, 1]
+    yield
+    parallel_from[:] = crossovers
 
 
 def assert_one_line_error(result, *fragments):

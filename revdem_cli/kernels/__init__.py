@@ -11,6 +11,7 @@ of them starts a fresh cache. Inside it, code lies by module (`_PackageLocator`)
 the sources' absolute path: a fresh clone of the same sources compiles nothing.
 """
 
+import ctypes
 import hashlib
 import math
 import os
@@ -18,6 +19,7 @@ import types
 from functools import partial
 from pathlib import Path
 
+import llvmlite.binding as ll
 import numba
 from llvmlite import ir
 from numba.core import cgutils
@@ -116,9 +118,25 @@ def renamed(function, name, **constants):
     return twin
 
 
-PARALLEL_FROM = 256
-"""Loops over at least this many particles run in parallel, smaller ones serially. Results
-are the same either way."""
+LIGHT, HEAVY = 0, 1
+"""A loop's weight: a few flops a particle (a half kick, a drift, the largest reach), or tens
+of nanoseconds and more (the pair loop, the walls, the neighbour search)."""
+
+CROSSOVERS = {"omp": (864, 256), "workqueue": (6912, 6912), "tbb": (55296, 13500)}
+"""Particles from which a loop's parallel build pays on two threads, (LIGHT, HEAVY), by
+threading layer: what a parallel region costs (about 2 us under OpenMP, whose threads spin
+between regions, 70-100 us under workqueue, whose threads sleep, 10 us to milliseconds under
+TBB, which builds a task arena for each) against the half of the loop it saves. Measured on
+a 2-core AMD EPYC in the fcc step with history (`benchmarks/crossover.py`): heavy, from where
+two threads step faster than one; light, from where the light loops in parallel step faster
+than serially, which they do for the sake of the loops after them (a thread's particles
+stay in its core's cache), never below the heavy loops'."""
+
+parallel_from = (ctypes.c_int64 * 2)(*CROSSOVERS[numba.threading_layer()])
+"""The loaded layer's crossovers, which compiled code reads at each call (`threads_for`): a
+run on another layer loads the same cached code. Lowering them runs the parallel builds of
+small systems (the thread-count tests do)."""
+ll.add_symbol("revdem_parallel_from", ctypes.addressof(parallel_from))
 
 SERIAL = PARALLEL = FROM = None  # the globals `_by_size` sees as constants in each copy
 
@@ -129,16 +147,16 @@ def _by_size(n, *args):
     return SERIAL(*args)
 
 
-def by_size(loop, threshold=PARALLEL_FROM, **serial_constants):
-    """One compiled entry to a `prange` loop, called as f(n, *args): its parallel build for
-    n >= threshold items when the calling thread computes with more than one thread
-    (`revdem_cli.threads`), its serial build otherwise (`threads_for`, which `by_parts` asks
-    too); the serial build sees `serial_constants` in place of its module's globals
-    (`renamed`)."""
+def by_size(loop, weight=HEAVY, **serial_constants):
+    """One compiled entry to a `prange` loop of the given `weight`, called as f(n, *args): its
+    parallel build for n items from the weight's crossover on (`parallel_from`) when the
+    calling thread computes with more than one thread (`revdem_cli.threads`), its serial
+    build otherwise (`threads_for`, which `by_parts` asks too); the serial build sees
+    `serial_constants` in place of its module's globals (`renamed`)."""
     name = loop.__name__.lstrip("_")
     serial = jit(renamed(loop, name + "_serial", **serial_constants))
     parallel = pjit(renamed(loop, name + "_parallel"))
-    return jit(renamed(_by_size, name, SERIAL=serial, PARALLEL=parallel, FROM=threshold))
+    return jit(renamed(_by_size, name, SERIAL=serial, PARALLEL=parallel, FROM=weight))
 
 
 PART = None  # the global `_in_parts` and `_over_parts` see as a constant in each copy
@@ -162,19 +180,19 @@ def _in_parts(n, *args):
     return PART(0, args[0].shape[0], *args)
 
 
-def by_parts(part, threshold=PARALLEL_FROM):
-    """One compiled entry to a loop over the items of its first array, each item on its
-    own, written over a range of them: part(begin, end, *args) -> (items that left their
-    range, the last of them or -1). Called as f(n, *args), n the particles: at n >= threshold
-    with more than one thread (`threads_for`, as `by_size` chooses) the items are cut into
-    one contiguous part a thread, each run by the serial build, else all at once. A `prange`
-    over single items is not vectorised by LLVM where it counts and keeps its reductions
-    (the fixed-point drift at n = 24 fcc: 4.0-6.1 ns a sphere on two threads, against 2.5 on
-    one); each part is."""
+def by_parts(part, weight=HEAVY):
+    """One compiled entry to a loop of the given `weight` over the items of its first array,
+    each item on its own, written over a range of them: part(begin, end, *args) -> (items
+    that left their range, the last of them or -1). Called as f(n, *args), n the particles:
+    from the weight's crossover on with more than one thread (`threads_for`, as `by_size`
+    chooses) the items are cut into one contiguous part a thread, each run by the serial
+    build, else all at once. A `prange` over single items is not vectorised by LLVM where it
+    counts and keeps its reductions (the fixed-point drift at n = 24 fcc: 4.0-6.1 ns a sphere
+    on two threads, against 2.5 on one); each part is."""
     name = part.__name__.lstrip("_")
     serial = jit(part)
     parallel = pjit(renamed(_over_parts, name + "_parallel", PART=serial))
-    return jit(renamed(_in_parts, name, PART=serial, PARALLEL=parallel, FROM=threshold))
+    return jit(renamed(_in_parts, name, PART=serial, PARALLEL=parallel, FROM=weight))
 
 
 NUMBER = CHOSEN = OTHERS = None  # the globals each link of a `choice` sees as constants
@@ -228,9 +246,26 @@ def threads_here(typingctx):
     return numba.types.intp(), codegen
 
 
+@intrinsic
+def crossover(typingctx, weight):
+    """The particles from which a loop of `weight` runs in parallel: its entry of
+    `parallel_from`, read through the symbol it is registered under, as `threads_here` reads
+    the layer's thread count."""
+
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        table = builder.module.globals.get("revdem_parallel_from")
+        if table is None:
+            table = ir.GlobalVariable(builder.module, ir.ArrayType(i64, 2), "revdem_parallel_from")
+            table.linkage = "external"
+        return builder.load(builder.gep(table, [ir.Constant(i64, 0), args[0]]))
+
+    return numba.types.int64(weight), codegen
+
+
 @inline
-def threads_for(n, threshold):
-    """The threads a loop over n items computes with: those of the calling thread
-    (`threads_here`) from `threshold` items on, one below; the one place `by_size` and
+def threads_for(n, weight):
+    """The threads a loop of `weight` over n items computes with: those of the calling thread
+    (`threads_here`) from the weight's crossover on, one below; the one place `by_size` and
     `by_parts` choose."""
-    return threads_here() if n >= threshold else 1
+    return threads_here() if n >= crossover(weight) else 1

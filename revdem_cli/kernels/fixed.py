@@ -20,7 +20,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_parts, by_size, inline, inline_arrays, jit
+from revdem_cli.kernels import LIGHT, by_parts, by_size, inline, inline_arrays, jit
 
 RANGE = 2**62 - 1
 """Largest magnitude of a value on a grid, in grid steps: the sum of two such values still
@@ -283,12 +283,12 @@ def _mirror_positions(n, x, s, step, length):
                 x[q, d] = n[q, d] * step[d]
 
 
-kick = by_parts(_kick)
+kick = by_parts(_kick, LIGHT)
 kick_part = inline_arrays(_kick)
 """`_kick` inlined into another loop's part (`gather.damp_and_kick_on_grids`)."""
-drift = by_size(_drift)
-drift_uniform = by_parts(_drift_uniform)
-mirror = by_size(_mirror_positions)
+drift = by_size(_drift, LIGHT)
+drift_uniform = by_parts(_drift_uniform, LIGHT)
+mirror = by_size(_mirror_positions, LIGHT)
 
 
 @jit

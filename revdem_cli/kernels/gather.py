@@ -7,7 +7,7 @@ then local damping and the half kick (`damp_and_kick`, on the velocity grids
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_parts, by_size, inline, inline_arrays
+from revdem_cli.kernels import LIGHT, by_parts, by_size, inline, inline_arrays
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, row, scaled, sign
 
@@ -140,7 +140,7 @@ def _complete_sums(
     return out, worst // kinds if out else -1, worst % kinds if out else 0
 
 
-complete_sums = by_size(_complete_sums)
+complete_sums = by_size(_complete_sums, LIGHT)
 
 
 @inline_arrays
@@ -202,8 +202,8 @@ def _damp_and_kick_on_grids(begin, end, f, t, v, w, v_damp, w_damp, inv_mass, in
     return out, last
 
 
-kick = by_parts(_kick)
-damp_and_kick = by_parts(_damp_and_kick)
+kick = by_parts(_kick, LIGHT)
+damp_and_kick = by_parts(_damp_and_kick, LIGHT)
 """The gather's end, once each particle's force and moment sum is complete (the pair loop's,
 `pairs.sum_in_order`, and where walls add to them `complete_sums`), called as f(n, f, t,
 v, w, ...): local damping of each component, f - gamma_l |f| sgn(v) (Hanley 2020 Eq 21; v
@@ -214,7 +214,7 @@ read the one and wrote the other would not be); the moments likewise where there
 (`torques`: a tangential law). One parallel region, each thread's part of the particles
 through all four loops (`by_parts`), not one region a loop: at 4 000 spheres on two
 threads a region costs about what the loop inside it does."""
-damp_and_kick_on_grids = by_parts(_damp_and_kick_on_grids)
+damp_and_kick_on_grids = by_parts(_damp_and_kick_on_grids, LIGHT)
 """`damp_and_kick` in fixed-point arithmetic, after `complete_sums`, called as f(n, f, t, v,
 w, ..., torques, fixed_v, fixed_w, grid): the half kick lands on the velocity grids
 (`fixed.kick`, the velocities the integers give)."""

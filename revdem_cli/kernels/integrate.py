@@ -3,7 +3,7 @@
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, jit
+from revdem_cli.kernels import LIGHT, by_size, jit
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import tape as tp
 from revdem_cli.kernels.cell import kick_cell, move_cell
@@ -96,10 +96,10 @@ def _drift_in_cell(x, s, v, h, mid, length):
     return lost, last
 
 
-scale = by_size(_scale)
-scale_on_grid = by_size(_scale_fixed)
-drift_free = by_size(_drift)
-drift_in_cell = by_size(_drift_in_cell)
+scale = by_size(_scale, LIGHT)
+scale_on_grid = by_size(_scale_fixed, LIGHT)
+drift_free = by_size(_drift, LIGHT)
+drift_in_cell = by_size(_drift_in_cell, LIGHT)
 
 
 @jit

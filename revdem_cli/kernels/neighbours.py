@@ -12,7 +12,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, jit
+from revdem_cli.kernels import LIGHT, by_size, jit
 from revdem_cli.kernels.cell import nearest_image
 
 
@@ -270,4 +270,4 @@ def _largest_reach(x, x_built, v, f, inv_mass, dt, direction, length, built):
     return worst
 
 
-largest_reach = by_size(_largest_reach)
+largest_reach = by_size(_largest_reach, LIGHT)

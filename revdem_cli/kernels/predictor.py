@@ -19,7 +19,7 @@ steps differ by O(dt^(2k+1)) only (k = 1: 3/2, -1/2; k = 2: 5/3, -5/6, 1/6).
 import numba
 import numpy as np
 
-from revdem_cli.kernels import by_size, jit
+from revdem_cli.kernels import LIGHT, by_size, jit
 
 
 @jit
@@ -54,7 +54,7 @@ def _predict(v, past, predicted, b0, b1, b2, b3, b4):
             past[0, q, d] = v[q, d]
 
 
-predict_rows = by_size(_predict)
+predict_rows = by_size(_predict, LIGHT)
 
 MAX_ORDER = 4
 """The highest order (integrator.trvp_order)."""

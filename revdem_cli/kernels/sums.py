@@ -9,7 +9,7 @@ particles is one block, summed in plain order on one thread.
 
 import numpy as np
 
-from revdem_cli.kernels import by_size, inline
+from revdem_cli.kernels import LIGHT, by_size, inline
 
 SPAN = 4096
 """Particles in a block of a system-wide sum."""
@@ -31,9 +31,10 @@ def span(b, n):
 
 
 def by_blocks(loop):
-    """`kernels.by_size` for a loop over blocks: parallel above SPAN particles, where there is
-    more than one block."""
-    return by_size(loop, SPAN + 1)
+    """`kernels.by_size` for a loop over blocks, as a light loop: under OpenMP parallel from
+    SPAN particles on, where there is more than one block (a system of exactly SPAN is one
+    block in a parallel region of one iteration)."""
+    return by_size(loop, LIGHT)
 
 
 def empty_partials(n_particles: int) -> np.ndarray:

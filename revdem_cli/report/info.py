@@ -196,13 +196,13 @@ def system_summary() -> dict:
     import numba
 
     from revdem_cli import __version__, threads
-    from revdem_cli.kernels import PARALLEL_FROM
+    from revdem_cli.kernels import HEAVY, LIGHT, parallel_from
 
     return {
         "revdem": __version__,
         "numba": numba.__version__,
         **threads.summary(),
-        "parallel_from_particles": PARALLEL_FROM,
+        "parallel_from_particles": {"light": parallel_from[LIGHT], "heavy": parallel_from[HEAVY]},
         "kernel_cache": numba.config.CACHE_DIR,
     }
 
@@ -214,6 +214,8 @@ def system_lines(summary: dict) -> list[str]:
         f"(order tried: {', '.join(summary['layer_priority'])})",
         f"threads:         {summary['threads']} of a pool of {summary['thread_pool']}; "
         f"{summary['cores_available']} cores available",
-        f"parallel loops:  from {summary['parallel_from_particles']} particles (serial below)",
+        f"parallel loops:  from {summary['parallel_from_particles']['heavy']} particles for the "
+        f"pairs and walls, {summary['parallel_from_particles']['light']} for the kicks and drifts "
+        "(serial below)",
         f"kernel cache:    {summary['kernel_cache']}",
     ]

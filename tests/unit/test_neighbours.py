@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from revdem_cli.io.tape import no_tape
-from revdem_cli.kernels import PARALLEL_FROM
+from revdem_cli.kernels import HEAVY, parallel_from
 from revdem_cli.kernels.neighbours import (
     build_pairs,
     carry_history,
@@ -39,7 +39,9 @@ def listed(x, radius, skin, periodic, length):
     return n, list(zip(pi[:n].tolist(), pj[:n].tolist(), strict=True))
 
 
-@pytest.mark.parametrize("count", [PARALLEL_FROM - 56, PARALLEL_FROM + 144])  # serial, parallel
+@pytest.mark.parametrize(
+    "count", [parallel_from[HEAVY] - 56, parallel_from[HEAVY] + 144]
+)  # serial, parallel
 def test_cell_list_pairs_equal_brute_force_and_are_sorted(count):
     x, radius = random_packing(count, 1)
     n, pairs = listed(x, radius, 0.001, *OPEN)

@@ -12,7 +12,7 @@ import pytest
 
 from revdem_cli import threads
 from revdem_cli.engine import run_scenario
-from revdem_cli.kernels import PARALLEL_FROM
+from revdem_cli.kernels import HEAVY, parallel_from
 from revdem_cli.threads import Stepper
 from tests.physics.test_determinism import lattice
 
@@ -62,7 +62,7 @@ def step_with(
     cost: dict[int, float], stop: int, start: int = 0, first_call=None, stepper=None
 ) -> tuple[Stepper, tuple, np.ndarray]:
     stepper = stepper or Stepper()
-    particles = SimpleNamespace(x=np.zeros((PARALLEL_FROM, 3)))
+    particles = SimpleNamespace(x=np.zeros((parallel_from[HEAVY], 3)))
     rows = abs(stop - start) // EVERY + 2
     obs, obs_steps = np.zeros((rows, 1)), np.zeros(rows, dtype=np.int64)
     loop = fake_loop(cost, first_call)
@@ -102,11 +102,12 @@ def test_a_new_stage_times_its_thread_counts_afresh(quick):
     assert stepper.steps_with[1] - before[1] > 0.9 * 20000, stepper.steps_with
 
 
-def test_a_run_is_bitwise_the_same_wherever_the_thread_count_changes(tmp_path, monkeypatch):
+def test_a_run_is_bitwise_the_same_wherever_the_thread_count_changes(
+    tmp_path, monkeypatch, every_loop_parallel
+):
     """The fcc lattice (parallel loops, frictional contacts, a servo) stepped on 2 threads
     throughout, then with the count changed every 7 steps."""
     scenario = lattice()
-    assert len(scenario.spheres) >= PARALLEL_FROM
     monkeypatch.setattr(threads, "_count", 2)
     monkeypatch.setattr(Stepper, "_next", lambda self, counts: (2, 10**9))
     run_scenario(scenario, "", ".toml", tmp_path / "steady", reverse=False)
