@@ -31,13 +31,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+from revdem_cli.kernels import NEVER
+
 ROOT = Path(__file__).resolve().parents[1]
 CELLS = [4, 6, 8, 10, 12, 15, 24]  # fcc lattices of 256 ... 55 296 spheres
 PARTICLE_STEPS = 400_000  # a timing's particle-steps, in 20 to 400 steps: TBB's regions grow
 # slower the more a process has started (at 256 spheres, 1 000 000 a timing did not finish the
 # five rounds in 20 minutes)
 REPEATS = 5
-NEVER = 2**62  # a crossover no system reaches
 WAYS = {"one_thread": (1, NEVER, NEVER), "heavy_parallel": (2, NEVER, 1), "all_parallel": (2, 1, 1)}
 """(threads, light crossover, heavy crossover) of each way a step is timed."""
 
@@ -91,6 +92,10 @@ def crossovers(rows: list[dict]) -> tuple[int, int]:
     return max(light, heavy), heavy
 
 
+def size(crossover: int) -> str:
+    return "never" if crossover == NEVER else str(crossover)
+
+
 def in_layer(layer: str) -> list[dict] | None:
     """`step_times` in a process whose numba loads `layer`; None if it cannot load it."""
     env = os.environ | {"NUMBA_THREADING_LAYER": layer, "NUMBA_NUM_THREADS": "2"}
@@ -125,7 +130,7 @@ def main() -> None:
                 f"  {row['particles']:>7}  {row['one_thread']:9.1f}  {row['heavy_parallel']:9.1f}"
                 f"  {row['all_parallel']:9.1f}"
             )
-        print(f"  parallel from: light loops {light}, heavy loops {heavy}")
+        print(f"  parallel from: light loops {size(light)}, heavy loops {size(heavy)}")
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "crossover.json").write_text(json.dumps(results, indent=2) + "\n")
 

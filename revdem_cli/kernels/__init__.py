@@ -122,15 +122,20 @@ LIGHT, HEAVY = 0, 1
 """A loop's weight: a few flops a particle (a half kick, a drift, the largest reach), or tens
 of nanoseconds and more (the pair loop, the walls, the neighbour search)."""
 
-CROSSOVERS = {"omp": (864, 256), "workqueue": (6912, 6912), "tbb": (55296, 13500)}
+NEVER = 2**62
+"""A crossover no system reaches."""
+
+CROSSOVERS = {"omp": (864, 256), "workqueue": (55296, 6912), "tbb": (NEVER, NEVER)}
 """Particles from which a loop's parallel build pays on two threads, (LIGHT, HEAVY), by
 threading layer: what a parallel region costs (about 2 us under OpenMP, whose threads spin
-between regions, 70-100 us under workqueue, whose threads sleep, 10 us to milliseconds under
-TBB, which builds a task arena for each) against the half of the loop it saves. Measured on
-a 2-core AMD EPYC in the fcc step with history (`benchmarks/crossover.py`): heavy, from where
-two threads step faster than one; light, from where the light loops in parallel step faster
-than serially, which they do for the sake of the loops after them (a thread's particles
-stay in its core's cache), never below the heavy loops'."""
+between regions, 70-100 us under workqueue, whose threads sleep; under TBB, which builds a
+task arena for each, tens of microseconds at first and milliseconds once a process has
+started some thousands) against the half of the loop it saves. Measured on a 2-core AMD
+EPYC in the fcc step with history (`benchmarks/crossover.py`): heavy, from where two threads
+step faster than one; light, from where the light loops in parallel step faster than
+serially, which they do for the sake of the loops after them (a thread's particles stay in
+its core's cache), never below the heavy loops'. Under TBB no size up to 55 296 spheres
+paid."""
 
 parallel_from = (ctypes.c_int64 * 2)(*CROSSOVERS[numba.threading_layer()])
 """The loaded layer's crossovers, which compiled code reads at each call (`threads_for`): a
