@@ -143,25 +143,26 @@ run on another layer loads the same cached code. Lowering them runs the parallel
 small systems (the thread-count tests do)."""
 ll.add_symbol("revdem_parallel_from", ctypes.addressof(parallel_from))
 
-SERIAL = PARALLEL = FROM = None  # the globals `_by_size` sees as constants in each copy
+SERIAL = PARALLEL = FROM = LEAST = None  # the globals `_by_size` sees as constants in each copy
 
 
 def _by_size(n, *args):
-    if threads_for(n, FROM) > 1:
+    if n >= LEAST and threads_for(n, FROM) > 1:
         return PARALLEL(*args)
     return SERIAL(*args)
 
 
-def by_size(loop, weight=HEAVY, **serial_constants):
+def by_size(loop, weight=HEAVY, least=0, **serial_constants):
     """One compiled entry to a `prange` loop of the given `weight`, called as f(n, *args): its
-    parallel build for n items from the weight's crossover on (`parallel_from`) when the
-    calling thread computes with more than one thread (`revdem_cli.threads`), its serial
-    build otherwise (`threads_for`, which `by_parts` asks too); the serial build sees
+    parallel build for n items from the weight's crossover (`parallel_from`) and `least` on
+    when the calling thread computes with more than one thread (`revdem_cli.threads`), its
+    serial build otherwise (`threads_for`, which `by_parts` asks too); the serial build sees
     `serial_constants` in place of its module's globals (`renamed`)."""
     name = loop.__name__.lstrip("_")
     serial = jit(renamed(loop, name + "_serial", **serial_constants))
     parallel = pjit(renamed(loop, name + "_parallel"))
-    return jit(renamed(_by_size, name, SERIAL=serial, PARALLEL=parallel, FROM=weight))
+    constants = dict(SERIAL=serial, PARALLEL=parallel, FROM=weight, LEAST=least)
+    return jit(renamed(_by_size, name, **constants))
 
 
 PART = None  # the global `_in_parts` and `_over_parts` see as a constant in each copy

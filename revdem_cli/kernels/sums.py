@@ -31,10 +31,9 @@ def span(b, n):
 
 
 def by_blocks(loop):
-    """`kernels.by_size` for a loop over blocks, as a light loop: under OpenMP parallel from
-    SPAN particles on, where there is more than one block (a system of exactly SPAN is one
-    block in a parallel region of one iteration)."""
-    return by_size(loop, LIGHT)
+    """`kernels.by_size` for a loop over blocks, a light loop: in parallel only where there is
+    more than one block, above SPAN particles."""
+    return by_size(loop, LIGHT, least=SPAN + 1)
 
 
 def empty_partials(n_particles: int) -> np.ndarray:
