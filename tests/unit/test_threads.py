@@ -12,7 +12,7 @@ import pytest
 
 from revdem_cli import threads
 from revdem_cli.engine import run_scenario
-from revdem_cli.kernels import HEAVY, parallel_from
+from revdem_cli.kernels import HEAVY, LIGHT, parallel_from, threads_for
 from revdem_cli.threads import Stepper
 from tests.physics.test_determinism import lattice
 
@@ -100,6 +100,26 @@ def test_a_new_stage_times_its_thread_counts_afresh(quick):
     stepper.new_stage()
     step_with({1: 2e-5, 2: 1e-4}, 20000, first_call={1: 0.05}, stepper=stepper)
     assert stepper.steps_with[1] - before[1] > 0.9 * 20000, stepper.steps_with
+
+
+def test_a_loop_computes_on_the_threads_from_its_weights_crossover_read_at_each_call():
+    """`threads_for`, where every parallel loop chooses: one thread below the crossover of its
+    weight, the calling thread's count from it on; a crossover changed after the first call
+    is the one the next call obeys (compiled code reads `parallel_from`, it does not keep
+    the value it was compiled with)."""
+    crossovers = parallel_from[:]
+    numba.set_num_threads(2)
+    try:
+        heavy = parallel_from[HEAVY]
+        assert (threads_for(heavy - 1, HEAVY), threads_for(heavy, HEAVY)) == (1, 2)
+        parallel_from[:] = [10, 10**6]
+        assert (threads_for(9, LIGHT), threads_for(10, LIGHT)) == (1, 2)
+        assert threads_for(10**6 - 1, HEAVY) == 1
+        numba.set_num_threads(1)
+        assert threads_for(10**6, HEAVY) == 1
+    finally:
+        parallel_from[:] = crossovers
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
 
 
 def test_a_run_is_bitwise_the_same_wherever_the_thread_count_changes(
