@@ -197,7 +197,7 @@ def measure(n: int, variant: str, arithmetic: str) -> dict:
     def gather():  # what `forces.compute_forces` calls without walls
         if arithmetic == "float":
             return damp_and_kick(count, *end_args)
-        complete_sums(count, *sum_args, largest)
+        complete_sums(count, *sum_args, largest, False)
         return damp_and_kick_on_grids(count, *end_args, fixed.v, fixed.omega, fixed.grid)
 
     seconds = {

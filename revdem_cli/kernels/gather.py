@@ -62,7 +62,7 @@ def _pairs_as_integers(q, weight, first, start, slots, pair_force, per_f):
 
 def _complete_sums(
     mass, gravity, first, start, slots, pair_force, torques, wall_force, wall_torque, f_out,
-    t_out, on_grid, grid, largest_pair,
+    t_out, on_grid, grid, largest_pair, kept,
 ):  # fmt: skip
     """Net force and moment on each particle (Hanley 2020 Eq 4-5): f_out and t_out hold its
     weight and its pairs' terms, which the pair loop summed by partner index
@@ -79,7 +79,9 @@ def _complete_sums(
     number of terms stays below 2^53 grid steps (`fixed.sum_exact`: every partial sum is
     then an integer a double holds) the sum in doubles is exact, in any order, and is kept;
     elsewhere the terms are summed again as integers from the pair arrays (`Pairs.force`,
-    `_pairs_as_integers`), each term's size kept track of; the two give the same bits. A sum
+    `_pairs_as_integers`), each term's size kept track of; the two give the same bits. Where
+    the pair loop did not keep its forces there (`kept` false), such a particle is only
+    counted: the caller runs the pair loop again, keeping them, and this again. A sum
     in doubles is in range; one of integers leaves its grid when its largest term times the
     number of terms would (`fixed.sum_in_range`). The moment, summed in doubles in the fixed
     order, is rounded onto the moment grid once (`fixed.snapped_in_range`; it leaves the
@@ -87,12 +89,13 @@ def _complete_sums(
     by partner index whichever steps its lists were built at (a pair listed in one run and
     not in the other adds an exact zero). Returns (particles whose force or moment left its
     grid, the last of them, what left it there: fixed.OF_FORCE, or OF_MOMENT where the
-    force did not)."""
+    force did not, the particles whose sums need the pair forces not `kept`)."""
     f_step = grid[fx.FORCE] if on_grid else 1.0
     t_step = grid[fx.TORQUE] if on_grid else 1.0
     per_f, per_t = 1.0 / f_step, 1.0 / t_step
     out = 0
     worst = -1  # QUANTITIES x particle + quantity of the last particle off its grid
+    unsummed = 0
     for q in numba.prange(f_out.shape[0]):
         f = row(f_out, q)
         t = row(t_out, q) if torques else ZERO
@@ -104,7 +107,9 @@ def _complete_sums(
             weight = weight_of(mass[q], gravity)
             bound = max(largest_pair * per_f, _largest_own_term(q, weight, wall_force, per_f))
             integer = not fx.sum_exact(bound, terms)
-            if integer:  # the sum in doubles may have rounded
+            if integer and not kept:  # no pair forces to sum
+                unsummed += 1
+            elif integer:  # the sum in doubles may have rounded
                 f_int, largest_f = _pairs_as_integers(q, weight, first, start, slots,
                                                       pair_force, per_f)  # fmt: skip
         for b in range(wall_force.shape[1]):
@@ -137,7 +142,7 @@ def _complete_sums(
             quantity = fx.OF_FORCE if not ok else fx.OF_MOMENT
             worst = max(worst, q * len(fx.QUANTITIES) + quantity)
     kinds = len(fx.QUANTITIES)
-    return out, worst // kinds if out else -1, worst % kinds if out else 0
+    return out, worst // kinds if out else -1, worst % kinds if out else 0, unsummed
 
 
 complete_sums = by_size(_complete_sums, LIGHT)

@@ -14,11 +14,12 @@ through three stages:
   for that is done again with them in full);
 - scatter: each column's force, history, moment (fixed point: normal) and overlap into the
   pair arrays, counting the shear force destroyed (scalar, branches), and each particle's
-  sums (`sum_in_order`); in floating point the forces, moments and overlaps only at steps
-  after which something reads them (`keep`) or of pairs whose particles the chunk does not
-  sum (`Pairs.foreign`). Plain stores: non-temporal ones, which gained on an Intel host
-  when the pair loop wrote every force, made the fixed-point pair loop 36-50 % slower on
-  an AMD EPYC (Zen 4) at n = 24 and 32 fcc, whose pair results exceed its L3 cache at 32.
+  sums (`sum_in_order`); the forces, moments and overlaps only at steps after which
+  something reads them (`keep`, which `forces.compute_forces` decides) or of pairs whose
+  particles the chunk does not sum (`Pairs.foreign`). Plain stores: non-temporal ones,
+  which gained on an Intel host when the pair loop wrote every force, made the fixed-point
+  pair loop 36-50 % slower on an AMD EPYC (Zen 4) at n = 24 and 32 fcc, whose pair results
+  exceed its L3 cache at 32.
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
 cut into as many chunks as `Pairs.blocks` has blocks (the thread count), each particle's
 own pairs in one (`chunk_of`), each chunk worked through with its own block, so the loop
@@ -617,13 +618,12 @@ def _pair_loop(
     (`sum_in_order`; a particle with a partner in an earlier chunk, marked in `foreign`,
     once every chunk is done, `sum_foreign`), the same bits on any thread count; in fixed
     point the weight rounded onto the force grid and the forces summed in doubles, which
-    `gather.complete_sums` keeps where that is exact. Floating point then writes the pair
-    arrays' forces, moments and overlaps only where `keep` (something reads them before the
-    next step) or `sum_foreign` reads them; fixed point always (the next step turns its
-    histories from the normals, and the gather sums a particle's forces again from them
-    where the sum in doubles may have rounded); the histories and what was destroyed
-    always. Returns (the counts of `events.note_destroyed`, in fixed point the largest
-    magnitude of a component of a pair's force, N, which the gather judges the sums by)."""
+    `gather.complete_sums` keeps where that is exact. It writes the pair arrays' forces,
+    moments (in fixed point normals) and overlaps only where `keep` (something reads them
+    before the next step: `forces.compute_forces` says when) or `sum_foreign` reads them;
+    the histories and what was destroyed always. Returns (the counts of
+    `events.note_destroyed`, in fixed point the largest magnitude of a component of a pair's
+    force, N, which the gather judges the sums by)."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
@@ -642,7 +642,6 @@ def _pair_loop(
     turned = law.history_grid != 0.0  # fixed point: `moment` holds the pairs' normals
     torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
-    write = keep or f_step != 0.0  # else nothing reads the pair arrays before the next step
     for c in numba.prange(chunks):
         block = blocks[c]
         lo, start_pair = chunk_of(c, chunks, first_pair, n_pairs)
@@ -669,7 +668,7 @@ def _pair_loop(
                 largest = max(largest, snap_forces(block, size, f_step))
             results = (
                 force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
-                predicting, listed, law, mode, write,
+                predicting, listed, law, mode, keep,
             )  # fmt: skip
             scattered = scatter_pairs(block, first, size, *results)
             slips += scattered[0]

@@ -206,13 +206,15 @@ def test_a_pair_force_is_rounded_once_and_summed_exactly():
     np.testing.assert_array_equal(state.particles.f / step, net)
 
 
-def test_a_net_force_is_the_integer_sum_of_its_terms_whichever_way_it_is_summed():
+@pytest.mark.parametrize("keep", [True, False])
+def test_a_net_force_is_the_integer_sum_of_its_terms_whichever_way_it_is_summed(keep):
     """A sphere's forces are summed in doubles (the pair loop) and kept where every partial
     sum is an integer a double holds (fixed.sum_exact), else summed again as integers (the
     gather, `complete_sums`): a sphere pressed by three neighbours
     with forces of 2^50 to 2^52 force-grid steps, whose sum in doubles rounds, gets the
     integer sum rounded once; on a grid 16 times coarser, where the doubles are exact, the
-    integer sum as well."""
+    integer sum as well. The same where nothing asks the pair loop to keep its forces
+    (`keep` false): frictionless, it runs again to keep them where a sum needs them."""
     from revdem_cli.kernels import fixed
     from revdem_cli.kernels.contact import FORWARD
     from revdem_cli.kernels.forces import compute_forces
@@ -236,6 +238,8 @@ def test_a_net_force_is_the_integer_sum_of_its_terms_whichever_way_it_is_summed(
         bundles = stepping_bundles(
             state, model, model.dynamics, model.law._replace(force_grid=step)
         )
+        compute_forces(*bundles, FORWARD, 1e-7, 0.0, empty_events(), 1, keep)
+        net = state.particles.f[0].copy()
         compute_forces(*bundles, FORWARD, 1e-7, 0.0, empty_events(), 1, True)
         count = int(state.pairs.count[0])
         terms = [state.pairs.force[k] for k in range(count) if state.pairs.i[k] == 0]
@@ -243,7 +247,7 @@ def test_a_net_force_is_the_integer_sum_of_its_terms_whichever_way_it_is_summed(
         in_doubles = sum(terms[1:], terms[0]) / step  # in the gather's order
         exact = [float(sum(int(t[d] / step) for t in terms)) for d in range(3)]
         assert (list(in_doubles) != exact) == rounds
-        np.testing.assert_array_equal(state.particles.f[0] / step, exact)
+        np.testing.assert_array_equal(net / step, exact)
 
 
 def test_a_pair_force_beyond_its_grid_is_reported_as_the_force():
