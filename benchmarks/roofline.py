@@ -132,7 +132,8 @@ def traffic(state) -> dict[str, int]:
         kick_writes += [p.omega]
     if fixed.v.shape[0] > 0:  # the integers read and written beside their images
         spins = [fixed.omega] if shear else []
-        pair_writes.append(force)
+        if shear:  # the forces kept beside the histories (`forces.compute_forces`)
+            pair_writes.append(force)
         gather_reads += [pairs.first, pairs.start, p.mass, fixed.v] + spins
         gather_writes += [fixed.v] + spins
         kick_reads += [fixed.v] + spins
