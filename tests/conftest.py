@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -61,14 +62,23 @@ def on_threads(threads: int) -> str:
     )
 
 
+@contextmanager
+def crossovers(light: int, heavy: int):
+    """Loops of each weight in parallel from these particle counts (`kernels.parallel_from`),
+    whatever threading layer loaded, restored after."""
+    loaded = parallel_from[:]
+    parallel_from[:] = [light, heavy]
+    try:
+        yield
+    finally:
+        parallel_from[:] = loaded
+
+
 @pytest.fixture
 def every_loop_parallel():
-    """Every loop in parallel whatever its size, as `on_threads` makes it
-    (`kernels.parallel_from`), restored after."""
-    crossovers = parallel_from[:]
-    parallel_from[:] = [1, 1]
-    yield
-    parallel_from[:] = crossovers
+    """Every loop in parallel whatever its size, as `on_threads` makes it."""
+    with crossovers(1, 1):
+        yield
 
 
 def assert_one_line_error(result, *fragments):

@@ -12,8 +12,9 @@ import pytest
 
 from revdem_cli import threads
 from revdem_cli.engine import run_scenario
-from revdem_cli.kernels import HEAVY, LIGHT, parallel_from, threads_for
+from revdem_cli.kernels import HEAVY, LIGHT, threads_for
 from revdem_cli.threads import Stepper
+from tests.conftest import crossovers
 from tests.physics.test_determinism import lattice
 
 pytestmark = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
@@ -49,20 +50,27 @@ def fake_loop(cost: dict[int, float], first_call: dict[int, float] | None = None
     return loop
 
 
+PARTICLES = 256
+"""The fake stage's particles, from which the tests' crossovers (`quick`) run it in parallel."""
+
+
 @pytest.fixture
 def quick(monkeypatch):
-    """Stretches and trials short enough for a test."""
+    """Stretches and trials short enough for a test, and a stage large enough to time two
+    threads on any threading layer."""
     monkeypatch.setattr(threads, "PAUSE", 0.005)
     monkeypatch.setattr(threads, "PROBE_EVERY", 0.05)
     monkeypatch.setattr(threads, "PROBE", 0.01)
     monkeypatch.setattr(threads, "_count", 2)
+    with crossovers(PARTICLES, PARTICLES):
+        yield
 
 
 def step_with(
     cost: dict[int, float], stop: int, start: int = 0, first_call=None, stepper=None
 ) -> tuple[Stepper, tuple, np.ndarray]:
     stepper = stepper or Stepper()
-    particles = SimpleNamespace(x=np.zeros((parallel_from[HEAVY], 3)))
+    particles = SimpleNamespace(x=np.zeros((PARTICLES, 3)))
     rows = abs(stop - start) // EVERY + 2
     obs, obs_steps = np.zeros((rows, 1)), np.zeros(rows, dtype=np.int64)
     loop = fake_loop(cost, first_call)
@@ -107,18 +115,16 @@ def test_a_loop_computes_on_the_threads_from_its_weights_crossover_read_at_each_
     weight, the calling thread's count from it on; a crossover changed after the first call
     is the one the next call obeys (compiled code reads `parallel_from`, it does not keep
     the value it was compiled with)."""
-    crossovers = parallel_from[:]
     numba.set_num_threads(2)
     try:
-        heavy = parallel_from[HEAVY]
-        assert (threads_for(heavy - 1, HEAVY), threads_for(heavy, HEAVY)) == (1, 2)
-        parallel_from[:] = [10, 10**6]
-        assert (threads_for(9, LIGHT), threads_for(10, LIGHT)) == (1, 2)
-        assert threads_for(10**6 - 1, HEAVY) == 1
-        numba.set_num_threads(1)
-        assert threads_for(10**6, HEAVY) == 1
+        with crossovers(100, 256):
+            assert (threads_for(255, HEAVY), threads_for(256, HEAVY)) == (1, 2)
+            with crossovers(10, 10**6):
+                assert (threads_for(9, LIGHT), threads_for(10, LIGHT)) == (1, 2)
+                assert threads_for(10**6 - 1, HEAVY) == 1
+                numba.set_num_threads(1)
+                assert threads_for(10**6, HEAVY) == 1
     finally:
-        parallel_from[:] = crossovers
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
 
 
