@@ -2,14 +2,15 @@
 
 How many threads the parallel loops may use (`use`, `--threads`), and the threading layer
 numba loaded (in the order `kernels.LAYERS` gives), for the run's header and
-`revdem info --system`. Loops too small to pay for a parallel region on the loaded layer run
-serially (`kernels.by_size`, `kernels.CROSSOVERS`), and with one thread every loop does.
+`revdem info --system`. The parallel regions run on revdem's own threads whatever the layer
+(`kernels.pool`). Loops too small to pay for a parallel region run serially
+(`kernels.by_size`, `kernels.CROSSOVERS`), and with one thread every loop does.
 
 Results do not depend on the thread count (every sum is in a fixed order), so the `Stepper`
 may change it between any two steps: it steps in pauses of about `PAUSE` seconds, times each,
 and computes on the count that steps fastest on this machine as it is now. On busy cores a
-parallel region waits at its barrier for a thread the system has descheduled, and one thread
-is then faster than two; on a quiet machine the other way round.
+region waits for a row a descheduled helper took, and a helper that is not running takes
+none, so that one thread can be faster than two; on a quiet machine the other way round.
 
 The thread count is per thread in numba: `use` sets it in the calling thread, and the
 `Stepper` sets the count it chose before each stretch, in whichever thread steps.
@@ -58,8 +59,11 @@ def layer() -> str:
 
 def summary() -> dict:
     """What the parallel loops run on: the layer, threads in use, the pool, the cores."""
+    from revdem_cli.kernels import pool
+
     return {
         "threading_layer": layer(),
+        "pool_helpers": pool.helpers(),
         "threads": numba.get_num_threads(),
         "thread_pool": most(),
         "cores_available": available(),
@@ -87,11 +91,8 @@ class Stepper:
     the next stretch: the one of the fastest recent stepping, with a short trial of the other
     now and then; the calling thread's own kernel calls between stretches (frames, stop
     conditions) take the same count. The loop runs in the calling thread, the one thread of
-    the run that computes in parallel: a second thread with parallel loops of its own (the
-    stage loop in a worker, the frames in the main thread) gives OpenMP more threads than
-    cores, and its threads then sleep between regions (libgomp's throttled spinning): the fcc
-    benchmark at 4 000 spheres stepped at 614-829 us a step on two threads that way, against
-    378-390 from one thread. A signal sets `halt`, which the loop reads at every step
+    the run that computes in parallel: a region another thread starts while one is running
+    runs serially in it (`kernels.pool`). A signal sets `halt`, which the loop reads at every step
     (`integrate.HALTED`), from a thread of its own (`checkpoint.Checkpoints.on_signals`)."""
 
     def __init__(self):

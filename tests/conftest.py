@@ -54,7 +54,7 @@ def on_threads(threads: int) -> str:
     step, every loop in parallel whatever its size: by itself it times one thread against
     them and steps on the faster, which at a few hundred spheres is one, and a run meant for
     two would then test one; and a loop runs in parallel only from its crossover on
-    (`kernels.CROSSOVERS`: thousands of particles for light loops)."""
+    (`kernels.CROSSOVERS`: hundreds of particles for light loops)."""
     return (
         "from revdem_cli.threads import Stepper; from revdem_cli import kernels;"
         f"Stepper._counts = staticmethod(lambda particles: ({threads},));"
@@ -65,7 +65,7 @@ def on_threads(threads: int) -> str:
 @contextmanager
 def crossovers(light: int, heavy: int):
     """Loops of each weight in parallel from these particle counts (`kernels.parallel_from`),
-    whatever threading layer loaded, restored after."""
+    restored after."""
     loaded = parallel_from[:]
     parallel_from[:] = [light, heavy]
     try:

@@ -65,11 +65,11 @@ class _PackageLocator(UserProvidedCacheLocator):
 CacheImpl._locator_classes.insert(0, _PackageLocator)
 
 LAYERS = ("omp", "workqueue", "tbb")
-"""numba's threading layers in the order revdem takes the first that loads. numba's own order
-puts TBB first, which starts its scheduler at every parallel region: slower than the loop
-itself at DEM sizes. OpenMP is threadsafe (Dask threads may step runs side by side);
-numba's workqueue is always there. An environment that names a layer or an order
-(NUMBA_THREADING_LAYER, NUMBA_THREADING_LAYER_PRIORITY) is the user's choice, and kept."""
+"""numba's threading layers in the order revdem takes the first that loads. revdem's kernels
+run their parallel regions on revdem's own threads whatever the layer (`pool`); the layer
+keeps each thread's thread count (`numba.set_num_threads`) and cuts a region's schedule.
+An environment that names a layer or an order (NUMBA_THREADING_LAYER,
+NUMBA_THREADING_LAYER_PRIORITY) is the user's choice, and kept."""
 
 if os.environ.get("NUMBA_THREADING_LAYER", "default").lower() == "default" and not os.environ.get(
     "NUMBA_THREADING_LAYER_PRIORITY"
@@ -125,22 +125,18 @@ of nanoseconds and more (the pair loop, the walls, the neighbour search)."""
 NEVER = 2**62
 """A crossover no system reaches."""
 
-CROSSOVERS = {"omp": (864, 256), "workqueue": (55296, 6912), "tbb": (NEVER, NEVER)}
-"""Particles from which a loop's parallel build pays on two threads, (LIGHT, HEAVY), by
-threading layer: what a parallel region costs (about 2 us under OpenMP, whose threads spin
-between regions, 70-100 us under workqueue, whose threads sleep; under TBB, which builds a
-task arena for each, tens of microseconds at first and milliseconds once a process has
-started some thousands) against the half of the loop it saves. Measured on a 2-core AMD
-EPYC in the fcc step with history (`benchmarks/crossover.py`): heavy, from where two threads
-step faster than one; light, from where the light loops in parallel step faster than
-serially, which they do for the sake of the loops after them (a thread's particles stay in
-its core's cache), never below the heavy loops'. Under TBB no size up to 55 296 spheres
-paid."""
+CROSSOVERS = (864, 256)
+"""Particles from which a loop's parallel build pays on two threads, (LIGHT, HEAVY): what a
+parallel region costs on revdem's threads (`pool`: about 0.5 us, under any threading layer)
+against the half of the loop it saves. Measured on a 2-core AMD EPYC in the fcc step with
+history (`benchmarks/crossover.py`, the same under omp, workqueue and tbb): heavy, from
+where two threads step faster than one; light, from where the light loops in parallel step
+faster than serially, which they do for the sake of the loops after them (a thread's
+particles stay in its core's cache), never below the heavy loops'."""
 
-parallel_from = (ctypes.c_int64 * 2)(*CROSSOVERS[numba.threading_layer()])
-"""The loaded layer's crossovers, which compiled code reads at each call (`threads_for`): a
-run on another layer loads the same cached code. Lowering them runs the parallel builds of
-small systems (the thread-count tests do)."""
+parallel_from = (ctypes.c_int64 * 2)(*CROSSOVERS)
+"""The crossovers, which compiled code reads at each call (`threads_for`). Lowering them
+runs the parallel builds of small systems (the thread-count tests do)."""
 ll.add_symbol("revdem_parallel_from", ctypes.addressof(parallel_from))
 
 SERIAL = PARALLEL = FROM = LEAST = None  # the globals `_by_size` sees as constants in each copy
@@ -269,9 +265,73 @@ def crossover(typingctx, weight):
     return numba.types.int64(weight), codegen
 
 
+def _word(context, builder, signature, args):
+    """The address of words[k] (an int64 array, k an integer)."""
+    kind = signature.args[0]
+    array = context.make_array(kind)(context, builder, args[0])
+    k = context.cast(builder, args[1], signature.args[1], numba.types.intp)
+    return cgutils.get_item_pointer(context, builder, kind, array, [k])
+
+
+@intrinsic
+def take(typingctx, words, k):
+    """words[k] += 1 as one atomic step (sequentially consistent: what the calling thread
+    wrote before is seen by whoever reads the count after), returning the count before."""
+
+    def codegen(context, builder, signature, args):
+        at = _word(context, builder, signature, args)
+        return builder.atomic_rmw("add", at, ir.Constant(ir.IntType(64), 1), "seq_cst")
+
+    return numba.types.int64(words, k), codegen
+
+
+@intrinsic
+def count_now(typingctx, words, k):
+    """words[k], read as one atomic step (sequentially consistent: what was written before
+    the word was last written is seen after it is read)."""
+
+    def codegen(context, builder, signature, args):
+        return builder.load_atomic(_word(context, builder, signature, args), "seq_cst", 8)
+
+    return numba.types.int64(words, k), codegen
+
+
+@intrinsic
+def store_now(typingctx, words, k, value):
+    """words[k] = value as one atomic step (sequentially consistent)."""
+
+    def codegen(context, builder, signature, args):
+        value = context.cast(builder, args[2], signature.args[2], numba.types.int64)
+        builder.store_atomic(value, _word(context, builder, signature, args), "seq_cst", 8)
+        return context.get_dummy_value()
+
+    return numba.types.none(words, k, value), codegen
+
+
+_LIBC = ctypes.CDLL(None)
+ll.add_symbol("sched_yield", ctypes.cast(_LIBC.sched_yield, ctypes.c_void_p).value)
+
+
+@intrinsic
+def yield_core(typingctx):
+    """sched_yield(2): the core to another thread that is ready, if one is."""
+
+    def codegen(context, builder, signature, args):
+        kind = ir.FunctionType(ir.IntType(32), [])
+        builder.call(cgutils.get_or_insert_function(builder.module, kind, "sched_yield"), [])
+        return context.get_dummy_value()
+
+    return numba.types.none(), codegen
+
+
 @inline
 def threads_for(n, weight):
     """The threads a loop of `weight` over n items computes with: those of the calling thread
     (`threads_here`) from the weight's crossover on, one below; the one place `by_size` and
     `by_parts` choose."""
     return threads_here() if n >= crossover(weight) else 1
+
+
+from revdem_cli.kernels import pool  # noqa: E402  (needs the helpers above)
+
+pool.install()

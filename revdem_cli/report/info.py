@@ -211,7 +211,9 @@ def system_lines(summary: dict) -> list[str]:
     return [
         f"revdem:          {summary['revdem']} (numba {summary['numba']})",
         f"threading layer: {summary['threading_layer']} "
-        f"(order tried: {', '.join(summary['layer_priority'])})",
+        f"(order tried: {', '.join(summary['layer_priority'])}); parallel regions on revdem's "
+        f"threads: the caller and {summary['pool_helpers']} helper"
+        f"{'' if summary['pool_helpers'] == 1 else 's'}",
         f"threads:         {summary['threads']} of a pool of {summary['thread_pool']}; "
         f"{summary['cores_available']} cores available",
         f"parallel loops:  from {summary['parallel_from_particles']['heavy']} particles for the "

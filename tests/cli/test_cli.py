@@ -162,6 +162,7 @@ def test_info_system_names_the_threading_layer_loaded_and_the_threads():
     system = json.loads(result.output)
     assert system["threading_layer"] in LAYERS
     assert 1 <= system["threads"] <= system["thread_pool"]
+    assert system["pool_helpers"] == system["thread_pool"] - 1  # the regions' threads
     assert system["cores_available"] >= 1
     assert_one_line_error(CliRunner().invoke(app, ["info"]), "or --system")
 

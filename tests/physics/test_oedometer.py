@@ -34,8 +34,8 @@ def observables(path, *names):
         return steps, {name: f[f"observables/{name}/value"][:] for name in names}
 
 
-def test_the_smoke_case_has_enough_spheres_to_step_in_parallel_under_openmp():
-    assert len(load_scenario(SMOKE)[0].spheres) >= CROSSOVERS["omp"][HEAVY]
+def test_the_smoke_case_has_enough_spheres_to_step_in_parallel():
+    assert len(load_scenario(SMOKE)[0].spheres) >= CROSSOVERS[HEAVY]
 
 
 def test_the_platens_carry_the_load_and_the_weight_at_rest(smoke):

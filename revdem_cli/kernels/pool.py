@@ -1,0 +1,399 @@
+"""revdem's own threads for numba's parallel regions, whatever threading layer numba loaded.
+
+numba compiles each `prange` loop into a kernel over rows of a schedule, one row a thread,
+and hands it to its threading layer's `parallel_for`. What a layer charges for a region
+decides whether parallel loops pay at DEM sizes: about 1.5 us under OpenMP, whose threads
+spin between regions; about 60 us under workqueue, whose threads sleep on a condition
+variable; under TBB, which builds a task arena for each region, tens of microseconds at
+first and milliseconds once a process has started some thousands. A step starts several.
+
+So revdem runs the regions itself (`install`: the symbols numba's kernels link to,
+`numba_parallel_for` and `get_thread_id`, are its own), on threads of its own that wait
+for work by spinning, giving the core away at each turn (`sched_yield`), and nap once they
+have been idle for a while (`IDLE_TURNS`). The thread that starts a region takes rows
+itself; each row goes to whichever thread takes it first (an atomic counter), and the
+region is over once every row is done. A thread that is asleep, or descheduled on busy
+cores, never holds a region up unless it took a row; with no helper awake the caller runs
+every row. Row r always runs as thread r (`get_thread_id`, which a kernel's reductions
+index), so a reduction combines the same partial results in the same order whichever
+thread ran each row, as the layers do.
+
+numba's layer still keeps each thread's thread count (`numba.set_num_threads`), which
+sizes the schedule. A region started while another is running (another Python thread's, or
+from inside a row) runs its rows in the calling thread. A schedule with more rows than
+threads goes to the layer's own `parallel_for`. Neither occurs in revdem's kernels.
+"""
+
+from __future__ import annotations
+
+import atexit
+import ctypes
+import os
+import threading
+
+import llvmlite.binding as ll
+import numba
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+from revdem_cli.kernels import count_now, jit, store_now, take, yield_core
+
+NEXT = 0  # (job << 32) | the next row to take; CLOSED while a job is being posted
+DONE = 1  # rows of the current job done
+BUSY = 2  # a job is in flight: taken by the thread that posts it
+JOBS = 3  # jobs posted
+FN, ARGS, DIMS, STEPS, DATA, INNER, ARRAYS, ROWS = range(4, 12)  # the job: numba's
+# `parallel_for` arguments, and the rows of its schedule
+LAYER = 12  # the address of the layer's own `parallel_for`
+STOP = 13  # the helpers are to return (the process is ending)
+WORDS = 16
+
+CLOSED = 1 << 31
+"""The row that NEXT shows while a job's arguments are written: no row of any job."""
+
+MOST_ARRAYS = 1024
+"""Arguments of a kernel the pool runs (numba passes each array and scalar as one); a
+kernel with more goes to the layer's `parallel_for`."""
+
+MOST_DIMS = 64
+"""Inner dimensions of a kernel the pool runs; one with more goes to the layer."""
+
+IDLE_TURNS = 20_000
+"""Turns (a `sched_yield` each, about 0.1-1 us) a helper waits for work before it naps."""
+
+NAP_US = 200
+"""A napping helper looks for work this often (microseconds)."""
+
+_pool = (ctypes.c_int64 * WORDS)()
+_row_key = ctypes.c_uint32(0)
+_libc = ctypes.CDLL(None)
+if _libc.pthread_key_create(ctypes.byref(_row_key), None) != 0:
+    raise OSError("pthread_key_create failed: no thread-local slot for the pool's row")
+_key = ctypes.c_int64(_row_key.value)
+ll.add_symbol("revdem_pool", ctypes.addressof(_pool))
+ll.add_symbol("revdem_row_key", ctypes.addressof(_key))
+for _name in ("pthread_setspecific", "pthread_getspecific", "usleep"):
+    ll.add_symbol(_name, ctypes.cast(getattr(_libc, _name), ctypes.c_void_p).value)
+
+
+def _symbol(builder, name, kind):
+    variable = builder.module.globals.get(name)
+    if variable is None:
+        variable = ir.GlobalVariable(builder.module, kind, name)
+        variable.linkage = "external"
+    return variable
+
+
+@intrinsic
+def pool_words(typingctx):
+    """The pool's control words (`_pool`), as a pointer compiled code reads through the
+    symbol it is registered under."""
+
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        words = _symbol(builder, "revdem_pool", ir.ArrayType(i64, WORDS))
+        return builder.gep(words, [ir.Constant(i64, 0), ir.Constant(i64, 0)])
+
+    return types.CPointer(types.int64)(), codegen
+
+
+@intrinsic
+def words_at(typingctx, address):
+    """The int64 words from `address` on, as a pointer (`numba.carray` views them)."""
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], ir.PointerType(ir.IntType(64)))
+
+    return types.CPointer(types.int64)(address), codegen
+
+
+@intrinsic
+def address_of(typingctx, pointer):
+    """A pointer's address, as an int64."""
+
+    def codegen(context, builder, signature, args):
+        return builder.ptrtoint(args[0], ir.IntType(64))
+
+    return types.int64(pointer), codegen
+
+
+@intrinsic
+def scratch_words(typingctx):
+    """MOST_ARRAYS + MOST_DIMS int64 words on the calling function's stack."""
+
+    def codegen(context, builder, signature, args):
+        return cgutils.alloca_once(builder, ir.IntType(64), size=MOST_ARRAYS + MOST_DIMS)
+
+    return types.CPointer(types.int64)(), codegen
+
+
+@intrinsic
+def run_kernel(typingctx, fn, args, dims, steps, data):
+    """fn(args, dims, steps, data): a kernel numba built for a parallel region, called
+    through its address."""
+
+    def codegen(context, builder, signature, arguments):
+        byte_ptr = ir.PointerType(ir.IntType(8))
+        i64_ptr = ir.PointerType(ir.IntType(64))
+        targets = (ir.PointerType(byte_ptr), i64_ptr, i64_ptr, byte_ptr)
+        kind = ir.FunctionType(ir.VoidType(), targets)
+        kernel = builder.inttoptr(arguments[0], ir.PointerType(kind))
+        pointers = [builder.inttoptr(a, t) for a, t in zip(arguments[1:], targets, strict=True)]
+        builder.call(kernel, pointers)
+        return context.get_dummy_value()
+
+    return types.none(fn, args, dims, steps, data), codegen
+
+
+@intrinsic
+def run_layer(typingctx, fn, args, dims, steps, data, inner, arrays, threads):
+    """The layer's own `parallel_for` (its address in the pool's LAYER word) with these
+    arguments."""
+
+    def codegen(context, builder, signature, arguments):
+        byte_ptr = ir.PointerType(ir.IntType(8))
+        i64 = ir.IntType(64)
+        kind = ir.FunctionType(ir.VoidType(), [byte_ptr] * 5 + [i64] * 3)
+        words = _symbol(builder, "revdem_pool", ir.ArrayType(i64, WORDS))
+        at = builder.gep(words, [ir.Constant(i64, 0), ir.Constant(i64, LAYER)])
+        layer = builder.inttoptr(builder.load(at), ir.PointerType(kind))
+        pointers = [builder.inttoptr(a, byte_ptr) for a in arguments[:5]]
+        builder.call(layer, pointers + list(arguments[5:]))
+        return context.get_dummy_value()
+
+    return types.none(fn, args, dims, steps, data, inner, arrays, threads), codegen
+
+
+def _key_of(builder):
+    key = _symbol(builder, "revdem_row_key", ir.IntType(64))
+    return builder.trunc(builder.load(key), ir.IntType(32))
+
+
+@intrinsic
+def set_row(typingctx, row):
+    """The calling thread's row (`get_thread_id`), in its thread-local slot."""
+
+    def codegen(context, builder, signature, args):
+        byte_ptr = ir.PointerType(ir.IntType(8))
+        kind = ir.FunctionType(ir.IntType(32), [ir.IntType(32), byte_ptr])
+        call = cgutils.get_or_insert_function(builder.module, kind, "pthread_setspecific")
+        builder.call(call, [_key_of(builder), builder.inttoptr(args[0], byte_ptr)])
+        return context.get_dummy_value()
+
+    return types.none(row), codegen
+
+
+@intrinsic
+def row_now(typingctx):
+    """The calling thread's row: 0 outside the pool's regions."""
+
+    def codegen(context, builder, signature, args):
+        byte_ptr = ir.PointerType(ir.IntType(8))
+        kind = ir.FunctionType(byte_ptr, [ir.IntType(32)])
+        call = cgutils.get_or_insert_function(builder.module, kind, "pthread_getspecific")
+        return builder.ptrtoint(builder.call(call, [_key_of(builder)]), ir.IntType(64))
+
+    return types.int64(), codegen
+
+
+@intrinsic
+def swap_if(typingctx, words, k, expected, value):
+    """words[k] = value where it is `expected`, as one atomic step (sequentially
+    consistent); whether it was."""
+
+    def codegen(context, builder, signature, args):
+        kind = signature.args[0]
+        array = context.make_array(kind)(context, builder, args[0])
+        at = cgutils.get_item_pointer(context, builder, kind, array, [args[1]])
+        pair = builder.cmpxchg(at, args[2], args[3], "seq_cst", "seq_cst")
+        return builder.extract_value(pair, 1)
+
+    return types.boolean(words, k, expected, value), codegen
+
+
+@intrinsic
+def nap(typingctx, microseconds):
+    """usleep(3)."""
+
+    def codegen(context, builder, signature, args):
+        kind = ir.FunctionType(ir.IntType(32), [ir.IntType(32)])
+        call = cgutils.get_or_insert_function(builder.module, kind, "usleep")
+        builder.call(call, [builder.trunc(args[0], ir.IntType(32))])
+        return context.get_dummy_value()
+
+    return types.none(microseconds), codegen
+
+
+@jit
+def _run_row(fn, args, dims, steps, data, inner, arrays, row):
+    """Row `row` of a job's schedule in the calling thread, as thread `row`: each argument
+    moved on by its outer step `row` times (only the schedule's is not zero), the outer
+    dimension one row."""
+    scratch = numba.carray(scratch_words(), MOST_ARRAYS + MOST_DIMS)
+    moved, shape = scratch[:MOST_ARRAYS], scratch[MOST_ARRAYS:]
+    given = numba.carray(words_at(args), arrays)
+    step = numba.carray(words_at(steps), arrays)
+    for j in range(arrays):
+        moved[j] = given[j] + step[j] * row
+    outer = numba.carray(words_at(dims), inner + 1)
+    shape[0] = 1
+    for j in range(1, inner + 1):
+        shape[j] = outer[j]
+    set_row(row)
+    run_kernel(fn, moved.ctypes.data, shape.ctypes.data, steps, data)
+
+
+@jit
+def _take_row(pool, job):
+    """A row of job `job` for the calling thread, or -1 where none is left (or the job is
+    over)."""
+    while True:
+        now = count_now(pool, NEXT)
+        row = now & (CLOSED * 2 - 1)
+        if now >> 32 != job or row >= pool[ROWS]:
+            return -1
+        if swap_if(pool, NEXT, now, now + 1):
+            return row
+
+
+@jit
+def _work(pool, job):
+    """Take rows of job `job` and run them while any are left."""
+    fn, args, dims, steps, data = pool[FN], pool[ARGS], pool[DIMS], pool[STEPS], pool[DATA]
+    inner, arrays = pool[INNER], pool[ARRAYS]
+    row = _take_row(pool, job)
+    while row >= 0:
+        _run_row(fn, args, dims, steps, data, inner, arrays, row)
+        take(pool, DONE)
+        row = _take_row(pool, job)
+
+
+@jit
+def _serve():
+    """A helper's life: wait for a job, take its rows while any are left, and again, until
+    the pool stops."""
+    pool = numba.carray(pool_words(), WORDS)
+    served = count_now(pool, NEXT) >> 32
+    idle = 0
+    while True:
+        now = count_now(pool, NEXT)
+        job = now >> 32
+        if job == served or now & (CLOSED * 2 - 1) >= CLOSED:
+            if count_now(pool, STOP) != 0:
+                return
+            idle += 1
+            if idle < IDLE_TURNS:
+                yield_core()
+            else:
+                nap(NAP_US)
+            continue
+        served = job
+        idle = 0
+        # a job's arguments are read after its NEXT and checked by the row's swap: they are
+        # rewritten only once every row of the job is done, which this row is not
+        _work(pool, job)
+
+
+_LAYER_PARALLEL_FOR = [0]
+
+
+@numba.cfunc(
+    types.void(
+        types.voidptr,
+        types.voidptr,
+        types.voidptr,
+        types.voidptr,
+        types.voidptr,
+        types.intp,
+        types.intp,
+        types.intp,
+    ),  # fmt: skip
+    nopython=True,
+    cache=True,
+)
+def parallel_for(fn, args, dims, steps, data, inner, arrays, threads):
+    """numba's `parallel_for`, on the pool: the rows of the schedule (the outer dimension of
+    `dims`) taken by the calling thread and the helpers, each as its own thread id."""
+    pool = numba.carray(pool_words(), WORDS)
+    fn_at, args_at, dims_at = address_of(fn), address_of(args), address_of(dims)
+    steps_at, data_at = address_of(steps), address_of(data)
+    rows = numba.carray(words_at(dims_at), 1)[0]
+    if rows > threads or arrays > MOST_ARRAYS or inner >= MOST_DIMS:  # not for the pool
+        run_layer(fn_at, args_at, dims_at, steps_at, data_at, inner, arrays, threads)
+        return
+    if rows < 2 or not swap_if(pool, BUSY, 0, 1):  # alone, or inside another region
+        caller = row_now()
+        for row in range(rows):
+            _run_row(fn_at, args_at, dims_at, steps_at, data_at, inner, arrays, row)
+        set_row(caller)
+        return
+    job = pool[JOBS] + 1
+    pool[JOBS] = job
+    store_now(pool, NEXT, (job << 32) | CLOSED)
+    pool[FN], pool[ARGS], pool[DIMS], pool[STEPS], pool[DATA] = (
+        fn_at, args_at, dims_at, steps_at, data_at,
+    )  # fmt: skip
+    pool[INNER], pool[ARRAYS], pool[ROWS] = inner, arrays, rows
+    store_now(pool, DONE, 0)
+    store_now(pool, NEXT, job << 32)  # open: helpers may take rows
+    _work(pool, job)
+    while count_now(pool, DONE) < rows:  # rows the helpers took
+        yield_core()
+    set_row(0)
+    store_now(pool, BUSY, 0)
+
+
+@numba.cfunc(types.intp(), nopython=True, cache=True)
+def thread_id():
+    """numba's `get_thread_id` on the pool: the row the calling thread runs."""
+    return row_now()
+
+
+_helpers: list[threading.Thread] = []
+
+
+def _start_helpers() -> None:
+    """One helper thread for each thread of numba's pool but the caller's."""
+    _helpers.clear()
+    for k in range(numba.config.NUMBA_NUM_THREADS - 1):
+        helper = threading.Thread(target=_serve, name=f"revdem-pool-{k + 1}", daemon=True)
+        helper.start()
+        _helpers.append(helper)
+
+
+def install() -> None:
+    """Run numba's parallel regions on the pool from here on: the kernels compiled or loaded
+    after this link to its `parallel_for` and `get_thread_id`."""
+    if _LAYER_PARALLEL_FOR[0]:
+        return
+    numba.get_num_threads()  # the layer first: its symbols, which these replace
+    _LAYER_PARALLEL_FOR[0] = ll.address_of_symbol("numba_parallel_for")
+    _pool[LAYER] = _LAYER_PARALLEL_FOR[0]
+    ll.add_symbol("numba_parallel_for", parallel_for.address)
+    ll.add_symbol("get_thread_id", thread_id.address)
+    _start_helpers()
+    os.register_at_fork(after_in_child=_after_fork)
+    atexit.register(_stop)
+
+
+def _stop() -> None:
+    """The helpers returned before the interpreter ends: a thread still in compiled code as
+    it frees the compiled code's memory would run into freed pages."""
+    _pool[STOP] = 1
+    for helper in _helpers:
+        helper.join(timeout=1.0)
+
+
+def _after_fork() -> None:
+    """A forked child has none of its parent's threads: the pool starts afresh."""
+    for k in range(WORDS):
+        _pool[k] = 0
+    _pool[LAYER] = _LAYER_PARALLEL_FOR[0]
+    _start_helpers()
+
+
+def helpers() -> int:
+    """Helper threads alive."""
+    return sum(helper.is_alive() for helper in _helpers)
