@@ -1,6 +1,7 @@
 """Where a parallel loop starts to pay: the sizes from which `kernels.by_size` runs a loop's
-parallel build (`kernels.CROSSOVERS`), measured on this machine for each numba threading
-layer.
+parallel build (`kernels.CROSSOVERS`), measured on this machine under each numba threading
+layer. The regions run on revdem's own threads under every layer (`kernels.pool`), so the
+layers should agree; before they did, workqueue paid from 6 912 spheres and TBB never.
 
 Two kinds of loop make up a step. Light loops do a few flops a particle (the half kick, the
 drift, the largest reach since the last pair-list build); heavy loops (the pair loop, the
@@ -97,7 +98,8 @@ def size(crossover: int) -> str:
 
 
 def in_layer(layer: str) -> list[dict] | None:
-    """`step_times` in a process whose numba loads `layer`; None if it cannot load it."""
+    """`step_times` in a process whose numba loads `layer`; None if it cannot load it (or the
+    process fails)."""
     env = os.environ | {"NUMBA_THREADING_LAYER": layer, "NUMBA_NUM_THREADS": "2"}
     code = (
         "import json, sys; sys.path.insert(0, 'benchmarks'); from crossover import step_times; "
@@ -107,7 +109,8 @@ def in_layer(layer: str) -> list[dict] | None:
         [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True
     )
     if done.returncode != 0:
-        print(f"{layer}: cannot load ({done.stderr.strip().splitlines()[-1]})")
+        why = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])[-1]
+        print(f"{layer}: failed ({why})")
         return None
     return json.loads(done.stdout.strip().splitlines()[-1])
 

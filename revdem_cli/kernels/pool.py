@@ -21,7 +21,8 @@ thread ran each row, as the layers do.
 numba's layer still keeps each thread's thread count (`numba.set_num_threads`), which
 sizes the schedule. A region started while another is running (another Python thread's, or
 from inside a row) runs its rows in the calling thread. A schedule with more rows than
-threads goes to the layer's own `parallel_for`. Neither occurs in revdem's kernels.
+threads, or a kernel with more arguments than MOST_ARRAYS, goes to the layer's own
+`parallel_for`; revdem's kernels have neither.
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ from numba.extending import intrinsic
 
 from revdem_cli.kernels import count_now, jit, store_now, take, yield_core
 
-NEXT = 0  # (job << 32) | the next row to take; CLOSED while a job is being posted
+NEXT = 0  # (job << 32) | the next row to take, the job numbered modulo 2^31; the row is
+# CLOSED while a job is being posted
 DONE = 1  # rows of the current job done
 BUSY = 2  # a job is in flight: taken by the thread that posts it
 JOBS = 3  # jobs posted
@@ -329,7 +331,7 @@ def parallel_for(fn, args, dims, steps, data, inner, arrays, threads):
             _run_row(fn_at, args_at, dims_at, steps_at, data_at, inner, arrays, row)
         set_row(caller)
         return
-    job = pool[JOBS] + 1
+    job = (pool[JOBS] + 1) & (CLOSED - 1)  # 31 bits, so that NEXT stays positive
     pool[JOBS] = job
     store_now(pool, NEXT, (job << 32) | CLOSED)
     pool[FN], pool[ARGS], pool[DIMS], pool[STEPS], pool[DATA] = (

@@ -92,6 +92,19 @@ def test_a_helper_takes_a_row_while_the_caller_runs_the_other():
 
 
 @needs_two
+def test_the_jobs_count_round_modulo_two_to_the_31_and_helpers_follow():
+    """The pool numbers its jobs in 31 bits; past the last number the count starts again at
+    0, and a helper still takes its row."""
+    numba.set_num_threads(2)
+    pool._pool[pool.JOBS] = 2**31 - 2
+    for _ in range(3):
+        flags = np.zeros(4, dtype=np.int64)
+        meet(flags, 10_000_000)
+        assert flags.tolist() == [1, 1, 1, 1]
+    assert pool._pool[pool.JOBS] == 1
+
+
+@needs_two
 def test_a_region_started_inside_another_runs_its_rows_in_the_calling_thread():
     """While the pool is busy (here: marked so), a region runs every row itself, each as its
     own thread id: the same ids and the same sum."""
