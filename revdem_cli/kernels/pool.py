@@ -65,8 +65,10 @@ MOST_DIMS = 64
 IDLE_TURNS = 20_000
 """Turns (a `sched_yield` each, about 0.1-1 us) a helper waits for work before it naps."""
 
-NAP_US = 200
-"""A napping helper looks for work this often (microseconds)."""
+NAP_US = (100, 10_000)
+"""A napping helper looks for work after this many microseconds, the first nap the shortest,
+each twice the last up to the longest: a pool left idle wakes about a hundred times a
+second, and the first region after the idle time does not wait for it."""
 
 _pool = (ctypes.c_int64 * WORDS)()
 _row_key = ctypes.c_uint32(0)
@@ -279,6 +281,7 @@ def _serve():
     pool = numba.carray(pool_words(), WORDS)
     served = count_now(pool, NEXT) >> 32
     idle = 0
+    sleep = NAP_US[0]
     while True:
         now = count_now(pool, NEXT)
         job = now >> 32
@@ -289,10 +292,12 @@ def _serve():
             if idle < IDLE_TURNS:
                 yield_core()
             else:
-                nap(NAP_US)
+                nap(sleep)
+                sleep = min(2 * sleep, NAP_US[1])
             continue
         served = job
         idle = 0
+        sleep = NAP_US[0]
         # a job's arguments are read after its NEXT and checked by the row's swap: they are
         # rewritten only once every row of the job is done, which this row is not
         _work(pool, job)
@@ -385,7 +390,7 @@ def _stop() -> None:
     it frees the compiled code's memory would run into freed pages."""
     _pool[STOP] = 1
     for helper in _helpers:
-        helper.join(timeout=1.0)
+        helper.join(timeout=1.0 + NAP_US[1] * 1e-6)
 
 
 def _after_fork() -> None:
