@@ -9,14 +9,14 @@ first and milliseconds once a process has started some thousands. A step starts 
 
 So revdem runs the regions itself (`install`: the symbols numba's kernels link to,
 `numba_parallel_for` and `get_thread_id`, are its own), on threads of its own that wait
-for work by spinning, giving the core away at each turn (`sched_yield`), and nap once they
-have been idle for a while (`IDLE_TURNS`). The thread that starts a region takes rows
-itself; each row goes to whichever thread takes it first (an atomic counter), and the
-region is over once every row is done. A thread that is asleep, or descheduled on busy
-cores, never holds a region up unless it took a row; with no helper awake the caller runs
-every row. Row r always runs as thread r (`get_thread_id`, which a kernel's reductions
-index), so a reduction combines the same partial results in the same order whichever
-thread ran each row, as the layers do.
+for work by spinning, giving the core away at each turn (`sched_yield`, after POLLS
+reads), and nap once they have been idle for a while (`IDLE_TURNS`). The thread that
+starts a region takes rows itself; each row goes to whichever thread takes it first (an
+atomic counter), and the region is over once every row is done. A thread that is asleep,
+or descheduled on busy cores, never holds a region up unless it took a row; with no
+helper awake the caller runs every row. Row r always runs as thread r (`get_thread_id`,
+which a kernel's reductions index), so a reduction combines the same partial results in
+the same order whichever thread ran each row, as the layers do.
 
 numba's layer still keeps each thread's thread count (`numba.set_num_threads`), which
 sizes the schedule. A region started while another is running (another Python thread's, or
@@ -43,14 +43,17 @@ from revdem_cli.kernels import count_now, jit, store_now, take, yield_core
 
 NEXT = 0  # (job << 32) | the next row to take, the job numbered modulo 2^31; the row is
 # CLOSED while a job is being posted
-DONE = 1  # rows of the current job done
-BUSY = 2  # a job is in flight: taken by the thread that posts it
-JOBS = 3  # jobs posted
-FN, ARGS, DIMS, STEPS, DATA, INNER, ARRAYS, ROWS = range(4, 12)  # the job: numba's
+DONE = 8  # rows of the current job done
+BUSY = 16  # a job is in flight: taken by the thread that posts it
+JOBS = 17  # jobs posted
+FN, ARGS, DIMS, STEPS, DATA, INNER, ARRAYS, ROWS = range(18, 26)  # the job: numba's
 # `parallel_for` arguments, and the rows of its schedule
-LAYER = 12  # the address of the layer's own `parallel_for`
-STOP = 13  # the helpers are to return (the process is ending)
-WORDS = 16
+LAYER = 26  # the address of the layer's own `parallel_for`
+STOP = 27  # the helpers are to return (the process is ending)
+WORDS = 32
+"""NEXT, which the helpers read while they wait, and DONE, which the caller reads, lie 64
+bytes from each other and from the rest, so that no two of them share a cache line: the
+caller's writes of a job would otherwise take the line from under the helpers' reads."""
 
 CLOSED = 1 << 31
 """The row that NEXT shows while a job's arguments are written: no row of any job."""
@@ -62,8 +65,14 @@ kernel with more goes to the layer's `parallel_for`."""
 MOST_DIMS = 64
 """Inner dimensions of a kernel the pool runs; one with more goes to the layer."""
 
+POLLS = 100
+"""Reads of a word a thread waits on between two turns (`sched_yield`): a thread that has a
+core to itself sees a new job, or the last row done, within some nanoseconds, not after a
+system call."""
+
 IDLE_TURNS = 20_000
-"""Turns (a `sched_yield` each, about 0.1-1 us) a helper waits for work before it naps."""
+"""Turns a helper waits for work (POLLS reads and a `sched_yield` each, about 0.3-1 us)
+before it naps."""
 
 NAP_US = (100, 10_000)
 """A napping helper looks for work after this many microseconds, the first nap the shortest,
@@ -283,9 +292,8 @@ def _serve():
     idle = 0
     sleep = NAP_US[0]
     while True:
-        now = count_now(pool, NEXT)
-        job = now >> 32
-        if job == served or now & (CLOSED * 2 - 1) >= CLOSED:
+        now = _next_job(pool, served)
+        if now < 0:
             if count_now(pool, STOP) != 0:
                 return
             idle += 1
@@ -295,12 +303,31 @@ def _serve():
                 nap(sleep)
                 sleep = min(2 * sleep, NAP_US[1])
             continue
-        served = job
+        served = now >> 32
         idle = 0
         sleep = NAP_US[0]
         # a job's arguments are read after its NEXT and checked by the row's swap: they are
         # rewritten only once every row of the job is done, which this row is not
-        _work(pool, job)
+        _work(pool, served)
+
+
+@jit
+def _next_job(pool, served):
+    """NEXT, where within POLLS reads it shows an open job other than `served`; else -1."""
+    for _ in range(POLLS):
+        now = count_now(pool, NEXT)
+        if now >> 32 != served and now & (CLOSED * 2 - 1) < CLOSED:
+            return now
+    return -1
+
+
+@jit
+def _all_done(pool, rows):
+    """Whether DONE reaches `rows` within POLLS reads."""
+    for _ in range(POLLS):
+        if count_now(pool, DONE) >= rows:
+            return True
+    return False
 
 
 _LAYER_PARALLEL_FOR = [0]
@@ -346,7 +373,7 @@ def parallel_for(fn, args, dims, steps, data, inner, arrays, threads):
     store_now(pool, DONE, 0)
     store_now(pool, NEXT, job << 32)  # open: helpers may take rows
     _work(pool, job)
-    while count_now(pool, DONE) < rows:  # rows the helpers took
+    while not _all_done(pool, rows):  # rows the helpers took
         yield_core()
     set_row(0)
     store_now(pool, BUSY, 0)
