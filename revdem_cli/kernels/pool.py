@@ -330,9 +330,6 @@ def _all_done(pool, rows):
     return False
 
 
-_LAYER_PARALLEL_FOR = [0]
-
-
 @numba.cfunc(
     types.void(
         types.voidptr,
@@ -400,11 +397,10 @@ def _start_helpers() -> None:
 def install() -> None:
     """Run numba's parallel regions on the pool from here on: the kernels compiled or loaded
     after this link to its `parallel_for` and `get_thread_id`."""
-    if _LAYER_PARALLEL_FOR[0]:
+    if _pool[LAYER]:
         return
     numba.get_num_threads()  # the layer first: its symbols, which these replace
-    _LAYER_PARALLEL_FOR[0] = ll.address_of_symbol("numba_parallel_for")
-    _pool[LAYER] = _LAYER_PARALLEL_FOR[0]
+    _pool[LAYER] = ll.address_of_symbol("numba_parallel_for")
     ll.add_symbol("numba_parallel_for", parallel_for.address)
     ll.add_symbol("get_thread_id", thread_id.address)
     _start_helpers()
@@ -423,8 +419,8 @@ def _stop() -> None:
 def _after_fork() -> None:
     """A forked child has none of its parent's threads: the pool starts afresh."""
     for k in range(WORDS):
-        _pool[k] = 0
-    _pool[LAYER] = _LAYER_PARALLEL_FOR[0]
+        if k != LAYER:
+            _pool[k] = 0
     _start_helpers()
 
 
