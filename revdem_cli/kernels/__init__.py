@@ -248,6 +248,16 @@ def threads_here(typingctx):
     return numba.types.intp(), codegen
 
 
+def external(builder, name, kind):
+    """The global `name` of LLVM type `kind` that compiled code reads through the symbol it
+    is registered under (`ll.add_symbol`), declared in the module being built."""
+    variable = builder.module.globals.get(name)
+    if variable is None:
+        variable = ir.GlobalVariable(builder.module, kind, name)
+        variable.linkage = "external"
+    return variable
+
+
 @intrinsic
 def crossover(typingctx, weight):
     """The particles from which a loop of `weight` runs in parallel: its entry of
@@ -256,10 +266,7 @@ def crossover(typingctx, weight):
 
     def codegen(context, builder, signature, args):
         i64 = ir.IntType(64)
-        table = builder.module.globals.get("revdem_parallel_from")
-        if table is None:
-            table = ir.GlobalVariable(builder.module, ir.ArrayType(i64, 2), "revdem_parallel_from")
-            table.linkage = "external"
+        table = external(builder, "revdem_parallel_from", ir.ArrayType(i64, 2))
         return builder.load(builder.gep(table, [ir.Constant(i64, 0), args[0]]))
 
     return numba.types.int64(weight), codegen
@@ -308,8 +315,28 @@ def store_now(typingctx, words, k, value):
     return numba.types.none(words, k, value), codegen
 
 
-_LIBC = ctypes.CDLL(None)
-ll.add_symbol("sched_yield", ctypes.cast(_LIBC.sched_yield, ctypes.c_void_p).value)
+@intrinsic
+def swap_if(typingctx, words, k, expected, value):
+    """words[k] = value where it is `expected`, as one atomic step (sequentially
+    consistent); whether it was."""
+
+    def codegen(context, builder, signature, args):
+        at = _word(context, builder, signature, args)
+        return builder.extract_value(builder.cmpxchg(at, args[2], args[3], "seq_cst", "seq_cst"), 1)
+
+    return numba.types.boolean(words, k, expected, value), codegen
+
+
+LIBC = ctypes.CDLL(None)
+
+
+def link_libc(*names):
+    """The C library's functions `names`, registered for compiled code to call by name."""
+    for name in names:
+        ll.add_symbol(name, ctypes.cast(getattr(LIBC, name), ctypes.c_void_p).value)
+
+
+link_libc("sched_yield")
 
 
 @intrinsic

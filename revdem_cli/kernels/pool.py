@@ -39,7 +39,17 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from revdem_cli.kernels import count_now, jit, store_now, take, yield_core
+from revdem_cli.kernels import (
+    LIBC,
+    count_now,
+    external,
+    jit,
+    link_libc,
+    store_now,
+    swap_if,
+    take,
+    yield_core,
+)
 
 NEXT = 0  # (job << 32) | the next row to take, the job numbered modulo 2^31; the row is
 # CLOSED while a job is being posted
@@ -81,22 +91,12 @@ second, and the first region after the idle time does not wait for it."""
 
 _pool = (ctypes.c_int64 * WORDS)()
 _row_key = ctypes.c_uint32(0)
-_libc = ctypes.CDLL(None)
-if _libc.pthread_key_create(ctypes.byref(_row_key), None) != 0:
+if LIBC.pthread_key_create(ctypes.byref(_row_key), None) != 0:
     raise OSError("pthread_key_create failed: no thread-local slot for the pool's row")
 _key = ctypes.c_int64(_row_key.value)
 ll.add_symbol("revdem_pool", ctypes.addressof(_pool))
 ll.add_symbol("revdem_row_key", ctypes.addressof(_key))
-for _name in ("pthread_setspecific", "pthread_getspecific", "usleep"):
-    ll.add_symbol(_name, ctypes.cast(getattr(_libc, _name), ctypes.c_void_p).value)
-
-
-def _symbol(builder, name, kind):
-    variable = builder.module.globals.get(name)
-    if variable is None:
-        variable = ir.GlobalVariable(builder.module, kind, name)
-        variable.linkage = "external"
-    return variable
+link_libc("pthread_setspecific", "pthread_getspecific", "usleep")
 
 
 @intrinsic
@@ -106,7 +106,7 @@ def pool_words(typingctx):
 
     def codegen(context, builder, signature, args):
         i64 = ir.IntType(64)
-        words = _symbol(builder, "revdem_pool", ir.ArrayType(i64, WORDS))
+        words = external(builder, "revdem_pool", ir.ArrayType(i64, WORDS))
         return builder.gep(words, [ir.Constant(i64, 0), ir.Constant(i64, 0)])
 
     return types.CPointer(types.int64)(), codegen
@@ -169,7 +169,7 @@ def run_layer(typingctx, fn, args, dims, steps, data, inner, arrays, threads):
         byte_ptr = ir.PointerType(ir.IntType(8))
         i64 = ir.IntType(64)
         kind = ir.FunctionType(ir.VoidType(), [byte_ptr] * 5 + [i64] * 3)
-        words = _symbol(builder, "revdem_pool", ir.ArrayType(i64, WORDS))
+        words = external(builder, "revdem_pool", ir.ArrayType(i64, WORDS))
         at = builder.gep(words, [ir.Constant(i64, 0), ir.Constant(i64, LAYER)])
         layer = builder.inttoptr(builder.load(at), ir.PointerType(kind))
         pointers = [builder.inttoptr(a, byte_ptr) for a in arguments[:5]]
@@ -180,7 +180,7 @@ def run_layer(typingctx, fn, args, dims, steps, data, inner, arrays, threads):
 
 
 def _key_of(builder):
-    key = _symbol(builder, "revdem_row_key", ir.IntType(64))
+    key = external(builder, "revdem_row_key", ir.IntType(64))
     return builder.trunc(builder.load(key), ir.IntType(32))
 
 
@@ -209,21 +209,6 @@ def row_now(typingctx):
         return builder.ptrtoint(builder.call(call, [_key_of(builder)]), ir.IntType(64))
 
     return types.int64(), codegen
-
-
-@intrinsic
-def swap_if(typingctx, words, k, expected, value):
-    """words[k] = value where it is `expected`, as one atomic step (sequentially
-    consistent); whether it was."""
-
-    def codegen(context, builder, signature, args):
-        kind = signature.args[0]
-        array = context.make_array(kind)(context, builder, args[0])
-        at = cgutils.get_item_pointer(context, builder, kind, array, [args[1]])
-        pair = builder.cmpxchg(at, args[2], args[3], "seq_cst", "seq_cst")
-        return builder.extract_value(pair, 1)
-
-    return types.boolean(words, k, expected, value), codegen
 
 
 @intrinsic
