@@ -217,8 +217,7 @@ def gather_stage(
     radii and moduli: its branches cost it registers and loads (the frictionless fcc pair
     loop at n = 24, one thread: 75.5 ns a sphere against 85.0 with every branch). With
     shear the separate build gained nothing (204 against 206 ns)."""
-    plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
-    if plain and law.tangential == NO_SHEAR:
+    if is_plain(law) and law.tangential == NO_SHEAR:
         gather_pairs(
             block, first, size, x, v, w, v_damp, w_damp, False, radius, mass, material, estar,
             gstar, pi, pj, history, rolling, normals_then, then, undamped(law, NO_SHEAR, 0.0),
@@ -338,6 +337,13 @@ def contacts(
 
 
 @inline
+def is_plain(law):
+    """Whether `law` has neither viscous damping nor rolling resistance: the laws whose
+    gather and contact stage are compiled apart (`gather_stage`, `plain_stage`)."""
+    return law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
+
+
+@inline
 def undamped(law, tangential, grid):
     """`law` without viscous damping or rolling resistance, with the tangential law
     `tangential` and the histories' grid `grid`."""
@@ -371,7 +377,7 @@ def contact_stage(block, size, law, mode, dt, strain, deforming, then, predicted
     loop computes both sides of every branch in it. Floating point gets a build of its own,
     whose histories' grid is the constant 0, so that it does not pay for their rounding, and
     fixed point stepping forward with a tape one of its own that `predicting`."""
-    plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
+    plain = is_plain(law)
     if not plain or mode == STATIC or mode == SETTLED:
         turned = law.history_grid != 0.0
         contacts(block, size, law, mode, dt, strain, deforming, then, False, predicted, turned,
@@ -651,7 +657,7 @@ def _pair_loop(
     force, N, which the gather judges the sums by)."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
-    plain = law.beta_n == 0.0 and law.beta_t == 0.0 and law.rolling == NO_ROLLING
+    plain = is_plain(law)
     predicting = mode == FORWARD and earlier.shape[0] > 0 and plain
     chunks = blocks.shape[0]
     slips = 0
