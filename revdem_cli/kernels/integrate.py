@@ -1,4 +1,8 @@
-"""Velocity-Verlet stepping, forward and reversed, and the compiled loop of a stage."""
+"""Velocity-Verlet stepping, forward and reversed, and the compiled loop of a stage.
+
+Constants go to compiled calls as np.int64 and np.True_ or np.False_, which numba types as
+plain int64 and bool: it compiles a function anew for each literal argument (a mode such as
+FORWARD, True or False), and `forces.compute_forces` had five builds, 20 s of compile each."""
 
 import numba
 import numpy as np
@@ -187,9 +191,8 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     drift(p, cell, fixed, dt, events, step + 1)
     place_walls(walls, elapsed)
     predict(p)  # v_P(t + dt) from v(t + dt/2) and the k before (Kolafa & Lisal 2011)
-    compute_forces(
-        p, pairs, walls, cell, fixed, law, moduli, dyn, FORWARD, dt, h, events, step + 1, keep
-    )
+    compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, np.int64(FORWARD), dt, h,
+                   events, step + 1, keep)  # fmt: skip
     note_damping(events, step + 1, law, dyn)
     kick_cell(cell, fixed, h)
 
@@ -219,9 +222,8 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
         note_fixed_points(p.v, p.v_drift, step - 1, events)
         drag(p, fixed, 1.0 / dyn.drag)
     predict(p)  # the same predictor on the reversed run's own history: dt -> -dt
-    compute_forces(
-        p, pairs, walls, cell, fixed, law, moduli, dyn, REVERSE, dt, h, events, step - 1, keep
-    )
+    compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, np.int64(REVERSE), dt, h,
+                   events, step - 1, keep)  # fmt: skip
     note_damping(events, step - 1, law, dyn)
     kick_cell(cell, fixed, h)
 
@@ -239,9 +241,11 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
     h = -0.5 * dt
     damped = dyn.local_damping > 0.0 or law.beta_n > 0.0 or law.beta_t > 0.0
     if recording:
-        touched = tp.record(tape, p, pairs, walls, cell, fixed, law, moduli.estar, h, True, damped)
+        touched = tp.record(
+            tape, p, pairs, walls, cell, fixed, law, moduli.estar, h, np.True_, damped
+        )
     else:
-        touched, missing = tp.replay(tape, p, pairs, cell, fixed, step, h, True)
+        touched, missing = tp.replay(tape, p, pairs, cell, fixed, step, h, np.True_)
         if missing >= 0:
             return missing
     if touched > 0:
@@ -249,13 +253,13 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
             fx.mirror(p.x.shape[0], fixed.x, p.x, p.s, fixed.grid[fx.X : fx.Z + 1], cell.length)
         tp.unkick(p, fixed, h)
         scratch = np.zeros((len(KINDS), len(COLUMNS)))  # logged once, by the step itself
-        compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, SETTLED, dt, h, scratch,
-                       step, True)  # fmt: skip
+        compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, np.int64(SETTLED), dt, h,
+                       scratch, step, np.True_)  # fmt: skip
     if recording:
-        tp.record(tape, p, pairs, walls, cell, fixed, law, moduli.estar, h, False, damped)
+        tp.record(tape, p, pairs, walls, cell, fixed, law, moduli.estar, h, np.False_, damped)
         tp.close_step(tape)
     else:
-        tp.replay(tape, p, pairs, cell, fixed, step, h, False)
+        tp.replay(tape, p, pairs, cell, fixed, step, h, np.False_)
     return -1
 
 
@@ -273,9 +277,9 @@ def record_step(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt
     tp.hold(tape)
     elapsed = (step - first) * dt
     reverse_step(
-        p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step + 1, elapsed, True
+        p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step + 1, elapsed, np.True_
     )
-    settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, True)
+    settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, np.True_)
     tp.restore(tape, p, cell, fixed)
 
 
@@ -411,7 +415,7 @@ def advance(
             )
             if tape.mode == tp.REPLAY:
                 missing = settle(
-                    tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step - 1, False
+                    tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step - 1, np.False_
                 )
                 if missing >= 0:
                     n = p.x.shape[0]
