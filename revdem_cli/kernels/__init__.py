@@ -92,7 +92,10 @@ inline_arrays = partial(
 """Compiled helper that takes arrays, inlined by numba itself before compiling its caller:
 an LLVM-inlined call (`inline`) still takes and gives back a reference to each array it is
 passed, which numba does not prune where the helper branches; in a loop over entries that
-costs more than the work (the information tape's `_apply`: 6 ms a step of 91 000 entries)."""
+costs more than the work (the information tape's `_apply`: 6 ms a step of 91 000 entries).
+Also a function called from compiled code alone, to spare a level of compilation:
+numba links each callee's code into its caller and compiles all of it again (`integrate`'s
+steps)."""
 
 pjit = partial(
     numba.njit, cache=True, fastmath=False, error_model="numpy", parallel=True, nogil=True

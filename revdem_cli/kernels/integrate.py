@@ -1,13 +1,18 @@
 """Velocity-Verlet stepping, forward and reversed, and the compiled loop of a stage.
 
-Constants go to compiled calls as np.int64 and np.True_ or np.False_, which numba types as
-plain int64 and bool: it compiles a function anew for each literal argument (a mode such as
-FORWARD, True or False), and `forces.compute_forces` had five builds, 20 s of compile each."""
+Compile time, which a user meets on a first run and a fresh install:
+- constants go to compiled calls as np.int64 and np.True_ or np.False_, which numba types as
+  plain int64 and bool: it compiles a function anew for each literal argument (a mode such
+  as FORWARD, True or False), and `forces.compute_forces` had five builds;
+- the steps (`forward_step`, `reverse_step`, `settle`, `record_step`) are inlined by numba
+  into `advance` (`inline_arrays`): numba links the code of every compiled function a
+  compiled function calls into its own and optimises and compiles all of it again, so that
+  each step, one level above `compute_forces`, compiled the pair loop once more."""
 
 import numba
 import numpy as np
 
-from revdem_cli.kernels import LIGHT, by_size, jit
+from revdem_cli.kernels import LIGHT, by_size, inline_arrays, jit
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import tape as tp
 from revdem_cli.kernels.cell import kick_cell, move_cell
@@ -174,7 +179,7 @@ def drift(p, cell, fixed, h, events, step):
         note(events, MOTION_LOST, step, last, -1, amount, lost)
 
 
-@jit
+@inline_arrays
 def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed, keep):
     """One forward step from `step` (Hanley 2020 Eq 1-12, with drag Eq 25-26); `elapsed`
     is the stage's time at its end. The damping forces at the new positions read the
@@ -197,7 +202,7 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     kick_cell(cell, fixed, h)
 
 
-@jit
+@inline_arrays
 def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, elapsed, keep):
     """One reversed step from `step`: the forward step's operations undone in reverse order.
 
@@ -228,7 +233,7 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     kick_cell(cell, fixed, h)
 
 
-@jit
+@inline_arrays
 def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recording):
     """Bring the reversed step's state at `step` to the forward run's with the information
     tape (`kernels.tape`), recording the entries (going forward, in the reversed step's
@@ -263,7 +268,7 @@ def settle(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, dt, step, recor
     return -1
 
 
-@jit
+@inline_arrays
 def record_step(tape, p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, step, first):
     """Record the tape entries of the forward step just taken from `step`: the reversed step
     from step + 1 taken in place, its state settled onto the state before the forward
