@@ -1,9 +1,11 @@
 """Velocity-Verlet stepping, forward and reversed, and the compiled loop of a stage.
 
 Compile time, which a user meets on a first run and a fresh install:
-- constants go to compiled calls as np.int64 and np.True_ or np.False_, which numba types as
-  plain int64 and bool: it compiles a function anew for each literal argument (a mode such
-  as FORWARD, True or False), and `forces.compute_forces` had five builds;
+- constants go to a compiled call with much code beneath it as np.int64 and np.True_ or
+  np.False_, which numba types as plain int64 and bool: it compiles a function anew for each
+  literal argument (a mode such as FORWARD, True or False), and `forces.compute_forces` had
+  five builds (small leaves, `events.note` and `fixed.note_overflow`, take their kinds as
+  literals: a build of one costs little);
 - the steps (`forward_step`, `reverse_step`, `settle`, `record_step`) are inlined by numba
   into `advance` (`inline_arrays`): numba links the code of every compiled function a
   compiled function calls into its own and optimises and compiles all of it again, so that
