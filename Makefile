@@ -4,6 +4,8 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out
+# test workers (pytest-xdist): one a core this process may use, at most 4
+WORKERS ?= $(shell $(PYTHON) -c 'import os; print(min(4, len(os.sched_getaffinity(0))))')
 
 .PHONY: run test lint bench paper clean
 
@@ -17,7 +19,7 @@ run: $(STAMP)
 	$(BIN)/revdem run configs/collision.toml --out $(OUT) --force
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(WORKERS)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/fcc_hertz.py --scaling

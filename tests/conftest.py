@@ -12,6 +12,56 @@ from revdem_cli.engine import run_scenario
 from revdem_cli.io.tape import no_tape
 from revdem_cli.kernels import parallel_from
 
+TRIED = pytest.StashKey[dict]()
+"""{kind: {what: how many}} of what the reliability tests tried (`tests/reliability`)."""
+
+TRIED_TITLES = {
+    "generated bad inputs": "generated bad inputs tried",
+    "runs stopped": "runs stopped (SIGKILL at random moments, SIGINT, SIGTERM) and resumed, "
+    "each to the uninterrupted run's files",
+}
+
+
+@pytest.fixture(scope="session")
+def tried(request) -> dict:
+    """{what: how many} generated bad inputs a reliability test tried; summed up after the
+    run."""
+    return request.config.stash.setdefault(TRIED, {}).setdefault("generated bad inputs", {})
+
+
+@pytest.fixture(scope="session")
+def kills(request) -> dict:
+    """{case: how many} runs stopped and resumed to the uninterrupted files."""
+    return request.config.stash.setdefault(TRIED, {}).setdefault("runs stopped", {})
+
+
+def pytest_sessionfinish(session):
+    """A test worker (pytest-xdist) hands its counts to the process that reports."""
+    output = getattr(session.config, "workeroutput", None)
+    if output is not None:
+        output["tried"] = session.config.stash.get(TRIED, {})
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """A worker's counts added to the run's (pytest-xdist)."""
+    counts = node.config.stash.setdefault(TRIED, {})
+    for kind, tried in getattr(node, "workeroutput", {}).get("tried", {}).items():
+        mine = counts.setdefault(kind, {})
+        for what, n in tried.items():
+            mine[what] = mine.get(what, 0) + n
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    for kind, title in TRIED_TITLES.items():
+        counts = config.stash.get(TRIED, {}).get(kind, {})
+        if counts:
+            detail = ", ".join(f"{name} {n}" for name, n in sorted(counts.items()))
+            terminalreporter.write_sep(
+                "-", f"reliability: {sum(counts.values())} {title} ({detail})"
+            )
+
+
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
 
