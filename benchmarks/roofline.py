@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -82,7 +83,25 @@ def divide_unit() -> dict[str, float]:
         kernel(a, b, 1)
         best = min(_timed(lambda k=kernel: k(a, b, times)) for _ in range(5))
         seconds[name] = best / times / a.size
+    seconds["division, two threads at once"] = min(
+        _two_at_once(divisions, a, times) for _ in range(5)
+    )
     return seconds
+
+
+def _two_at_once(kernel, a, times: int) -> float:
+    """Seconds per element of `kernel` run by two threads at once, each over its own copy of
+    `a` (revdem's kernels run without the GIL): the one thread's time where each has a
+    divide unit of its own, twice it where the two are hardware threads of one core and
+    share it."""
+    copies = [(a.copy(), np.empty_like(a)) for _ in range(2)]
+    threads = [threading.Thread(target=kernel, args=(*pair, times)) for pair in copies]
+    started = time.perf_counter()
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    return (time.perf_counter() - started) / times / a.size
 
 
 def contact_floor(row: dict, unit: dict[str, float]) -> float:
@@ -263,7 +282,10 @@ def main() -> None:
     print(f"copy bandwidth, one core: {bandwidth / 1e9:.1f} GB/s")
     unit = divide_unit()
     print(f"divide unit, one core: a square root {1e9 * unit['square root']:.2f} ns, "
-          f"a division {1e9 * unit['division']:.2f} ns (vectorised, an element)")  # fmt: skip
+          f"a division {1e9 * unit['division']:.2f} ns (vectorised, an element); "
+          f"a division {1e9 * unit['division, two threads at once']:.2f} ns with two threads "
+          f"dividing at once (the same: each thread's core its own; twice: one core's two "
+          f"hardware threads)")  # fmt: skip
     rows = []
     for variant in ("frictionless", "history"):
         for arithmetic in ("float", "fixed"):
