@@ -1,4 +1,5 @@
-"""Shared fixtures: scenarios built in code and the collision run once per session."""
+"""Shared fixtures: scenarios built in code, the collision run once per session, and the counts
+of what the reliability tests tried, summed over the test workers and shown after the run."""
 
 from __future__ import annotations
 
