@@ -78,12 +78,12 @@ def literal_calls(sources: list[Path]) -> list[str]:
         for node in ast.walk(tree):
             if not isinstance(node, ast.Call) or _name(node) not in apart:
                 continue
-            if not any(isinstance(argument, ast.Starred) for argument in node.args):
-                given = [*node.args, *(k.value for k in node.keywords)]
-                for argument in given:
-                    if is_constant(argument, names):
-                        place = f"{path.name}:{node.lineno}"
-                        found.append(f"{place} {_name(node)}({ast.unparse(argument)})")
+            if any(isinstance(argument, ast.Starred) for argument in node.args):
+                continue
+            for argument in [*node.args, *(k.value for k in node.keywords)]:
+                if is_constant(argument, names):
+                    place = f"{path.name}:{node.lineno}"
+                    found.append(f"{place} {_name(node)}({ast.unparse(argument)})")
     return found
 
 
