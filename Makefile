@@ -24,6 +24,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/fcc_hertz.py --scaling
 	$(BIN)/python benchmarks/crossover.py
+	$(BIN)/python benchmarks/order.py
 	NUMBA_NUM_THREADS=1 $(BIN)/python benchmarks/roofline.py
 
 lint: $(STAMP)

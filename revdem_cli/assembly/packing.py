@@ -1,5 +1,6 @@
 """Random loose packings: spheres placed one by one at random, without overlap, inside a
-region (random sequential addition), from a seeded generator."""
+region (random sequential addition), from a seeded generator, then numbered in space
+(`spatial_order`)."""
 
 from __future__ import annotations
 
@@ -65,3 +66,15 @@ def place_spheres(
                 "the region is too small for this many spheres"
             )
     return centres
+
+
+def spatial_order(centres: np.ndarray, width: float) -> np.ndarray:
+    """The order that numbers spheres cell by cell on a grid of cubes `width` wide, lexically,
+    the region's longest axis slowest and its shortest fastest (as LAMMPS's `atom_modify
+    sort` bins atoms): each sphere's neighbours then lie a plane of cells or less away in
+    memory, so that the pair loop finds their rows in cache. Placed at random, one by one,
+    they lie anywhere: the fcc Hertz benchmark at n = 24 steps 1.5-1.8 times slower in a
+    random order than in this one (README, *Measured*)."""
+    cells = np.floor((centres - centres.min(axis=0)) / width).astype(np.int64)
+    slowest_first = np.argsort(-np.ptp(centres, axis=0), kind="stable")
+    return np.lexsort(tuple(cells[:, axis] for axis in slowest_first[::-1]))

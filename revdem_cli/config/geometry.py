@@ -55,15 +55,17 @@ def generate(scenario) -> Spheres:
 
 
 def packing_spheres(packing, materials: tuple[str, ...]) -> Spheres:
-    """The spheres of a [[packings]] table; raises PackingError if its region cannot take
-    them."""
-    from revdem_cli.assembly.packing import place_spheres
+    """The spheres of a [[packings]] table, numbered in space (`spatial_order`); raises
+    PackingError if its region cannot take them."""
+    from revdem_cli.assembly.packing import place_spheres, spatial_order
     from revdem_cli.assembly.spheres import uniform
 
     rng = np.random.default_rng(packing.seed)
     radii = rng.uniform(packing.radius_min, packing.radius_max, packing.count)
     region = packing.region
     centres = place_spheres(radii, region.shape, region.origin, region.extent, packing.seed + 1)
+    order = spatial_order(centres, 2.0 * packing.radius_max)
+    radii, centres = radii[order], centres[order]
     material = materials.index(packing.material)
     return uniform(packing.count, radii, material, materials, centres, packing.velocity)
 

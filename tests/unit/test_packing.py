@@ -56,3 +56,18 @@ def test_a_region_too_small_is_refused_with_one_line():
     text = OEDOMETER_FILL.replace("radius = 0.1, height = 0.2", "radius = 0.02, height = 0.02")
     with pytest.raises(InputError, match=r"fill.toml: packings\[0\]: sphere \d+ of 900 found no"):
         spheres(text)
+
+
+def test_a_packing_is_numbered_in_space_so_that_partners_lie_near_in_memory():
+    x, r = spheres()  # placed at random, numbered cell by cell (`spatial_order`)
+    width = 2.0 * r.max()
+    slowest = int(np.argmax(np.ptp(x, axis=0)))
+    plane = np.floor((x[:, slowest] - x[:, slowest].min()) / width).astype(int)
+    assert np.all(np.diff(plane) >= 0)  # the longest axis's planes of cells one after another
+    per_plane = np.bincount(plane)
+    three_planes = int((per_plane[:-2] + per_plane[1:-1] + per_plane[2:]).max())
+    near = cKDTree(x).query_pairs(2.0 * width)  # at most two planes of cells apart
+    assert len(near) > len(r)  # more than one a sphere, though the packing is loose
+    assert max(abs(i - j) for i, j in near) < three_planes < len(r) / 4
+    rank = np.argsort(np.random.default_rng(0).permutation(len(r)))  # a random order
+    assert max(abs(rank[i] - rank[j]) for i, j in near) > len(r) / 2
