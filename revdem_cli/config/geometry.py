@@ -85,7 +85,9 @@ def spheres_from(source, path: str, scenario, materials: tuple[str, ...]) -> Sph
     """The spheres of a [[particles_from]] table, read from its LAMMPS data file: each atom
     type's material, each density that material's (to DENSITY_RTOL); positions unwrapped by
     their image flags, or, in a periodic box (the scenario's cell), as the file has them
-    inside it, from the box's lower corner."""
+    inside it, from the box's lower corner; in the order of the atoms' ids, or numbered in
+    space (`spatial_order`)."""
+    from revdem_cli.assembly.packing import spatial_order
     from revdem_cli.errors import InputError
     from revdem_cli.io.lammps_data import read_lammps_data
 
@@ -119,7 +121,17 @@ def spheres_from(source, path: str, scenario, materials: tuple[str, ...]) -> Sph
                 f"{edges.tolist()}",
             )
         position = data.position - data.lower  # inside the cell, as the file has them
-    return Spheres(data.radius, position, data.velocity, data.angular_velocity, material, materials)
+    k = slice(None)
+    if source.order == "space":
+        k = spatial_order(position, 2.0 * data.radius.max())
+    return Spheres(
+        data.radius[k],
+        position[k],
+        data.velocity[k],
+        data.angular_velocity[k],
+        material[k],
+        materials,
+    )
 
 
 DENSITY_RTOL = 1e-9

@@ -316,7 +316,8 @@ class Lattice(_Model):
 
 class ParticlesFrom(_Model):
     """Spheres read from a file another code wrote: a LAMMPS data file of atom_style sphere
-    in units si (`write_data`), its atoms in the order of their ids, with their diameters,
+    in units si (`write_data`), its atoms in the order of their ids (or numbered in space,
+    `order`), with their diameters,
     positions (unwrapped by their image flags) and, where the file has them, velocities and
     angular velocities. A sphere's mass is its material's density times its volume: the
     density the file gives must be that material's."""
@@ -333,6 +334,12 @@ class ParticlesFrom(_Model):
         description="the file's box is the scenario's periodic [cell] (a data file does not "
         "say which axes are periodic): [cell] size must be its edges, and positions are "
         "taken relative to its lower corner",
+    )
+    order: Literal["ids", "space"] = Field(
+        default="ids",
+        description="'ids': sphere k is the atom of the k-th smallest id; 'space': the atoms "
+        "numbered cell by cell in space, as [[packings]] are (`assembly.packing.spatial_order`): "
+        "atoms numbered as they were inserted at random step up to 3 times slower",
     )
     count: Int | None = Field(
         default=None,

@@ -95,6 +95,31 @@ def test_a_lammps_packing_reverses_to_its_start(lammps_run):
     assert verdict["max_position_error_rel"] < 1e-9
 
 
+def test_a_lammps_packing_numbered_in_space_moves_as_each_atom_moved_in_lammps(tmp_path):
+    """order = "space" renumbers the atoms cell by cell, the first axis slowest in this
+    cubic box: the same spheres in another order, and after 100 steps each is where LAMMPS
+    put the atom it came from, as in the order of the ids."""
+    scenario = _scenario(tmp_path, DATA / "fcc_step0.data")
+    by_id = load_scenario(scenario)[0].spheres
+    text = scenario.read_text().replace("periodic = true", 'periodic = true\norder = "space"')
+    scenario.write_text(text)
+    spheres = load_scenario(scenario)[0].spheres
+    same = (spheres.position[:, None, :] == by_id.position[None, :, :]).all(axis=2)
+    atom = np.argmax(same, axis=1)  # the atom each sphere came from
+    assert sorted(atom) == list(range(len(atom))) and not np.array_equal(atom, np.sort(atom))
+    planes = np.floor(spheres.position[:, 0] / (2.0 * spheres.radius.max()))
+    assert np.all(np.diff(planes) >= 0)
+    assert np.array_equal(spheres.velocity, by_id.velocity[atom])
+    result = CliRunner().invoke(app, ["run", str(scenario), "--out", str(tmp_path), "-q",
+                                      "--no-reverse"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    lammps = read_lammps_data(DATA / "fcc_step100.data")
+    here = _last_frame(tmp_path / "fcc_from_lammps.forward.h5")
+    assert np.abs(here["position"] - lammps.unwrapped[atom]).max() < 1e-15 * lammps.upper[0]
+    speed = np.abs(lammps.velocity).max()
+    assert np.abs(here["velocity"] - lammps.velocity[atom]).max() < 1e-9 * speed
+
+
 def test_a_frame_exported_as_a_data_file_reads_back_bit_for_bit(lammps_run, tmp_path):
     """export --format lammps-data writes 17 digits: the scenario that reads it starts from
     the last frame's positions, velocities, angular velocities and radii to the bit."""
