@@ -56,10 +56,8 @@ def images(cell):
 @inline
 def nearest_image(d, image):
     """The separation d (3-tuple) mapped to its nearest periodic image; `image` from
-    `images`, or None where no axis is periodic. (On an axis that is not periodic the
-    inverse is 0 and d is returned unchanged, bit for bit: d - L floor(0.5) = d - 0.)"""
-    if image is None:
-        return d
+    `images`. (On an axis that is not periodic the inverse is 0 and d is returned unchanged,
+    bit for bit: d - L floor(0.5) = d - 0.)"""
     return (  # np.floor stays a float (math.floor would round-trip through an integer)
         d[0] - image[0] * np.floor(d[0] * image[3] + 0.5),
         d[1] - image[1] * np.floor(d[1] * image[4] + 0.5),
