@@ -317,10 +317,9 @@ class Lattice(_Model):
 class ParticlesFrom(_Model):
     """Spheres read from a file another code wrote: a LAMMPS data file of atom_style sphere
     in units si (`write_data`), its atoms in the order of their ids (or numbered in space,
-    `order`), with their diameters,
-    positions (unwrapped by their image flags) and, where the file has them, velocities and
-    angular velocities. A sphere's mass is its material's density times its volume: the
-    density the file gives must be that material's."""
+    `order`), with their diameters, positions (unwrapped by their image flags) and, where the
+    file has them, velocities and angular velocities. A sphere's mass is its material's
+    density times its volume: the density the file gives must be that material's."""
 
     lammps_data: str = Field(
         min_length=1, description="path of the LAMMPS data file, relative to the scenario file"
