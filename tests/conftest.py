@@ -23,17 +23,22 @@ TRIED_TITLES = {
 }
 
 
+def _tally(config, kind: str) -> dict:
+    """{what: how many} of one kind of TRIED_TITLES, in this process's stash."""
+    return config.stash.setdefault(TRIED, {}).setdefault(kind, {})
+
+
 @pytest.fixture(scope="session")
 def tried(request) -> dict:
     """{what: how many} generated bad inputs a reliability test tried; summed up after the
     run."""
-    return request.config.stash.setdefault(TRIED, {}).setdefault("generated bad inputs", {})
+    return _tally(request.config, "generated bad inputs")
 
 
 @pytest.fixture(scope="session")
 def kills(request) -> dict:
     """{case: how many} runs stopped and resumed to the uninterrupted files."""
-    return request.config.stash.setdefault(TRIED, {}).setdefault("runs stopped", {})
+    return _tally(request.config, "runs stopped")
 
 
 def pytest_sessionfinish(session):
@@ -46,9 +51,8 @@ def pytest_sessionfinish(session):
 @pytest.hookimpl(optionalhook=True)
 def pytest_testnodedown(node, error):
     """A worker's counts added to the run's (pytest-xdist)."""
-    counts = node.config.stash.setdefault(TRIED, {})
     for kind, tried in getattr(node, "workeroutput", {}).get("tried", {}).items():
-        mine = counts.setdefault(kind, {})
+        mine = _tally(node.config, kind)
         for what, n in tried.items():
             mine[what] = mine.get(what, 0) + n
 

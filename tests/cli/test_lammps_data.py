@@ -82,10 +82,18 @@ def test_a_lammps_packing_moves_here_as_it_moved_in_lammps(lammps_run):
     moved = np.abs(lammps.unwrapped - start.unwrapped).max()
     assert 1e-7 < moved < 1e-5  # the spheres moved: the comparison can fail
     assert np.abs(lammps.image).max() == 1  # some crossed the box: unwrapped as revdem has them
-    assert np.abs(here["position"] - lammps.unwrapped).max() < 1e-15 * lammps.upper[0]
-    speed = np.abs(lammps.velocity).max()
-    assert np.abs(here["velocity"] - lammps.velocity).max() < 1e-9 * speed
+    _assert_where_lammps_put(here, np.arange(len(lammps)))
     assert np.abs(here["angular_velocity"]).max() == 0.0  # frictionless: no spin in either
+
+
+def _assert_where_lammps_put(here: dict[str, np.ndarray], atom: np.ndarray) -> None:
+    """Each sphere of the last frame `here` (the atom `atom[k]` of the data file for sphere
+    k) where LAMMPS put that atom after STEPS steps, to a few units in the last place of a
+    coordinate, and at its velocity to 1e-9 of the largest."""
+    lammps = read_lammps_data(DATA / "fcc_step100.data")
+    assert np.abs(here["position"] - lammps.unwrapped[atom]).max() < 1e-15 * lammps.upper[0]
+    speed = np.abs(lammps.velocity).max()
+    assert np.abs(here["velocity"] - lammps.velocity[atom]).max() < 1e-9 * speed
 
 
 def test_a_lammps_packing_reverses_to_its_start(lammps_run):
@@ -113,11 +121,7 @@ def test_a_lammps_packing_numbered_in_space_moves_as_each_atom_moved_in_lammps(t
     result = CliRunner().invoke(app, ["run", str(scenario), "--out", str(tmp_path), "-q",
                                       "--no-reverse"])  # fmt: skip
     assert result.exit_code == 0, result.output
-    lammps = read_lammps_data(DATA / "fcc_step100.data")
-    here = _last_frame(tmp_path / "fcc_from_lammps.forward.h5")
-    assert np.abs(here["position"] - lammps.unwrapped[atom]).max() < 1e-15 * lammps.upper[0]
-    speed = np.abs(lammps.velocity).max()
-    assert np.abs(here["velocity"] - lammps.velocity[atom]).max() < 1e-9 * speed
+    _assert_where_lammps_put(_last_frame(tmp_path / "fcc_from_lammps.forward.h5"), atom)
 
 
 def test_a_frame_exported_as_a_data_file_reads_back_bit_for_bit(lammps_run, tmp_path):
