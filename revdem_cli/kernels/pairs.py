@@ -183,10 +183,11 @@ def gather_pairs(
         enter3(block, SEPARATION, k, axpy(-1.0, row(x, i), row(x, j)))  # `to_nearest_images`
         enter(block, RADIUS_I, k, radius[i])
         enter(block, RADIUS_J, k, radius[j])
-        a, b = np.uint32(material[i]), np.uint32(material[j])
-        enter(block, E_STAR, k, estar[a, b])
-        if shear_law:
-            enter(block, G_STAR, k, gstar[a, b])
+        if estar.shape[0] > 1:  # one material: the rows hold its moduli (`one_material`)
+            a, b = np.uint32(material[i]), np.uint32(material[j])
+            enter(block, E_STAR, k, estar[a, b])
+            if shear_law:
+                enter(block, G_STAR, k, gstar[a, b])
         if damped:
             enter(block, M_STAR, k, mass[i] * mass[j] / (mass[i] + mass[j]))
         if moving:
@@ -205,6 +206,16 @@ def gather_pairs(
             enter3(block, NORMAL_THEN, k, row(normals_then, p))
         if predicting:
             enter(block, OVERLAP_THEN, k, overlaps[p])
+
+
+@inline
+def one_material(block, estar, gstar):
+    """The block's E* and G* rows, every column, for a run of one material: filled once a
+    call of the pair loop, not by the gather pair by pair (the fcc pair loop at n = 24, one
+    thread: 5 % faster frictionless, 4 % with history)."""
+    for k in range(BLOCK):
+        enter(block, E_STAR, k, estar[0, 0])
+        enter(block, G_STAR, k, gstar[0, 0])
 
 
 @inline
@@ -493,8 +504,8 @@ def scatter_pairs(
 
 @inline
 def sum_in_order(
-    block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond, foreign, force,
-    moment, overlaps, turned,
+    block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond, foreign,
+    foreign_end, force, moment, overlaps, turned,
 ):  # fmt: skip
     """The block's pairs, first to first + size - 1, added to their particles' sums in the
     list's order: the force f on i and -f on j; with moments (`torques`), on each the lever
@@ -506,7 +517,9 @@ def sum_in_order(
     own pairs are consecutive: its sums stay in registers while they last. A particle with
     a partner in an earlier chunk (`foreign`, or `beyond` and above: a later chunk's) is
     summed after (`sum_foreign`): its pairs' forces, moments and overlaps go to the pair
-    arrays, and a later chunk's particle is left alone."""
+    arrays, and a later chunk's particle is left alone. No particle from `foreign_end` on
+    is foreign, so most pairs are judged without reading a flag (the fcc pair loop at n =
+    24, one thread: 6 % faster frictionless, 4 % with history)."""
     current = np.uint32(pi[np.uint64(first)])
     f_i = row(f_sum, current)
     t_i = row(t_sum, current) if torques else ZERO
@@ -524,7 +537,8 @@ def sum_in_order(
         f = entries(block, FORCE, k)
         mine = j < beyond  # this chunk's particle; a later chunk's is foreign there, but
         # that chunk marks it concurrently, so its flag is not read here
-        if foreign[i] or not mine or foreign[j]:  # for `sum_foreign`
+        # for `sum_foreign` (j > i: no particle from foreign_end on is foreign)
+        if not mine or (i < foreign_end and (foreign[i] or (j < foreign_end and foreign[j]))):
             put(force, p, f)
             if torques:
                 put(moment, p, entries(block, MOMENT, k))
@@ -552,9 +566,15 @@ def sum_in_order(
 @inline
 def mark_foreign(foreign, lo, hi, pi, start, slots):
     """foreign[q] of particles lo to hi - 1, a chunk's: whether q has a partner p < lo, in
-    an earlier chunk (its partners are ascending: the first is the least)."""
+    an earlier chunk (its partners are ascending: the first is the least). Returns the
+    last such particle + 1 (lo where there is none)."""
+    end = lo
     for q in range(lo, hi):
-        foreign[q] = start[q] < start[q + 1] and pi[np.uint32(slots[start[q]])] < lo
+        marked = start[q] < start[q + 1] and pi[np.uint32(slots[start[q]])] < lo
+        foreign[q] = marked
+        if marked:
+            end = q + 1
+    return end
 
 
 @inline
@@ -681,9 +701,12 @@ def _pair_loop(
             put(f_sum, q, weight_summed(mass[q], gravity, f_step))
             if torques:
                 put(t_sum, q, ZERO)
+        foreign_end = lo  # the chunk's particles from here on have no partner in an earlier one
         if chunks > 1:  # one chunk: none (`foreign` stays all False)
-            mark_foreign(foreign, lo, beyond, pi, start, slots)
+            foreign_end = mark_foreign(foreign, lo, beyond, pi, start, slots)
         listed = start_pair  # the chunk's next row of `earlier`
+        if estar.shape[0] == 1:
+            one_material(block, estar, gstar)
         for first in range(start_pair, end, BLOCK):
             size = min(BLOCK, end - first)
             gather_stage(
@@ -713,7 +736,7 @@ def _pair_loop(
             listed = scattered[8]
             sum_in_order(
                 block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond,
-                foreign, force, moment, overlaps, turned,
+                foreign, foreign_end, force, moment, overlaps, turned,
             )  # fmt: skip
         if predicting and listed < end:
             earlier[listed, MISSED] = -1.0
