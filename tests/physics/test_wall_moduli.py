@@ -1,5 +1,6 @@
 """contact.wall_moduli: a sphere on a wall feels Hertz with both materials combined, or with
-the wall's material alone (LAMMPS fix wall/gran, the walls of Hanley 2020's runs)."""
+the wall's material alone (LAMMPS fix wall/gran, the walls of Hanley 2020's runs); a sphere
+pair, with its own two materials combined."""
 
 import math
 
@@ -9,7 +10,7 @@ import pytest
 
 from revdem_cli.config import Scenario
 from revdem_cli.engine import run_scenario
-from revdem_cli.state import moduli
+from revdem_cli.state import initial_state, moduli
 from tests.conftest import FLOOR, PLANE, SPHERE
 
 R, G = 0.005, 9.81
@@ -79,3 +80,47 @@ def test_a_sphere_rests_on_the_plane_at_its_rules_hertz_overlap(tmp_path, rule):
             np.testing.assert_allclose(-force, WEIGHT, rtol=1e-6)
     other = next(name for name in RULES if name != rule)
     assert speeds[rule] < 1e-6 * speeds[other]
+
+
+ELASTIC = {"soft": SPHERE, "stiff": PLANE}
+
+
+def in_a_row(names: list[str], overlap: float, tangential: str) -> Scenario:
+    """Spheres of radius R along x, each overlapping the next by `overlap`, of the materials
+    `names` (SPHERE's and PLANE's elastic constants; the materials it has only), without
+    gravity."""
+    return Scenario.model_validate(
+        {
+            "name": "row",
+            "materials": {name: ELASTIC[name] for name in dict.fromkeys(names)},
+            "contact": {"model": "hertz", "tangential": tangential, "friction": 0.5},
+            "particles": [
+                {"material": name, "radius": R, "position": (k * (2 * R - overlap), 0, 0)}
+                for k, name in enumerate(names)
+            ],
+            "integrator": {"dt": 1e-7},
+            "stages": [{"name": "rest", "steps": 1, "output_every": 1}],
+        }
+    )
+
+
+@pytest.mark.parametrize("tangential", ["none", "mindlin"])
+@pytest.mark.parametrize("names", [["soft", "stiff", "stiff", "soft"], ["soft"] * 4, ["stiff"] * 4])
+def test_each_sphere_pair_is_pushed_apart_by_hertz_with_its_own_two_materials(names, tangential):
+    """The pair loop's E* is each pair's own (one material's in every column where there is
+    one, `pairs.one_material`; else looked up pair by pair): sphere k feels its neighbours'
+    pushes, Hanley 2020 Eq 6 with E* of the two materials, R* = R / 2."""
+    overlap = 1e-5
+    state = initial_state(in_a_row(names, overlap, tangential))
+
+    def push(a: str, b: str) -> float:
+        compliance = sum((1 - ELASTIC[m]["poisson_ratio"]) / (2 * ELASTIC[m]["shear_modulus"])
+                         for m in (a, b))  # fmt: skip
+        return 4 / 3 / compliance * math.sqrt(R / 2) * overlap**1.5
+
+    pushes = [push(a, b) for a, b in zip(names[:-1], names[1:], strict=True)]
+    expected = (
+        [-pushes[0]] + [l - r for l, r in zip(pushes[:-1], pushes[1:], strict=True)] + [pushes[-1]]
+    )
+    assert state.particles.f[:, 0] == pytest.approx(expected, rel=1e-9, abs=1e-12 * max(pushes))
+    assert np.all(state.particles.f[:, 1:] == 0.0)
