@@ -23,10 +23,14 @@ def hertz(g: float, nu: float) -> float:
     return 4 * g / (3 * (1 - nu)) * math.sqrt(R)
 
 
+def compliance(a: dict, b: dict) -> float:
+    """1/E* by Hertz's combination, (1 - nu_a^2)/E_a + (1 - nu_b^2)/E_b with E = 2G(1 + nu)."""
+    return sum((1 - m["poisson_ratio"]) / (2 * m["shear_modulus"]) for m in (a, b))
+
+
 def combined() -> float:
-    """H from Hertz's combination, 1/E* = (1 - nu_a^2)/E_a + (1 - nu_b^2)/E_b, E = 2G(1 + nu)."""
-    compliance = sum((1 - m["poisson_ratio"]) / (2 * m["shear_modulus"]) for m in (SPHERE, PLANE))
-    return 4 / 3 / compliance * math.sqrt(R)
+    """H of a sphere on the plane from both materials combined (`compliance`)."""
+    return 4 / 3 / compliance(SPHERE, PLANE) * math.sqrt(R)
 
 
 RULES = {"combined": combined(), "wall": hertz(PLANE["shear_modulus"], PLANE["poisson_ratio"])}
@@ -114,9 +118,7 @@ def test_each_sphere_pair_is_pushed_apart_by_hertz_with_its_own_two_materials(na
     state = initial_state(in_a_row(names, overlap, tangential))
 
     def push(a: str, b: str) -> float:
-        compliance = sum((1 - ELASTIC[m]["poisson_ratio"]) / (2 * ELASTIC[m]["shear_modulus"])
-                         for m in (a, b))  # fmt: skip
-        return 4 / 3 / compliance * math.sqrt(R / 2) * overlap**1.5
+        return 4 / 3 / compliance(ELASTIC[a], ELASTIC[b]) * math.sqrt(R / 2) * overlap**1.5
 
     pushes = [push(a, b) for a, b in zip(names[:-1], names[1:], strict=True)]
     expected = (
