@@ -43,8 +43,8 @@ from revdem_cli.kernels.contact import (
     NO_SHEAR,
     REVERSE,
     SETTLED,
-    SMALL_ANGLE,
     STATIC,
+    beyond_series,
     contact_force,
     contact_velocity,
     earlier_shear,
@@ -292,7 +292,7 @@ def contacts(
             w_j = entries(block, OMEGA_J, k)
             v_ij = entries(block, VELOCITY, k)
             vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
-            large += abs(spin * dt) >= SMALL_ANGLE  # the angle of contact_force's Eq 9
+            large += beyond_series(overlap, spin * dt)  # the angle of contact_force's Eq 9
             vdamp = vrel
             if damped and predicted:
                 vdamp = pair_velocity(

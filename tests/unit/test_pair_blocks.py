@@ -46,13 +46,17 @@ def pair_by_pair(x, v, w, radius, estar, gstar, image, pi, pj, history, law, for
             put(shear, k, s)
 
 
-@pytest.mark.parametrize("spin", [1.0, 1e5])  # rad/s: spin corrections of 1e-6 and 0.1 rad
-def test_blocks_match_the_contact_law_pair_by_pair(spin):
+@pytest.mark.parametrize(
+    "spin, jitter",  # rad/s: spin corrections of 1e-6 and 0.1 rad; m, against overlaps of 10 um
+    [(1.0, 0.0), (1e5, 0.0), (1.0, 1e-5)],
+)
+def test_blocks_match_the_contact_law_pair_by_pair(spin, jitter):
     scenario = fcc(4)  # 256 spheres: the parallel loops, with a block per thread
     model, state = Model.of(scenario), initial_state(scenario)
     p, pairs = state.particles, state.pairs
     rng = np.random.default_rng(2)
     n_pairs = int(pairs.count[0])
+    p.x[:] += rng.normal(size=p.x.shape) * jitter  # listed pairs apart, beside ones touching
     pairs.history[:n_pairs] = rng.normal(size=(n_pairs, 3)) * 1e-4
     p.omega[:] = rng.normal(size=p.omega.shape) * spin
     force, shear = np.zeros((n_pairs, 3)), np.zeros((n_pairs, 3))
@@ -68,3 +72,6 @@ def test_blocks_match_the_contact_law_pair_by_pair(spin):
     )  # fmt: skip
     assert np.array_equal(pairs.force[:n_pairs], force)
     assert np.array_equal(pairs.history[:n_pairs], shear)
+    apart = pairs.overlap[:n_pairs] <= 0.0
+    assert apart.any() == (jitter > 0.0) and not apart.all()
+    assert not force[apart].any() and not shear[apart].any()
