@@ -326,7 +326,9 @@ def rebuild_pairs(p, pairs, cell, skin):
 def needs_rebuild(p, pairs, cell, dt, skin, direction):
     """Whether some pair could close half the skin in the next step: twice the largest
     reach of a particle from its place at the last build, plus the relative change of the
-    cell's edges times the largest contact reach, exceeds the skin."""
+    cell's edges times the largest contact reach, exceeds the skin. The largest radius is
+    looked for only in a cell that has changed or is changing (a serial pass, 1.2 ns a
+    sphere: in the fcc benchmark 1.5 % of a step without friction)."""
     reach = largest_reach(
         p.x.shape[0], p.x, pairs.x_built, p.v, p.f, p.inv_mass, dt, direction, cell.length,
         cell.built,
@@ -335,7 +337,10 @@ def needs_rebuild(p, pairs, cell, dt, skin, direction):
     for d in range(3):
         ahead = dt * abs(cell.rate[d]) / cell.length[d]
         strain = max(strain, abs(cell.length[d] / cell.built[d] - 1.0) + ahead)
-    return 2.0 * reach + strain * (2.0 * p.radius.max() + skin) > skin
+    closing = 0.0  # how much the cell's change can close a pair's gap
+    if strain > 0.0:
+        closing = strain * (2.0 * p.radius.max() + skin)
+    return 2.0 * reach + closing > skin
 
 
 @jit

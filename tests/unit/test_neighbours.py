@@ -1,13 +1,18 @@
 import numpy as np
 import pytest
 
+from benchmarks.fcc_hertz import scenario_data
+from revdem_cli.config import Scenario
 from revdem_cli.io.tape import no_tape
+from revdem_cli.kernels.integrate import needs_rebuild
 from revdem_cli.kernels.neighbours import (
     build_pairs,
     carry_history,
     index_by_particle,
     largest_reach,
 )
+from revdem_cli.stage import Model, stepping_bundles
+from revdem_cli.state import initial_state
 from tests.conftest import crossovers
 
 OPEN = (np.zeros(3, np.int64), np.ones(3))
@@ -189,3 +194,20 @@ def test_the_list_holds_every_contact_while_spheres_fly_through_many_rebuilds():
         rebuilds += not np.array_equal(built, pairs.x_built)
         built = pairs.x_built.copy()
     assert rebuilds >= 30 and contacts >= 100  # the list was tested, and often rebuilt
+
+
+@pytest.mark.parametrize("shrunk, rebuilt", [(0.04, False), (0.05, True)])
+def test_a_shrinking_cell_asks_for_a_rebuild_before_its_gaps_close_half_the_skin(shrunk, rebuilt):
+    """Spheres carried with a cell whose edges shrank by `shrunk` since the list was built,
+    none moving in it: a gap of r_i + r_j + skin between listed partners' centres closes by
+    up to shrunk (2 r_max + skin), 0.42 and 0.525 mm of the 10 mm spheres' 0.5 mm skin; the
+    list must be rebuilt once that exceeds half the skin, so at 5 % and not at 4 %."""
+    scenario = Scenario.model_validate(scenario_data(2, "frictionless", 1))
+    model, state = Model.of(scenario), initial_state(scenario)
+    p, pairs, _, cell, *_ = stepping_bundles(state, model, model.dynamics, model.law)
+    p.v[:] = 0.0
+    p.f[:] = 0.0
+    cell.built[:] = cell.length
+    cell.length[:] *= 1.0 - shrunk
+    p.x[:] = pairs.x_built * (cell.length / cell.built)
+    assert needs_rebuild(p, pairs, cell, 1e-6, model.skin, 1) == rebuilt
