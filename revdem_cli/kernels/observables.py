@@ -13,7 +13,7 @@ import numpy as np
 from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import images
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, contact_energy
-from revdem_cli.kernels.pairs import pair_overlap, separation
+from revdem_cli.kernels.pairs import pair_geometry, separation
 from revdem_cli.kernels.stress import stress_of
 from revdem_cli.kernels.sums import blocks_of, by_blocks, span
 from revdem_cli.kernels.tape import MECHANISMS
@@ -141,19 +141,15 @@ def _pair_energies(
         lo, hi = span(b, n)
         for k in range(first[lo], first[hi]):
             i, j = pi[k], pj[k]
-            d = separation(x, i, j, image)
-            reach = radius[i] + radius[j]
-            overlap, dist = pair_overlap(d, reach)
+            overlap, n_ij, rstar = pair_geometry(separation(x, i, j, image), radius[i], radius[j])
             if overlap <= 0.0:
                 continue
             contacts += 1
             m_i, m_j = material[i], material[j]
             shear = row(history, k) if shear_law else ZERO
             turned = row(rolling, k) if rolls else ZERO
-            rstar = radius[i] * radius[j] / reach
             e, g = estar[m_i, m_j], gstar[m_i, m_j]
             elastic += contact_energy(law, overlap, rstar, e, g, shear, turned)
-            n_ij = (d[0] / dist, d[1] / dist, d[2] / dist)
             fn, fs = normal_and_shear(row(force, k), n_ij)
             max_normal = max(max_normal, fn)
             max_shear = max(max_shear, fs)
@@ -179,14 +175,12 @@ def contact_fabric(x, radius, image, pi, pj, count, destroyed, shear_law, out):
     sliding = 0
     for k in range(count):
         i, j = pi[k], pj[k]
-        d = separation(x, i, j, image)
-        overlap, dist = pair_overlap(d, radius[i] + radius[j])
+        overlap, nk, _ = pair_geometry(separation(x, i, j, image), radius[i], radius[j])
         if overlap <= 0.0:
             continue
         contacts += 1
         touches[i] += 1
         touches[j] += 1
-        nk = (d[0] / dist, d[1] / dist, d[2] / dist)
         for a in range(3):
             for b in range(3):
                 phi[3 * a + b] += nk[a] * nk[b]

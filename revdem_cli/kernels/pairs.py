@@ -10,8 +10,8 @@ through three stages:
   periodic images in a vector loop of their own (`to_nearest_images`);
 - contact stage: `contact.contact_force` and its geometry and kinematics, column by column,
   reading and writing the block only, so the loop is elementwise over contiguous rows (with
-  the spin correction's cos and sin as their series; a block where some angle is too large
-  for that is done again with them in full);
+  the spin correction's cos and sin as their series; a block where some touching pair's
+  angle is too large for that is done again with them in full, `contact.beyond_series`);
 - scatter: each column's force, history, moment (fixed point: normal) and overlap into the
   pair arrays, counting the shear force destroyed (scalar, branches), and each particle's
   sums (`sum_in_order`); the forces, moments and overlaps only at steps after which
@@ -87,6 +87,18 @@ def pair_overlap(d, reach):
         return -1.0, 0.0
     dist = math.sqrt(dist2)
     return reach - dist, dist
+
+
+@inline
+def pair_geometry(d, r_i, r_j):
+    """(overlap, unit normal n from i to j, R* = r_i r_j / (r_i + r_j)) of a pair with
+    separation d = x_j - x_i and radii r_i, r_j (Hanley 2020 Eq 6): the one place a loop
+    over pairs finds them, so that the forces, their unwinding, the fixed-point normals and
+    the observables agree to the bit. A pair certainly apart (`pair_overlap`) gets overlap
+    -1 and a normal that is not finite, which callers leave out."""
+    reach = r_i + r_j
+    overlap, dist = pair_overlap(d, reach)
+    return overlap, scaled(1.0 / dist, d), r_i * r_j / reach
 
 
 BLOCK = 64
@@ -280,9 +292,7 @@ def contacts(
         d = entries(block, SEPARATION, k)
         r_i = entry(block, RADIUS_I, k)
         r_j = entry(block, RADIUS_J, k)
-        reach = r_i + r_j
-        overlap, dist = pair_overlap(d, reach)
-        n = scaled(1.0 / dist, d)
+        overlap, n, rstar = pair_geometry(d, r_i, r_j)
         vrel = ZERO
         vdamp = ZERO
         spin = 0.0
@@ -306,7 +316,7 @@ def contacts(
             dt,
             overlap,
             n,
-            r_i * r_j / reach,
+            rstar,
             entry(block, M_STAR, k) if damped else 0.0,
             entry(block, E_STAR, k),
             entry(block, G_STAR, k),
@@ -328,14 +338,13 @@ def contacts(
             enter(block, SLIPPED, k, slipped if touching else 0.0)
             if predicting:
                 earlier, spacing = earlier_shear(
-                    law, dt, overlap, n, r_i * r_j / reach, entry(block, E_STAR, k),
+                    law, dt, overlap, n, rstar, entry(block, E_STAR, k),
                     entry(block, G_STAR, k), vrel, spin, shear if touching else ZERO,
                     entry(block, OVERLAP_THEN, k), entries(block, NORMAL_THEN, k), small,
                 )  # fmt: skip
                 enter3(block, EARLIER, k, earlier)
                 enter(block, SPACING_THEN, k, spacing)
         if law.rolling != NO_ROLLING:
-            rstar = r_i * r_j / reach
             old = entries(block, ROLLING, k)
             n_then = entries(block, NORMAL_THEN, k) if then else ZERO
             rolling, capped = rolling_moment(
@@ -780,8 +789,8 @@ def _contact_normals(x, radius, image, pi, pj, n_pairs, normals, overlaps):
         i = pi[k]
         j = pj[k]
         d = separation(x, i, j, image)
-        overlap, dist = pair_overlap(d, radius[i] + radius[j])
-        put(normals, k, scaled(1.0 / dist, d) if overlap > 0.0 else ZERO)
+        overlap, n, _ = pair_geometry(d, radius[i], radius[j])
+        put(normals, k, n if overlap > 0.0 else ZERO)
         overlaps[k] = overlap
 
 

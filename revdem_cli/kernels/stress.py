@@ -7,9 +7,9 @@ import numba
 
 from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import images, volume
-from revdem_cli.kernels.pairs import separation
+from revdem_cli.kernels.pairs import pair_geometry, separation
 from revdem_cli.kernels.sums import blocks_of, by_blocks, span
-from revdem_cli.kernels.vectors import norm, row
+from revdem_cli.kernels.vectors import row
 from revdem_cli.kernels.wall_contacts import wall_normal
 
 
@@ -66,14 +66,12 @@ def particle_stress(p, pairs, walls, cell, out):
         if f[0] == 0.0 and f[1] == 0.0 and f[2] == 0.0:
             continue
         i, j = pairs.i[k], pairs.j[k]
-        d = separation(p.x, i, j, image)
-        dist = norm(d)
-        overlap = p.radius[i] + p.radius[j] - dist
+        overlap, n, _ = pair_geometry(separation(p.x, i, j, image), p.radius[i], p.radius[j])
         for q in (i, j):
             arm = p.radius[q] - 0.5 * overlap
             for a in range(3):
                 for b in range(3):
-                    out[q, a, b] -= arm * d[a] / dist * f[b]
+                    out[q, a, b] -= arm * n[a] * f[b]
     for q in range(p.x.shape[0]):
         for b in range(walls.force.shape[1]):
             if walls.overlap[q, b] > 0.0:

@@ -7,8 +7,8 @@ import numba
 from revdem_cli.kernels import by_size, inline, jit
 from revdem_cli.kernels.cell import deforms, images, strain_rates
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, unwind_rolling, unwind_shear
-from revdem_cli.kernels.pairs import pair_velocity, separation
-from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, norm, place, put, row, scaled
+from revdem_cli.kernels.pairs import pair_geometry, pair_velocity, separation
+from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, place, put, row
 from revdem_cli.kernels.wall_contacts import wall_kinematics
 
 
@@ -17,16 +17,14 @@ def unwind_contact(d, r_i, r_j, v_ij, w_i, w_j, gs, shear, moment, law, dt, stra
     """A pair at the later positions, separation d, radii r_i, r_j, its centres' relative
     half-step velocity v_ij = v_j - v_i and spins w_i, w_j, G* gs: its shear history `shear`
     with Eq 10 and 9 undone, its rolling history `moment` likewise (as it is without a
-    rolling law), and its contact normal there, across which they were unwound."""
-    dist = norm(d)
-    overlap = r_i + r_j - dist
-    n = scaled(1.0 / dist, d)
+    rolling law), and its contact normal there, across which they were unwound (zero where
+    the pair is apart, as the pair loop keeps it: a history turned from it is zero)."""
+    overlap, n, rstar = pair_geometry(d, r_i, r_j)
     vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
-    rstar = r_i * r_j / (r_i + r_j)
     shear = unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, shear)
     if law.rolling != NO_ROLLING:
         moment = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, moment)
-    return shear, moment, n
+    return shear, moment, n if overlap > 0.0 else ZERO
 
 
 def _unwind_pair_loop(

@@ -10,8 +10,8 @@ from revdem_cli.config import Scenario
 from revdem_cli.kernels.cell import images
 from revdem_cli.kernels.contact import FORWARD, SMALL_ANGLE, contact_force
 from revdem_cli.kernels.forces import compute_forces
-from revdem_cli.kernels.pairs import pair_overlap, pair_velocity, separation
-from revdem_cli.kernels.vectors import ZERO, put, row, scaled
+from revdem_cli.kernels.pairs import pair_geometry, pair_velocity, separation
+from revdem_cli.kernels.vectors import ZERO, put, row
 from revdem_cli.stage import Model, stepping_bundles
 from revdem_cli.state import empty_events, initial_state
 
@@ -30,14 +30,12 @@ def pair_by_pair(x, v, w, radius, estar, gstar, image, pi, pj, history, law, for
     for k in range(force.shape[0]):
         i, j = pi[k], pj[k]
         d = separation(x, i, j, image)
-        overlap, dist = pair_overlap(d, radius[i] + radius[j])
+        overlap, n, rstar = pair_geometry(d, radius[i], radius[j])
         if overlap > 0.0:
-            n = scaled(1.0 / dist, d)
             v_ij = (v[j, 0] - v[i, 0], v[j, 1] - v[i, 1], v[j, 2] - v[i, 2])
             vrel, spin = pair_velocity(
                 d, n, overlap, radius[i], radius[j], v_ij, row(w, i), row(w, j), strain, False
             )
-            rstar = radius[i] * radius[j] / (radius[i] + radius[j])
             f, s, _, _, _ = contact_force(
                 law, FORWARD, DT, overlap, n, rstar, 0.0, estar[0, 0], gstar[0, 0], vrel, vrel,
                 spin, row(history, k), ZERO,
