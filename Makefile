@@ -25,6 +25,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/fcc_hertz.py --scaling
 	$(BIN)/python benchmarks/crossover.py
 	$(BIN)/python benchmarks/order.py
+	$(BIN)/python benchmarks/packing.py
 	NUMBA_NUM_THREADS=1 $(BIN)/python benchmarks/roofline.py
 
 lint: $(STAMP)
