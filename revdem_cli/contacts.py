@@ -2,7 +2,8 @@
 what force, read from the arrays the last step left (nothing is computed again).
 
 A contact of spheres i < j has the unit normal n from i to j (across a periodic face, to
-j's nearest image), the overlap δ = r_i + r_j - |x_j - x_i| > 0 and the contact point
+j's nearest image), the overlap δ = r_i + r_j - |x_j - x_i| > 0, both as the pair loop
+finds them (`kernels.pairs.contact_normals`, to the bit), and the contact point
 x_i + (r_i - δ/2) n, the engine's lever arm (Hanley 2020 Eq 9). The force on i from j is
 split into its normal part (f·n) n and the rest, the tangential force. A sphere on a wall
 takes n from the sphere towards the wall. A contact slides when the Coulomb cap (Hanley
@@ -15,34 +16,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from revdem_cli.kernels.cell import images
+from revdem_cli.kernels.pairs import contact_normals
 from revdem_cli.kernels.wall_contacts import wall_normal
 
 
 @dataclass(frozen=True)
 class Touching:
-    """Sphere pairs in overlap: i < j, the vector d from i to j's nearest image, |d|, δ."""
+    """Sphere pairs in overlap: i < j, the unit normal n from i to j's nearest image, δ."""
 
     i: np.ndarray  # (K,) int64
     j: np.ndarray  # (K,) int64
     slot: np.ndarray  # each pair's slot in the pair list, (K,)
-    d: np.ndarray  # m, (K, 3)
-    distance: np.ndarray  # m, (K,)
+    normal: np.ndarray  # (K, 3)
     overlap: np.ndarray  # m, (K,)
 
 
 def touching_pairs(state) -> Touching:
-    """The pairs of the pair list whose spheres overlap now."""
-    p, pairs, cell = state.particles, state.pairs, state.cell
+    """The pairs of the pair list whose spheres overlap now, by the geometry of the pair loop
+    (`kernels.pairs.pair_geometry`, through `contact_normals`)."""
+    p, pairs = state.particles, state.pairs
     count = int(pairs.count[0])
-    i, j = pairs.i[:count].astype(np.int64), pairs.j[:count].astype(np.int64)
-    d = p.x[j] - p.x[i]
-    for axis in np.flatnonzero(cell.periodic):  # nearest image, as `cell.nearest_image`
-        length = cell.length[axis]
-        d[:, axis] -= length * np.floor(d[:, axis] / length + 0.5)
-    distance = np.sqrt((d * d).sum(axis=1))
-    overlap = p.radius[i] + p.radius[j] - distance
+    normal, overlap = np.zeros((count, 3)), np.zeros(count)
+    listed = (pairs.i, pairs.j, np.int64(count), normal, overlap)
+    contact_normals(len(p.x), p.x, p.radius, images(state.cell), *listed)
     slot = np.flatnonzero(overlap > 0.0)
-    return Touching(i[slot], j[slot], slot, d[slot], distance[slot], overlap[slot])
+    i, j = pairs.i[slot].astype(np.int64), pairs.j[slot].astype(np.int64)
+    return Touching(i, j, slot, normal[slot], overlap[slot])
 
 
 def wall_touches(state) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -90,7 +90,7 @@ def contact_list(state) -> ContactList:
     """The contacts of `state` as the last step left them."""
     p, pairs, walls = state.particles, state.pairs, state.walls
     t = touching_pairs(state)
-    n = t.d / t.distance[:, None]
+    n = t.normal
     q, w, n_wall = wall_touches(state)
     wall_overlap = walls.overlap[q, w]
     pair_normal, pair_tangential = _split(pairs.force[t.slot], n)

@@ -73,12 +73,12 @@ def contacts_of(state: State, model: Model) -> Contacts:
     """The contacts of `state` in overlap, with their stiffnesses from the scenario's laws."""
     p = state.particles
     t = touching_pairs(state)
-    i, j, d, distance, overlap = t.i, t.j, t.d, t.distance, t.overlap
+    i, j, overlap = t.i, t.j, t.overlap
     q, w, n_walls = wall_touches(state)  # sphere q on wall w
     r_i, r_j, m_i, m_j = p.radius[i], p.radius[j], p.mass[i], p.mass[j]
     a = np.concatenate([i, q])
     b = np.concatenate([j, np.full(len(q), len(p.x))])
-    n = np.concatenate([d / distance[:, None], n_walls])
+    n = np.concatenate([t.normal, n_walls])
     wall_overlap = state.walls.overlap[q, w]
     rstar = np.concatenate([r_i * r_j / (r_i + r_j), p.radius[q]])  # on a wall R* = r
     mstar = np.concatenate([m_i * m_j / (m_i + m_j), p.mass[q]])  # and m* = m

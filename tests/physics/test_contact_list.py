@@ -1,5 +1,6 @@
 """The contact list a trajectory keeps ([output] contacts): Coulomb's law in the sliding
-flags of a frictional collision, and the rows a continued run copies from its checkpoint."""
+flags of a frictional collision, the pair loop's own geometry, and the rows a continued run
+copies from its checkpoint."""
 
 from __future__ import annotations
 
@@ -9,12 +10,13 @@ import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
-from revdem_cli.contacts import contact_list
+from revdem_cli.config import Scenario
+from revdem_cli.contacts import contact_list, touching_pairs
 from revdem_cli.engine import _writer
 from revdem_cli.io.h5md import read_contacts
 from revdem_cli.stage import Model
 from revdem_cli.state import empty_events, initial_state
-from tests.conftest import CONFIGS, two_spheres
+from tests.conftest import CONFIGS, periodic_fcc, stepped, two_spheres
 
 MU = 0.3
 
@@ -40,6 +42,31 @@ def test_a_contact_slides_where_coulomb_caps_its_shear_force(tmp_path):
     assert slid.sum() > 5 and (~slid).sum() > 5, (slid.sum(), (~slid).sum())
     np.testing.assert_allclose(ratios[slid], MU, rtol=1e-12)
     assert (ratios[~slid] <= MU * (1 + 1e-12)).all()
+
+
+def test_the_contacts_of_a_state_are_those_the_pair_loop_found_to_the_bit():
+    """A periodic fcc lattice 1e-4 of its spacing apart, shaken at 0.05 m/s for 200 steps
+    in fixed point with friction, whose pair loop keeps every pair's overlap and contact
+    normal (zero apart): the contacts of its state (`touching_pairs`, read by the contact
+    list and `revdem dt --restart`) are exactly the pairs the pair loop found touching,
+    with its normals and overlaps, bit for bit."""
+    spacing = 1.0001 * 0.01 * 2**0.5
+    scenario = Scenario.model_validate(
+        {
+            "name": "shaken",
+            **periodic_fcc(3, spacing, random_velocity=0.05, seed=7),
+            "integrator": {"dt": 1e-6, "arithmetic": "fixed"},
+            "stages": [{"name": "shake", "steps": 200, "output_every": 200}],
+        }
+    )
+    *_, state = stepped(scenario, 200, 200)
+    pairs = state.pairs
+    count = int(pairs.count[0])
+    touching = touching_pairs(state)
+    assert 0 < len(touching.slot) < count  # pairs in contact and pairs apart
+    np.testing.assert_array_equal(touching.slot, np.flatnonzero(pairs.overlap[:count] > 0.0))
+    assert np.array_equal(touching.normal, pairs.normal[touching.slot])
+    assert np.array_equal(touching.overlap, pairs.overlap[touching.slot])
 
 
 def _touching_pair():
