@@ -36,21 +36,13 @@ def reordered(spheres, order: str):
     import numpy as np
 
     from revdem_cli.assembly.packing import spatial_order
-    from revdem_cli.assembly.spheres import Spheres
 
     if order == "lattice":
         return spheres
     k = np.random.default_rng(SEED).permutation(len(spheres))
     if order == "spatial":
         k = k[spatial_order(spheres.position[k], 2.0 * spheres.radius.max())]
-    return Spheres(
-        spheres.radius[k],
-        spheres.position[k],
-        spheres.velocity[k],
-        spheres.angular_velocity[k],
-        spheres.material[k],
-        spheres.materials,
-    )
+    return spheres.taken(k)
 
 
 def measure(n: int) -> list[dict]:

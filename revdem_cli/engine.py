@@ -77,6 +77,7 @@ def _writer(
         path,
         state.particles.radius,
         state.particles.mass,
+        state.ids,
         state.particles.material,
         scenario.cell is not None,
         scenario.output.particle_stress,

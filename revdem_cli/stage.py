@@ -327,13 +327,14 @@ def run_stage(
             if status == CELL_TOO_SMALL:
                 raise CellTooSmall(state.step, state.cell.length)
             if status == FIXED_OVERFLOW:
-                raise OffGrid(state.step, state.fixed)
+                raise OffGrid(state.step, state.fixed, state.ids)
             if status == BLOWN_UP:
                 raise BlownUp(
                     state.step,
                     finding,
                     stepping.overlap_limit,
                     [wall.name for wall in model.scenario.walls],
+                    state.ids,
                     _likely_cause(model.scenario, clock.dt),
                     f"{writer.path} holds the frames up to step {writer.last_step}",
                 )

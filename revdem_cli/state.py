@@ -304,13 +304,15 @@ def empty_events() -> np.ndarray:
 @dataclass
 class State:
     """Everything that evolves: particles, pair list with history, walls, cell, the integer
-    state of fixed-point arithmetic, step."""
+    state of fixed-point arithmetic, step; and each sphere's id, which outputs carry
+    (`Spheres.id`)."""
 
     particles: Particles
     pairs: Pairs
     walls: Walls
     cell: Cell
     fixed: Fixed
+    ids: np.ndarray
     step: int
 
     def rebuild_pairs(self, skin: float) -> None:
@@ -337,19 +339,28 @@ class CellTooSmall(RunFailed):
         )
 
 
+def particle_named(k: int, ids: np.ndarray) -> str:
+    """A sphere as messages name it: its index in the arrays (the contacts' and the event
+    log's) and its id (the trajectory's, a data file's atom id)."""
+    return f"particle {k} (id {int(ids[k])})"
+
+
 class BlownUp(RunFailed):
     """The state stopped being physical (kernels/health.py): a non-finite value, or an
     overlap deeper than integrator.overlap_limit allows."""
 
-    def __init__(self, step: int, finding, limit: float, walls: list[str], cause: str, kept: str):
+    def __init__(
+        self, step: int, finding, limit: float, walls: list[str], ids, cause: str, kept: str
+    ):
         what, particle, partner, value = finding
         if what == health.NOT_FINITE:
             quantity = ("position", "velocity", "angular velocity")[int(value)]
-            found = f"particle {particle} has a non-finite {quantity}"
+            found = f"{particle_named(particle, ids)} has a non-finite {quantity}"
         else:
-            other = f"wall {walls[-1 - partner]}" if partner < 0 else f"particle {partner}"
+            other = f"wall {walls[-1 - partner]}" if partner < 0 else particle_named(partner, ids)
             found = (
-                f"particle {particle} and {other} overlap by {value:.3g} of the smaller radius "
+                f"{particle_named(particle, ids)} and {other} overlap by {value:.3g} of the "
+                "smaller radius "
                 f"(integrator.overlap_limit = {limit:g})"
             )
         super().__init__(f"blown up at step {step}: {found}; {cause}; {kept}")
@@ -441,9 +452,10 @@ def fixed_arrays(scenario: Scenario, p: Particles, cell_now: Cell) -> Fixed:
 class OffGrid(RunFailed):
     """A value of fixed-point arithmetic left the range of its grid."""
 
-    def __init__(self, step: int, state: Fixed):
+    def __init__(self, step: int, state: Fixed, ids: np.ndarray):
         quantity = fixed.QUANTITIES[int(state.overflow[0]) - 1]
-        who = f" of particle {int(state.overflow[1])}" if state.overflow[1] >= 0 else ""
+        k = int(state.overflow[1])
+        who = f" of {particle_named(k, ids)}" if k >= 0 else ""
         super().__init__(
             f"step {step}: the {quantity}{who} left the range of its fixed-point grid "
             f"(2^62 steps, 1024 times the scale the grid was made for); nothing wraps "
@@ -475,6 +487,7 @@ def initial_state(scenario: Scenario) -> State:
         wall_arrays(scenario, len(p.x), taped),
         cell_now,
         integers,
+        scenario.spheres.id,
         step=0,
     )
     state.rebuild_pairs(skin)

@@ -12,8 +12,10 @@ FCC_BASIS = np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.5, 0.0, 0.5], [0.0, 0
 
 @dataclass(frozen=True, eq=False)
 class Spheres:
-    """Spheres as arrays: radius (N,), position, velocity, angular velocity (N, 3), and
-    `material`, the index of each sphere's material among `materials` (N,)."""
+    """Spheres as arrays: radius (N,), position, velocity, angular velocity (N, 3),
+    `material`, the index of each sphere's material among `materials` (N,), and `id`, each
+    sphere's identity, which outputs carry (N,): the atom id of the data file it was read
+    from, else its number from 1 in the order of its table."""
 
     radius: np.ndarray
     position: np.ndarray
@@ -21,14 +23,22 @@ class Spheres:
     angular_velocity: np.ndarray
     material: np.ndarray
     materials: tuple[str, ...]
+    id: np.ndarray
 
     def __len__(self) -> int:
         return len(self.radius)
 
+    def taken(self, k) -> Spheres:
+        """The spheres `k` (indices or a slice), in that order, with their ids."""
+        arrays = (self.radius, self.position, self.velocity, self.angular_velocity)
+        return Spheres(*(a[k] for a in arrays), self.material[k], self.materials, self.id[k])
+
     @classmethod
     def join(cls, parts: list[Spheres], materials: tuple[str, ...]) -> Spheres:
-        """The spheres of `parts` in their order: the one part that has spheres as it is (no
-        copy, and no page of an array it has not written, such as `uniform`'s spins)."""
+        """The spheres of `parts` in their order, each part's ids after the largest of the
+        parts before it, so that every id is its own (a scenario of one table keeps its ids):
+        the one part that has spheres as it is (no copy, and no page of an array it has not
+        written, such as `uniform`'s spins)."""
         filled = [part for part in parts if len(part)]
         if len(filled) == 1 and filled[0].materials == tuple(materials):
             return filled[0]
@@ -37,6 +47,10 @@ class Spheres:
             arrays = [getattr(part, name) for part in parts]
             return np.concatenate(arrays) if arrays else np.zeros(shape, dtype)
 
+        ids, largest = [], 0
+        for part in filled:
+            ids.append(part.id + largest)
+            largest = int(ids[-1].max())
         return cls(
             stacked("radius", (0,)),
             stacked("position", (0, 3)),
@@ -44,14 +58,21 @@ class Spheres:
             stacked("angular_velocity", (0, 3)),
             stacked("material", (0,), np.int64),
             materials,
+            np.concatenate(ids) if ids else np.zeros(0, np.int64),
         )
 
     def material_names(self) -> list[str]:
         return [self.materials[k] for k in self.material]
 
 
+def numbered(count: int) -> np.ndarray:
+    """The ids of `count` spheres numbered from 1 in their order."""
+    return np.arange(1, count + 1, dtype=np.int64)
+
+
 def uniform(count: int, radius, material: int, materials, position, velocity) -> Spheres:
-    """`count` spheres of the given radii (one, or one each), one material, no spin."""
+    """`count` spheres of the given radii (one, or one each), one material, no spin,
+    numbered from 1."""
     return Spheres(
         np.broadcast_to(np.asarray(radius, dtype=np.float64), (count,)).copy(),
         np.asarray(position, dtype=np.float64).reshape(count, 3),
@@ -59,6 +80,7 @@ def uniform(count: int, radius, material: int, materials, position, velocity) ->
         np.zeros((count, 3)),
         np.full(count, material, dtype=np.int64),
         tuple(materials),
+        numbered(count),
     )
 
 

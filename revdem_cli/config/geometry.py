@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from revdem_cli import wall_shapes
-from revdem_cli.assembly.spheres import Spheres
+from revdem_cli.assembly.spheres import Spheres, numbered
 from revdem_cli.config.checks import FieldError
 
 
@@ -33,6 +33,7 @@ def generate(scenario) -> Spheres:
         np.array([p.angular_velocity for p in scenario.particles], dtype=np.float64).reshape(-1, 3),
         np.array([materials.index(p.material) for p in scenario.particles], dtype=np.int64),
         materials,
+        numbered(len(scenario.particles)),
     )
     parts = [given]
     for i, packing in enumerate(scenario.packings):
@@ -121,17 +122,12 @@ def spheres_from(source, path: str, scenario, materials: tuple[str, ...]) -> Sph
                 f"{edges.tolist()}",
             )
         position = data.position - data.lower  # inside the cell, as the file has them
-    k = slice(None)
-    if source.order == "space":
-        k = spatial_order(position, 2.0 * data.radius.max())
-    return Spheres(
-        data.radius[k],
-        position[k],
-        data.velocity[k],
-        data.angular_velocity[k],
-        material[k],
-        materials,
+    spheres = Spheres(
+        data.radius, position, data.velocity, data.angular_velocity, material, materials, data.id
     )
+    if source.order == "space":
+        return spheres.taken(spatial_order(position, 2.0 * data.radius.max()))
+    return spheres
 
 
 DENSITY_RTOL = 1e-9
@@ -233,15 +229,20 @@ def check_walls(scenario) -> None:
 
 def located(scenario, index: int) -> tuple[str, str]:
     """(field path, name) of sphere `index` of `spheres`: particles[i].position and
-    'sphere i', or packings[k] and 'sphere m of packings[k]'."""
+    'sphere i', packings[k] and 'sphere m of packings[k]', or particles_from[k] and 'atom
+    a of FILE', the atom's id in its data file."""
     if index < len(scenario.particles):
         return f"particles[{index}].position", f"sphere {index}"
-    index -= len(scenario.particles)
     sources = [("packings", k, p) for k, p in enumerate(scenario.packings)]
     sources += [("lattices", k, g) for k, g in enumerate(scenario.lattices)]
     sources += [("particles_from", k, g) for k, g in enumerate(scenario.particles_from)]
+    start = len(scenario.particles)  # the table's first sphere
     for kind, k, source in sources:
-        if index < source.count:
-            return f"{kind}[{k}]", f"sphere {index} of {kind}[{k}]"
-        index -= source.count
+        if index < start + source.count:
+            if kind == "particles_from":  # its ids after the largest before it (`Spheres.join`)
+                ids = scenario.spheres.id
+                atom = int(ids[index]) - (int(ids[:start].max()) if start else 0)
+                return f"{kind}[{k}]", f"atom {atom} of {source.lammps_data}"
+            return f"{kind}[{k}]", f"sphere {index - start} of {kind}[{k}]"
+        start += source.count
     raise IndexError(index)

@@ -316,10 +316,11 @@ class Lattice(_Model):
 
 class ParticlesFrom(_Model):
     """Spheres read from a file another code wrote: a LAMMPS data file of atom_style sphere
-    in units si (`write_data`), its atoms in the order of their ids (or numbered in space,
-    `order`), with their diameters, positions (unwrapped by their image flags) and, where the
-    file has them, velocities and angular velocities. A sphere's mass is its material's
-    density times its volume: the density the file gives must be that material's."""
+    in units si (`write_data`), its atoms numbered in space (or in the order of their ids,
+    `order`), each keeping its id, with their diameters, positions (unwrapped by their image
+    flags) and, where the file has them, velocities and angular velocities. A sphere's mass
+    is its material's density times its volume: the density the file gives must be that
+    material's."""
 
     lammps_data: str = Field(
         min_length=1, description="path of the LAMMPS data file, relative to the scenario file"
@@ -334,11 +335,13 @@ class ParticlesFrom(_Model):
         "say which axes are periodic): [cell] size must be its edges, and positions are "
         "taken relative to its lower corner",
     )
-    order: Literal["ids", "space"] = Field(
-        default="ids",
-        description="'ids': sphere k is the atom of the k-th smallest id; 'space': the atoms "
-        "numbered cell by cell in space, as [[packings]] are (`assembly.packing.spatial_order`): "
-        "atoms numbered as they were inserted at random step up to 3 times slower",
+    order: Literal["space", "ids"] = Field(
+        default="space",
+        description="the spheres' order in memory, each keeping its atom id in every output: "
+        "'space', numbered cell by cell in space, as [[packings]] are "
+        "(`assembly.packing.spatial_order`), as LAMMPS sorts its atoms; 'ids', sphere k the "
+        "atom of the k-th smallest id: atoms numbered as they were inserted at random step up "
+        "to 3 times slower",
     )
     count: Int | None = Field(
         default=None,

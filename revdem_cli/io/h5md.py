@@ -2,7 +2,9 @@
 
 /h5md                               version [1, 1]; author; creator revdem
 /particles/all/{position,velocity,angular_velocity,force}   step [F], time [F], value [F, N, 3]
-/particles/all/{radius,mass,id}     time-independent [N]
+/particles/all/{radius,mass}        time-independent [N]
+/particles/all/id                   time-independent [N]: each sphere's id, the atom id of a
+                                    LAMMPS data file it was read from, else its number from 1
 /particles/all/species              time-independent [N]: each sphere's material, numbered in
                                     the order of [materials] from 0
 /particles/all/stress               [F, N, 3, 3] each sphere's stress (Eq 22), if asked for
@@ -144,6 +146,7 @@ class TrajectoryWriter:
         path: Path,
         radius,
         mass,
+        ids,
         species,
         periodic: bool,
         particle_stress: bool,
@@ -157,13 +160,13 @@ class TrajectoryWriter:
         self.closed = False
         try:
             self.file = h5py.File(self.path, "w", libver="latest")
-            self._create(radius, mass, species, periodic, particle_stress, fixed_point,
+            self._create(radius, mass, ids, species, periodic, particle_stress, fixed_point,
                          contacts, observables, events_shape, parameters)  # fmt: skip
         except (OSError, RuntimeError) as exc:
             self._abandon(exc)
 
     def _create(
-        self, radius, mass, species, periodic, particle_stress, fixed_point, contacts,
+        self, radius, mass, ids, species, periodic, particle_stress, fixed_point, contacts,
         observables, events_shape, parameters,
     ) -> None:  # fmt: skip
         """The file's groups and datasets, empty, and its parameters."""
@@ -186,7 +189,7 @@ class TrajectoryWriter:
             frame_groups.append(clock)
         everything.create_dataset("radius", data=radius)
         everything.create_dataset("mass", data=mass)
-        everything.create_dataset("id", data=np.arange(n, dtype=np.int64))
+        everything.create_dataset("id", data=np.asarray(ids, dtype=np.int64))
         everything.create_dataset("species", data=np.asarray(species, dtype=np.int64))
         events = _series(f, "observables/events", events_shape, clock)
         edges = _series(box, "edges", (3,), clock)

@@ -149,6 +149,10 @@ def read_lammps_data(path: str | Path) -> LammpsData:
         table[row, :count] = _numbers(path, number, words, count, "an atom (id type diameter "
                                       "density x y z [ix iy iz])")  # fmt: skip
     ids = table[:, 0].astype(np.int64)
+    odd = np.flatnonzero((ids != table[:, 0]) | (ids < 1))
+    if len(odd):  # LAMMPS numbers atoms from 1
+        number, words = rows[odd[0]]
+        raise _fail(path, number, f"atom id {words[0]} is not a positive integer")
     order = np.argsort(ids, kind="stable")
     table, ids = table[order], ids[order]
     if np.any(np.diff(ids) == 0):
@@ -200,11 +204,12 @@ def wrapped(position: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def lammps_data_text(
-    radius, mass, position, image, velocity, angular_velocity, types, lower, upper, step: int,
-    title: str,
+    ids, radius, mass, position, image, velocity, angular_velocity, types, lower, upper,
+    step: int, title: str,
 ) -> str:  # fmt: skip
-    """The text of a data file as `write_data` writes it for atom_style sphere, units si: ids
-    from 1 in the given order, density = mass / (4/3 π r³) (Hanley 2020 §3: solid spheres)."""
+    """The text of a data file as `write_data` writes it for atom_style sphere, units si,
+    the atoms in the given order with their ids, density = mass / (4/3 π r³) (Hanley 2020
+    §3: solid spheres)."""
     n = len(radius)
     density = np.asarray(mass) / (4.0 / 3.0 * math.pi * np.asarray(radius) ** 3)
     out = [f"LAMMPS data file via revdem, {title}, timestep = {step}, units = si", ""]
@@ -214,15 +219,12 @@ def lammps_data_text(
         out.append(f"{lo:.17g} {hi:.17g} {name}lo {name}hi")
     out += ["", "Atoms # sphere", ""]
     out += [
-        f"{k + 1} {t} {2.0 * r:.17g} {d:.17g} {x[0]:.17g} {x[1]:.17g} {x[2]:.17g} "
-        f"{i[0]} {i[1]} {i[2]}"
-        for k, (t, r, d, x, i) in enumerate(
-            zip(types, radius, density, position, image, strict=True)
-        )
+        f"{k} {t} {2.0 * r:.17g} {d:.17g} {x[0]:.17g} {x[1]:.17g} {x[2]:.17g} {i[0]} {i[1]} {i[2]}"
+        for k, t, r, d, x, i in zip(ids, types, radius, density, position, image, strict=True)
     ]
     out += ["", "Velocities", ""]
     out += [
-        f"{k + 1} " + " ".join(f"{c:.17g}" for c in (*v, *w))
-        for k, (v, w) in enumerate(zip(velocity, angular_velocity, strict=True))
+        f"{k} " + " ".join(f"{c:.17g}" for c in (*v, *w))
+        for k, v, w in zip(ids, velocity, angular_velocity, strict=True)
     ]
     return "\n".join(out) + "\n"

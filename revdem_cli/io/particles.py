@@ -136,9 +136,9 @@ def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
 
 def export_lammps_data(trajectory: str | Path, path: str | Path) -> Path:
     """The last frame as a LAMMPS data file (atom_style sphere, units si, `read_data`):
-    radius, density, position (in a periodic box wrapped into it, with image flags),
+    id, radius, density, position (in a periodic box wrapped into it, with image flags),
     velocity and angular velocity of every sphere, 17 significant digits, so that
-    `[[particles_from]]` reads back the same numbers bit for bit."""
+    `[[particles_from]]` reads back the same numbers bit for bit, each under its id."""
     from revdem_cli.io import write_text
     from revdem_cli.io.lammps_data import lammps_data_text, wrapped
 
@@ -147,8 +147,8 @@ def export_lammps_data(trajectory: str | Path, path: str | Path) -> Path:
     if last.periodic:  # inside the box, with the crossings as image flags, as LAMMPS has them
         position, image = wrapped(last.position, last.upper)
     text = lammps_data_text(
-        last.radius, last.mass, position, image, last.velocity, last.angular_velocity,
-        last.type, last.lower, last.upper, last.step,
+        last.id, last.radius, last.mass, position, image, last.velocity,
+        last.angular_velocity, last.type, last.lower, last.upper, last.step,
         f"{Path(trajectory).name} at step {last.step}",
     )  # fmt: skip
     path = Path(path)

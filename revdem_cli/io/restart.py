@@ -15,6 +15,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from revdem_cli.assembly.spheres import numbered
 from revdem_cli.errors import InputError
 from revdem_cli.io import (
     DAMAGE,
@@ -113,6 +114,7 @@ def _write_state(f: h5py.File, restart: Restart) -> None:
     meta.attrs["previous"] = restart.previous
     for name in Particles._fields:
         _put(f, f"particles/{name}", getattr(s.particles, name))
+    _put(f, "particles/id", s.ids)
     for name in WALL_FIELDS:
         _put(f, f"walls/{name}", getattr(s.walls, name))
     for name in CELL_ARRAYS:
@@ -242,6 +244,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     reversing = resumption is None or resumption.phase == "reverse" or taped
     particles = Particles(*(read(f"particles/{name}") for name in Particles._fields))
     n_particles = len(particles.x)
+    ids = read("particles/id") if "particles/id" in f else numbered(n_particles)  # before ids
     walls = wall_arrays(scenario, n_particles, reversing)
     for name in WALL_FIELDS:
         getattr(walls, name)[...] = read(f"walls/{name}")
@@ -265,17 +268,18 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     pairs.x_built[:] = read("pairs/x_built")
     pairs.count[:] = n
     step = int(meta.attrs["step"])
-    _check_state(path, scenario, particles, pairs, walls, step, int(meta.attrs["stage_first_step"]))
+    first_step = int(meta.attrs["stage_first_step"])
+    _check_state(path, scenario, particles, ids, pairs, walls, step, first_step)
     index_by_particle(pairs.i, pairs.j, n, pairs.first, pairs.start, pairs.slots)
     note_normals(particles, pairs, cell)  # as the step's pair loop left them
     return Restart(
-        state=State(particles, pairs, walls, cell, integers, step=step),
+        state=State(particles, pairs, walls, cell, integers, ids, step=step),
         scenario_json=str(meta.attrs["scenario_json"]),
         scenario_text=str(meta.attrs["scenario_text"]),
         scenario_suffix=str(meta.attrs["scenario_suffix"]),
         stage=str(meta.attrs["stage"]),
         trajectory=str(meta.attrs["trajectory"]),
-        stage_first_step=int(meta.attrs["stage_first_step"]),
+        stage_first_step=first_step,
         stage_first_time=float(meta.attrs["stage_first_time"]),
         stage_dt=float(meta.attrs["stage_dt"]),
         resumption=resumption,
@@ -284,7 +288,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
     )
 
 
-def _check_state(path, scenario, particles, pairs, walls, step, stage_first_step) -> None:
+def _check_state(path, scenario, particles, ids, pairs, walls, step, stage_first_step) -> None:
     """What the compiled kernels index memory with, and what they divide by, in range: an
     InputError naming the first value that is not (a restart edited with its checksums
     recomputed, or written by something else)."""
@@ -298,6 +302,8 @@ def _check_state(path, scenario, particles, pairs, walls, step, stage_first_step
     if not 0 <= stage_first_step <= step:
         refuse(f"revdem/step {step} is not at or after its stage's first step {stage_first_step}")
     n, materials = len(particles.x), len(scenario.materials)
+    if ids.shape != (n,):
+        refuse(f"particles/id has shape {ids.shape}, not {(n,)}")
     for name in ("x", "v", "omega", "f", "torque"):
         bad = np.flatnonzero(~np.isfinite(getattr(particles, name)).all(axis=1))
         if len(bad):

@@ -310,7 +310,7 @@ def _at_rest_copy(state: State, model: Model) -> State:
     cell.control[:] = FIXED
     cell.rate[:] = 0.0
     fixed = fixed_arrays(model.scenario, p, cell)
-    return State(p, pairs, walls, cell, fixed, state.step)
+    return State(p, pairs, walls, cell, fixed, state.ids, state.step)
 
 
 GROWTH = 1e3

@@ -1,6 +1,7 @@
 """LAMMPS packings in and out: a data file that LAMMPS itself wrote (the fcc Hertz benchmark,
-tests/data/lammps/fcc_hertz_write_data.in) runs here forward and reversed and moves as it
-moved in LAMMPS; a trajectory's last frame exported as a data file reads back bit for bit."""
+tests/data/lammps/fcc_hertz_write_data.in) runs here forward and reversed, each atom under its
+id moving as it moved in LAMMPS, in either order in memory; a trajectory's last frame exported
+as a data file reads back bit for bit, and its atoms keep their ids out to LAMMPS."""
 
 from __future__ import annotations
 
@@ -56,9 +57,19 @@ def _scenario(tmp_path: Path, data: Path, **changes) -> Path:
 
 
 def _last_frame(trajectory: Path) -> dict[str, np.ndarray]:
+    """The last frame's positions, velocities and spins, and the spheres' ids."""
     with open_trajectory(trajectory) as f:
         names = ("position", "velocity", "angular_velocity")
-        return {name: f[f"particles/all/{name}/value"][-1] for name in names}
+        frame = {name: f[f"particles/all/{name}/value"][-1] for name in names}
+        return frame | {"id": f["particles/all/id"][:]}
+
+
+def _rows_of(ids: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """Where each id of `wanted` is in `ids` (every id there once)."""
+    order = np.argsort(ids)
+    rows = order[np.searchsorted(ids, wanted, sorter=order)]
+    assert np.array_equal(ids[rows], wanted)
+    return rows
 
 
 @pytest.fixture(scope="module")
@@ -74,15 +85,17 @@ def lammps_run(tmp_path_factory) -> Path:
 def test_a_lammps_packing_moves_here_as_it_moved_in_lammps(lammps_run):
     """LAMMPS' Hertz (hertz/material, the same E, ν, ρ) and revdem's are the same law
     (Hanley 2020 Eq 6), both velocity Verlet: after 100 steps every sphere is where LAMMPS
-    put it, to a few units in the last place of a coordinate (1e-15 of the box, 4e-17 m;
-    measured 3.5e-18 m, of the 1e-6 m they moved), and at its velocity to 1e-9 of it."""
+    put the atom of its id, to a few units in the last place of a coordinate (1e-15 of the
+    box, 4e-17 m; measured 3.5e-18 m, of the 1e-6 m they moved), and at its velocity to 1e-9
+    of it. The spheres are numbered in space (the default order), not in the ids' order."""
     start = read_lammps_data(DATA / "fcc_step0.data")
     lammps = read_lammps_data(DATA / "fcc_step100.data")
     here = _last_frame(lammps_run / "fcc_from_lammps.forward.h5")
     moved = np.abs(lammps.unwrapped - start.unwrapped).max()
     assert 1e-7 < moved < 1e-5  # the spheres moved: the comparison can fail
     assert np.abs(lammps.image).max() == 1  # some crossed the box: unwrapped as revdem has them
-    _assert_where_lammps_put(here, np.arange(len(lammps)))
+    assert sorted(here["id"]) == list(lammps.id) and np.any(np.diff(here["id"]) < 0)
+    _assert_where_lammps_put(here, _rows_of(lammps.id, here["id"]))
     assert np.abs(here["angular_velocity"]).max() == 0.0  # frictionless: no spin in either
 
 
@@ -96,37 +109,51 @@ def _assert_where_lammps_put(here: dict[str, np.ndarray], atom: np.ndarray) -> N
     assert np.abs(here["velocity"] - lammps.velocity[atom]).max() < 1e-9 * speed
 
 
-def test_a_lammps_packing_reverses_to_its_start(lammps_run):
-    """Frictionless, undamped: the reversed run retraces the forward one (compare.json)."""
+def test_a_lammps_packing_reverses_to_its_start(lammps_run, tmp_path):
+    """Frictionless, undamped: the reversed run retraces the forward one (compare.json). Its
+    spheres keep their ids through the restart: in the reversed trajectory, and in a
+    reversal of that restart run again by `revdem reverse`."""
     verdict = json.loads((lammps_run / "fcc_from_lammps.compare.json").read_text())
     assert verdict["reversible"] is True
     assert verdict["max_position_error_rel"] < 1e-9
+    restart = lammps_run / "fcc_from_lammps.restart.h5"
+    result = CliRunner().invoke(app, ["reverse", str(restart), "--out", str(tmp_path), "-q"])
+    assert result.exit_code == 0, result.output
+    ids = _last_frame(lammps_run / "fcc_from_lammps.forward.h5")["id"]
+    assert np.any(np.diff(ids) < 0)  # numbered in space: ids that are not 1 to N
+    for trajectory in (lammps_run, tmp_path):
+        assert np.array_equal(_last_frame(trajectory / "fcc_from_lammps.reverse.h5")["id"], ids)
 
 
-def test_a_lammps_packing_numbered_in_space_moves_as_each_atom_moved_in_lammps(tmp_path):
-    """order = "space" renumbers the atoms cell by cell, the first axis slowest in this
-    cubic box: the same spheres in another order, and after 100 steps each is where LAMMPS
-    put the atom it came from, as in the order of the ids."""
+def test_a_lammps_packing_in_the_order_of_its_ids_moves_as_each_atom_moved_in_lammps(tmp_path):
+    """order = "ids" keeps the atoms in the order of their ids; the default numbers them cell
+    by cell, the first axis slowest in this cubic box: the same spheres, each with its atom's
+    id, position and velocity. In the ids' order too, after 100 steps each is where LAMMPS
+    put its atom."""
     scenario = _scenario(tmp_path, DATA / "fcc_step0.data")
-    by_id = load_scenario(scenario)[0].spheres
-    text = scenario.read_text().replace("periodic = true", 'periodic = true\norder = "space"')
-    scenario.write_text(text)
     spheres = load_scenario(scenario)[0].spheres
-    same = (spheres.position[:, None, :] == by_id.position[None, :, :]).all(axis=2)
-    atom = np.argmax(same, axis=1)  # the atom each sphere came from
+    text = scenario.read_text().replace("periodic = true", 'periodic = true\norder = "ids"')
+    scenario.write_text(text)
+    by_id = load_scenario(scenario)[0].spheres
+    assert np.array_equal(by_id.id, read_lammps_data(DATA / "fcc_step0.data").id)
+    atom = _rows_of(by_id.id, spheres.id)  # the atom each sphere came from
     assert sorted(atom) == list(range(len(atom))) and not np.array_equal(atom, np.sort(atom))
     planes = np.floor(spheres.position[:, 0] / (2.0 * spheres.radius.max()))
     assert np.all(np.diff(planes) >= 0)
+    assert np.array_equal(spheres.position, by_id.position[atom])
     assert np.array_equal(spheres.velocity, by_id.velocity[atom])
     result = CliRunner().invoke(app, ["run", str(scenario), "--out", str(tmp_path), "-q",
                                       "--no-reverse"])  # fmt: skip
     assert result.exit_code == 0, result.output
-    _assert_where_lammps_put(_last_frame(tmp_path / "fcc_from_lammps.forward.h5"), atom)
+    here = _last_frame(tmp_path / "fcc_from_lammps.forward.h5")
+    assert np.array_equal(here["id"], by_id.id)
+    _assert_where_lammps_put(here, np.arange(len(atom)))
 
 
 def test_a_frame_exported_as_a_data_file_reads_back_bit_for_bit(lammps_run, tmp_path):
-    """export --format lammps-data writes 17 digits: the scenario that reads it starts from
-    the last frame's positions, velocities, angular velocities and radii to the bit."""
+    """export --format lammps-data writes 17 digits and the ids: the scenario that reads it
+    starts each sphere from the last frame's position, velocity, angular velocity and radius
+    of its id, to the bit."""
     trajectory = lammps_run / "fcc_from_lammps.forward.h5"
     exported = tmp_path / "last.data"
     result = CliRunner().invoke(
@@ -134,7 +161,8 @@ def test_a_frame_exported_as_a_data_file_reads_back_bit_for_bit(lammps_run, tmp_
     )
     assert result.exit_code == 0, result.output
     frame = _last_frame(trajectory)
-    spheres = load_scenario(_scenario(tmp_path, exported))[0].spheres
+    read = load_scenario(_scenario(tmp_path, exported))[0].spheres
+    spheres = read.taken(_rows_of(read.id, frame["id"]))
     edge = read_lammps_data(exported).upper
     inside = ((frame["position"] >= 0.0) & (frame["position"] < edge)).all(axis=1)
     assert 0 < inside.sum() < len(inside)  # some spheres left the box, to be wrapped back
@@ -148,8 +176,28 @@ def test_a_frame_exported_as_a_data_file_reads_back_bit_for_bit(lammps_run, tmp_
         assert np.array_equal(spheres.radius, f["particles/all/radius"][:])
 
 
+def test_exported_atoms_keep_their_lammps_ids(lammps_run, tmp_path):
+    """The packing numbered in space, exported: the dump's atoms and the data file's carry
+    the ids LAMMPS gave them, and each atom of the data file is where LAMMPS put the atom of
+    that id after the same 100 steps (unwrapped by its image flags, to 1e-15 of the box)."""
+    trajectory = lammps_run / "fcc_from_lammps.forward.h5"
+    frame = _last_frame(trajectory)
+    dump, data = tmp_path / "last.dump", tmp_path / "last.data"
+    for path, kind in ((dump, "lammps-dump"), (data, "lammps-data")):
+        result = CliRunner().invoke(app, ["export", str(trajectory), "--format", kind,
+                                          "--out", str(path)])  # fmt: skip
+        assert result.exit_code == 0, result.output
+    lines = dump.read_text().splitlines()
+    atoms = lines[len(lines) - len(frame["id"]) :]
+    assert [int(line.split()[0]) for line in atoms] == list(frame["id"])
+    exported, lammps = read_lammps_data(data), read_lammps_data(DATA / "fcc_step100.data")
+    assert np.array_equal(exported.id, lammps.id)
+    assert np.abs(exported.unwrapped - lammps.unwrapped).max() < 1e-15 * lammps.upper[0]
+
+
 def test_a_data_file_round_trip_keeps_every_number(tmp_path):
-    """Numbers with all 17 digits, spins and two materials survive the writer and reader."""
+    """Ids, numbers with all 17 digits, spins and two materials survive the writer and
+    reader."""
     from revdem_cli.io.lammps_data import lammps_data_text
 
     rng = np.random.default_rng(3)
@@ -159,11 +207,13 @@ def test_a_data_file_round_trip_keeps_every_number(tmp_path):
     mass = density * 4.0 / 3.0 * math.pi * radius**3
     x, v, w = (scale * rng.normal(size=(n, 3)) for scale in (1e-2, 1e-1, 1e1))
     image = rng.integers(-2, 3, size=(n, 3))
-    text = lammps_data_text(radius, mass, x, image, v, w, 1 + np.arange(n) % 2, x.min(0) - 1,
-                            x.max(0) + 1, 5, "test")  # fmt: skip
+    ids = 10 + 3 * np.arange(n)
+    text = lammps_data_text(ids, radius, mass, x, image, v, w, 1 + np.arange(n) % 2,
+                            x.min(0) - 1, x.max(0) + 1, 5, "test")  # fmt: skip
     path = tmp_path / "t.data"
     path.write_text(text)
     data = read_lammps_data(path)
+    assert np.array_equal(data.id, ids)
     assert np.array_equal(data.position, x) and np.array_equal(data.image, image)
     assert np.array_equal(data.velocity, v)
     assert np.array_equal(data.angular_velocity, w) and np.array_equal(data.radius, radius)
@@ -179,6 +229,14 @@ def test_a_data_file_round_trip_keeps_every_number(tmp_path):
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 1 0.01 2000 0 0 0"), ["density 2000"]),
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 2 0.01 1000 0 0 0"), ["atom type 2"]),
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 1 -0.01 1000 0 0 0"), ["line 12"]),
+        (lambda t: t.replace("1 1 0.01 1000 0 0 0", "0 1 0.01 1000 0 0 0"), ["line 12", "id 0"]),
+        (
+            lambda t: t.replace(
+                "17 1 0.01 1000 0.0141279934881072 0.0141279934881072 0",
+                "17 1 0.01 1000 0.0141279934881072 0.001 0",
+            ),
+            ["atom 17 of", "overlaps atom 2 of"],
+        ),  # fmt: skip
     ],
 )
 def test_a_bad_data_file_is_one_line_naming_it(tmp_path, edit, fragments):

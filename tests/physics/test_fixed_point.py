@@ -137,7 +137,7 @@ output_every = 5000
     assert done.returncode == 1
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr
-    assert "position of particle 1 left the range of its fixed-point grid" in lines[0]
+    assert "position of particle 1 (id 2) left the range of its fixed-point grid" in lines[0]
     with h5py.File(tmp_path / "away.forward.h5") as f:  # what was written is kept
         y = f["particles/all/position/value"][:, 1, 1]
     assert 31.0 < y[-1] < 32.0 and (np.diff(y) > 0).all()
@@ -171,7 +171,7 @@ def test_an_overflow_names_the_quantity_that_left_its_grid():
     bundles = stepping_bundles(state, model, model.dynamics, model.law)
     compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1, True)
     assert list(state.fixed.overflow) == [1 + fixed.OF_VELOCITY, 1]
-    assert "the velocity of particle 1 left the range" in str(OffGrid(1, state.fixed))
+    assert "the velocity of particle 1 (id 2) left" in str(OffGrid(1, state.fixed, state.ids))
 
 
 def _three_touching(**changes):
@@ -269,7 +269,7 @@ def test_a_pair_force_beyond_its_grid_is_reported_as_the_force():
     bundles = stepping_bundles(state, model, model.dynamics, law)
     compute_forces(*bundles, FORWARD, 1e-7, 0.5e-7, empty_events(), 1, True)
     assert list(state.fixed.overflow) == [1 + fixed.OF_FORCE, 2]
-    assert "the force of particle 2 left the range" in str(OffGrid(1, state.fixed))
+    assert "the force of particle 2 (id 3) left" in str(OffGrid(1, state.fixed, state.ids))
 
 
 def test_a_shear_history_lies_on_the_grid_of_its_own_contact(tmp_path):

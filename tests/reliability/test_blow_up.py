@@ -38,7 +38,7 @@ def test_an_overlap_deeper_than_the_limit_stops_the_run_where_it_happens(tmp_pat
     result = CliRunner().invoke(app, [*args, "--set", "integrator.overlap_limit=0.01"])
     line = _failed(result)
     assert "blown up at step" in line
-    assert "particle 0 and particle 1 overlap by 0.01" in line
+    assert "particle 0 (id 1) and particle 1 (id 2) overlap by 0.01" in line
     assert "integrator.overlap_limit = 0.01" in line
     assert "the time step is an unlikely cause" in line
     step = int(line.split("blown up at step ")[1].split(":")[0])

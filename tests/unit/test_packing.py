@@ -71,3 +71,20 @@ def test_a_packing_is_numbered_in_space_so_that_partners_lie_near_in_memory():
     assert max(abs(i - j) for i, j in near) < three_planes < len(r) / 4
     rank = np.argsort(np.random.default_rng(0).permutation(len(r)))  # a random order
     assert max(abs(rank[i] - rank[j]) for i, j in near) > len(r) / 2
+
+
+def test_joined_tables_keep_their_ids_each_after_the_largest_before_it():
+    """`Spheres.join`: a generated table numbered from 1, then a data file's atoms with ids
+    of their own, then another table: every id once, the file's ids shifted by the largest
+    before them, so that one table alone keeps its ids as they are."""
+    from dataclasses import replace
+
+    from revdem_cli.assembly.spheres import Spheres, uniform
+
+    def table(count):
+        return uniform(count, 0.001, 0, ("m",), np.zeros((count, 3)), np.zeros(3))
+
+    file_atoms = replace(table(3), id=np.array([7, 2, 40]))
+    joined = Spheres.join([table(2), table(0), file_atoms, table(2)], ("m",))
+    assert list(joined.id) == [1, 2, 9, 4, 42, 43, 44]
+    assert Spheres.join([table(0), file_atoms], ("m",)).id is file_atoms.id
