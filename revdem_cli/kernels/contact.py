@@ -70,16 +70,6 @@ def cos_sin(angle, small=False):
 
 
 @inline
-def beyond_series(overlap, angle):
-    """Whether the spin correction of a contact in `overlap` turns by an angle too large for
-    `cos_sin`'s series (|angle| >= SMALL_ANGLE). Never for a pair apart (overlap <= 0), whose
-    results are dropped: its angle, from the normal of a pair whose distance was not found
-    (`pairs.pair_overlap`), may be infinite (a dense packing's pair loop, where a third of
-    the pairs listed are apart: 135 ns a sphere against 161 with them counted)."""
-    return (overlap > 0.0) & (abs(angle) >= SMALL_ANGLE)
-
-
-@inline
 def rotate_about(b, n, angle, small=False):
     """Rotate b (in the plane normal to n) by `angle` about n: the spin correction R (Eq 9);
     `small`: |angle| < SMALL_ANGLE (see `cos_sin`)."""
@@ -330,7 +320,7 @@ def earlier_shear(law, dt, overlap, n, rstar, estar, gstar, vrel, spin, shear, o
         return (0.0, 0.0, 0.0), 0.0
     normal, elastic = normal_force(law, overlap_then, rstar, 0.0, estar, (0.0, 0.0, 0.0), n_then)
     spacing = history_step(law, elastic)
-    if overlap <= 0.0:  # apart now: nothing to unwind (n may be NaN)
+    if overlap <= 0.0:  # apart now: nothing to unwind
         return (0.0, 0.0, 0.0), spacing
     unwound = unwind_shear(law, dt, overlap, n, rstar, gstar, vrel, spin, shear, small)
     back = turn_onto(unwound, n, n_then)

@@ -11,7 +11,7 @@ through three stages:
 - contact stage: `contact.contact_force` and its geometry and kinematics, column by column,
   reading and writing the block only, so the loop is elementwise over contiguous rows (with
   the spin correction's cos and sin as their series; a block where some touching pair's
-  angle is too large for that is done again with them in full, `contact.beyond_series`);
+  angle is too large for that is done again with them in full; a pair apart has none);
 - scatter: each column's force, history, moment (fixed point: normal) and overlap into the
   pair arrays, counting the shear force destroyed (scalar, branches), and each particle's
   sums (`sum_in_order`); the forces, moments and overlaps only at steps after which
@@ -43,8 +43,8 @@ from revdem_cli.kernels.contact import (
     NO_SHEAR,
     REVERSE,
     SETTLED,
+    SMALL_ANGLE,
     STATIC,
-    beyond_series,
     contact_force,
     contact_velocity,
     earlier_shear,
@@ -94,11 +94,14 @@ def pair_geometry(d, r_i, r_j):
     """(overlap, unit normal n from i to j, R* = r_i r_j / (r_i + r_j)) of a pair with
     separation d = x_j - x_i and radii r_i, r_j (Hanley 2020 Eq 6): the one place a loop
     over pairs finds them, so that the forces, their unwinding, the fixed-point normals and
-    the observables agree to the bit. A pair certainly apart (`pair_overlap`) gets overlap
-    -1 and a normal that is not finite, which callers leave out."""
+    the observables agree to the bit. A pair apart (overlap <= 0; certainly apart, -1 without
+    a distance, `pair_overlap`) gets a zero normal: its spin about n is zero, and the normal
+    the fixed-point histories turn from and the unwinding keep is zero, as the pair loop
+    keeps it."""
     reach = r_i + r_j
     overlap, dist = pair_overlap(d, reach)
-    return overlap, scaled(1.0 / dist, d), r_i * r_j / reach
+    inverse = 1.0 / dist if overlap > 0.0 else 0.0
+    return overlap, scaled(inverse, d), r_i * r_j / reach
 
 
 BLOCK = 64
@@ -302,7 +305,7 @@ def contacts(
             w_j = entries(block, OMEGA_J, k)
             v_ij = entries(block, VELOCITY, k)
             vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
-            large += beyond_series(overlap, spin * dt)  # the angle of contact_force's Eq 9
+            large += abs(spin * dt) >= SMALL_ANGLE  # the angle of contact_force's Eq 9
             vdamp = vrel
             if damped and predicted:
                 vdamp = pair_velocity(
@@ -782,15 +785,15 @@ pair_loop = by_size(_pair_loop)
 
 
 def _contact_normals(x, radius, image, pi, pj, n_pairs, normals, overlaps):
-    """Each pair's contact normal at the positions x, zero where it is apart, and its
-    overlap, as the pair loop finds them (`contacts`): what the next forward step turns its
-    histories from, and predicts what the reversed step finds with."""
+    """Each pair's contact normal at the positions x (zero where it is apart,
+    `pair_geometry`) and its overlap, as the pair loop finds them (`contacts`): what the next
+    forward step turns its histories from, and predicts what the reversed step finds with."""
     for k in numba.prange(n_pairs):
         i = pi[k]
         j = pj[k]
         d = separation(x, i, j, image)
         overlap, n, _ = pair_geometry(d, radius[i], radius[j])
-        put(normals, k, n if overlap > 0.0 else ZERO)
+        put(normals, k, n)
         overlaps[k] = overlap
 
 

@@ -18,13 +18,13 @@ def unwind_contact(d, r_i, r_j, v_ij, w_i, w_j, gs, shear, moment, law, dt, stra
     half-step velocity v_ij = v_j - v_i and spins w_i, w_j, G* gs: its shear history `shear`
     with Eq 10 and 9 undone, its rolling history `moment` likewise (as it is without a
     rolling law), and its contact normal there, across which they were unwound (zero where
-    the pair is apart, as the pair loop keeps it: a history turned from it is zero)."""
+    the pair is apart, `pair_geometry`: a history turned from it is zero)."""
     overlap, n, rstar = pair_geometry(d, r_i, r_j)
     vrel, spin = pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming)
     shear = unwind_shear(law, dt, overlap, n, rstar, gs, vrel, spin, shear)
     if law.rolling != NO_ROLLING:
         moment = unwind_rolling(law, dt, overlap, n, rstar, w_i, w_j, spin, moment)
-    return shear, moment, n if overlap > 0.0 else ZERO
+    return shear, moment, n
 
 
 def _unwind_pair_loop(

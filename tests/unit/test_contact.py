@@ -5,8 +5,6 @@ import pytest
 
 from revdem_cli.config import Material
 from revdem_cli.kernels.contact import (
-    SMALL_ANGLE,
-    beyond_series,
     normal_law,
     remap,
     rotate_about,
@@ -112,11 +110,3 @@ def test_spin_correction_rotates_within_the_contact_plane():
     assert np.dot(turned, n) == pytest.approx(0, abs=1e-15)
     assert np.dot(turned, b) / np.dot(b, b) == pytest.approx(math.cos(0.3), rel=1e-14)
     np.testing.assert_allclose(rotate_about(turned, n, -0.3), b, atol=1e-15)
-
-
-def test_only_a_touching_pair_takes_the_full_spin_correction():
-    # Hanley 2020 Eq 9's turn: as its series below SMALL_ANGLE, else with cos and sin in full;
-    # a pair apart, whose normal (from no distance) and angle may be infinite, never
-    assert beyond_series(1e-6, SMALL_ANGLE) and beyond_series(1e-6, -0.1)
-    assert not beyond_series(1e-6, 0.5 * SMALL_ANGLE)
-    assert not beyond_series(-1.0, math.inf) and not beyond_series(0.0, 0.1)

@@ -44,6 +44,22 @@ def pair_by_pair(x, v, w, radius, estar, gstar, image, pi, pj, history, law, for
             put(shear, k, s)
 
 
+def test_a_pair_apart_has_a_zero_normal_and_a_touching_one_its_unit_normal():
+    """`pair_geometry` (Eq 6): d / |d| as d (1 / |d|) for a pair in overlap; for a pair apart,
+    just (within APART) or certainly (no distance found), and for one just touching, a zero
+    normal, so that its spin about n, the normal its history turns from and the one the
+    unwinding keeps are zero."""
+    r = 0.005
+    d = (0.006, 0.0075, 0.0)  # |d| = 0.0096...: an overlap of 0.4 mm
+    overlap, n, rstar = pair_geometry(d, r, r)
+    distance = np.sqrt(np.dot(d, d))
+    assert overlap == 2 * r - distance > 0.0 and rstar == r * r / (2 * r)
+    assert n == tuple(np.array(d) * (1.0 / distance))
+    for gap in (0.0, 1e-16, 1e-3):  # touching, apart within APART, certainly apart
+        overlap, n, _ = pair_geometry((2 * r + gap, 0.0, 0.0), r, r)
+        assert overlap <= 0.0 and n == (0.0, 0.0, 0.0), (gap, overlap, n)
+
+
 @pytest.mark.parametrize(
     "spin, jitter",  # rad/s: spin corrections of 1e-6 and 0.1 rad; m, against overlaps of 10 um
     [(1.0, 0.0), (1e5, 0.0), (1.0, 1e-5)],
