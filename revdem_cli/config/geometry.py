@@ -4,6 +4,8 @@ scenario file; a scenario stored in an output was checked when it was run."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from revdem_cli import wall_shapes
@@ -230,7 +232,7 @@ def check_walls(scenario) -> None:
 def located(scenario, index: int) -> tuple[str, str]:
     """(field path, name) of sphere `index` of `spheres`: particles[i].position and
     'sphere i', packings[k] and 'sphere m of packings[k]', or particles_from[k] and 'atom
-    a of FILE', the atom's id in its data file."""
+    a of FILE', the atom's id in its data file (named without its folder)."""
     if index < len(scenario.particles):
         return f"particles[{index}].position", f"sphere {index}"
     sources = [("packings", k, p) for k, p in enumerate(scenario.packings)]
@@ -242,7 +244,7 @@ def located(scenario, index: int) -> tuple[str, str]:
             if kind == "particles_from":  # its ids after the largest before it (`Spheres.join`)
                 ids = scenario.spheres.id
                 atom = int(ids[index]) - (int(ids[:start].max()) if start else 0)
-                return f"{kind}[{k}]", f"atom {atom} of {source.lammps_data}"
+                return f"{kind}[{k}]", f"atom {atom} of {Path(source.lammps_data).name}"
             return f"{kind}[{k}]", f"sphere {index - start} of {kind}[{k}]"
         start += source.count
     raise IndexError(index)
