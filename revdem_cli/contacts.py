@@ -18,7 +18,7 @@ import numpy as np
 
 from revdem_cli.kernels.cell import images
 from revdem_cli.kernels.pairs import contact_normals
-from revdem_cli.kernels.wall_contacts import wall_normal
+from revdem_cli.kernels.wall_contacts import wall_normals
 
 
 @dataclass(frozen=True)
@@ -50,8 +50,9 @@ def wall_touches(state) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     wall, by sphere then wall."""
     q, w = np.nonzero(state.walls.overlap > 0.0)
     p, walls = state.particles, state.walls
-    n = np.array([wall_normal(p, walls, a, b) for a, b in zip(q, w, strict=True)])
-    return q, w, n.reshape(-1, 3)
+    n = np.zeros((len(q), 3))
+    wall_normals(p, walls, q, w, n)
+    return q, w, n
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,18 @@ from revdem_cli.kernels.contact import (
     relative_velocity,
     rolling_moment,
 )
-from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, cross, dot, norm, place, row, scaled
+from revdem_cli.kernels.vectors import (
+    ZERO,
+    axpy,
+    cell_of,
+    cross,
+    dot,
+    norm,
+    place,
+    put,
+    row,
+    scaled,
+)
 from revdem_cli.kernels.walls import wall_overlap
 
 
@@ -155,3 +166,11 @@ def wall_normal(p, walls, q, b):
     """Unit normal from particle q towards wall b (for observables, not per step)."""
     point, axis = row(walls.point, b), row(walls.axis, b)
     return wall_overlap(walls.kind[b], point, axis, walls.radius[b], row(p.x, q), p.radius[q])[1]
+
+
+@jit
+def wall_normals(p, walls, q, b, normals):
+    """`wall_normal` of each sphere q[k] on wall b[k], into normals[k] (the contact list's:
+    one compiled call a frame)."""
+    for k in range(q.shape[0]):
+        put(normals, k, wall_normal(p, walls, q[k], b[k]))
