@@ -360,8 +360,7 @@ class BlownUp(RunFailed):
             other = f"wall {walls[-1 - partner]}" if partner < 0 else particle_named(partner, ids)
             found = (
                 f"{particle_named(particle, ids)} and {other} overlap by {value:.3g} of the "
-                "smaller radius "
-                f"(integrator.overlap_limit = {limit:g})"
+                f"smaller radius (integrator.overlap_limit = {limit:g})"
             )
         super().__init__(f"blown up at step {step}: {found}; {cause}; {kept}")
         self.step = step
