@@ -51,6 +51,13 @@ def rolling_stiffness(law, overlap, rstar):
     return _rolling_stiffness(law.rolling, law, overlap, rstar)
 
 
+@inline
+def reduced(a, b):
+    """a b / (a + b): the effective radius R* of two radii (Hanley 2020 Eq 6) or the reduced
+    mass m* of two masses (the viscous damping's), scalars or arrays alike."""
+    return a * b / (a + b)
+
+
 SMALL_ANGLE = 1e-3
 """Below this (rad) cos and sin are their Taylor series to the 6th order, exact to well under
 an ulp (the first term left out, a^6/720 or a^7/5040, is below 2e-21), and cheaper."""

@@ -48,6 +48,7 @@ from revdem_cli.kernels.contact import (
     contact_force,
     contact_velocity,
     earlier_shear,
+    reduced,
     rolling_moment,
 )
 from revdem_cli.kernels.fixed import magnitude_bits, snapped_in_range
@@ -101,7 +102,7 @@ def pair_geometry(d, r_i, r_j):
     reach = r_i + r_j
     overlap, dist = pair_overlap(d, reach)
     inverse = 1.0 / dist if overlap > 0.0 else 0.0
-    return overlap, scaled(inverse, d), r_i * r_j / reach
+    return overlap, scaled(inverse, d), reduced(r_i, r_j)
 
 
 BLOCK = 64
@@ -204,7 +205,7 @@ def gather_pairs(
             if shear_law:
                 enter(block, G_STAR, k, gstar[a, b])
         if damped:
-            enter(block, M_STAR, k, mass[i] * mass[j] / (mass[i] + mass[j]))
+            enter(block, M_STAR, k, reduced(mass[i], mass[j]))
         if moving:
             enter3(block, VELOCITY, k, axpy(-1.0, row(v, i), row(v, j)))
             enter3(block, OMEGA_I, k, row(w, i))

@@ -53,7 +53,7 @@ import numpy as np
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import inline, inline_arrays, jit
 from revdem_cli.kernels.cell import deforms
-from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law
+from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law, reduced
 from revdem_cli.kernels.information import bits_of, grid_bits, ordered, unordered
 from revdem_cli.kernels.pairs import AMOUNT, MISSED, SPREAD, chunk_of
 
@@ -359,7 +359,7 @@ def _settled(tape, what, values, was, used, p, pairs, walls, cell, fixed, law, e
             if charged < 0 and what <= ROLLING:  # a history, on its contact's grid
                 c = index // 3
                 i, j = pairs.i[c], pairs.j[c]
-                rstar = radius[i] * radius[j] / (radius[i] + radius[j])
+                rstar = reduced(radius[i], radius[j])
                 modulus = estar[material[i], material[j]]
                 spacing = contact_grid(law, rolling == 1, pairs.overlap[c], rstar, modulus)
             elif charged < 0:

@@ -39,7 +39,7 @@ from revdem_cli.errors import InputError
 from revdem_cli.io.tape import no_tape
 from revdem_cli.kernels.arrays import Dynamics
 from revdem_cli.kernels.cell import FIXED
-from revdem_cli.kernels.contact import STATIC
+from revdem_cli.kernels.contact import STATIC, reduced
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import BLOWN_UP, OK, advance
 from revdem_cli.kernels.stiffness import apply_stiffness, contact_stiffnesses
@@ -80,8 +80,8 @@ def contacts_of(state: State, model: Model) -> Contacts:
     b = np.concatenate([j, np.full(len(q), len(p.x))])
     n = np.concatenate([t.normal, n_walls])
     wall_overlap = state.walls.overlap[q, w]
-    rstar = np.concatenate([r_i * r_j / (r_i + r_j), p.radius[q]])  # on a wall R* = r
-    mstar = np.concatenate([m_i * m_j / (m_i + m_j), p.mass[q]])  # and m* = m
+    rstar = np.concatenate([reduced(r_i, r_j), p.radius[q]])  # on a wall R* = r
+    mstar = np.concatenate([reduced(m_i, m_j), p.mass[q]])  # and m* = m
     arm_b = np.concatenate([r_j - 0.5 * overlap, np.zeros(len(q))])
     overlap = np.concatenate([overlap, wall_overlap])
     mat_a = p.material[a]
