@@ -61,6 +61,11 @@ class Spheres:
             np.concatenate(ids) if ids else np.zeros(0, np.int64),
         )
 
+    def table_id(self, index: int, start: int) -> int:
+        """The id sphere `index` has in its own table, whose first sphere is `start`: its id
+        less the offset `join` gave the table, the largest id before it."""
+        return int(self.id[index]) - (int(self.id[:start].max()) if start else 0)
+
     def material_names(self) -> list[str]:
         return [self.materials[k] for k in self.material]
 

@@ -241,9 +241,8 @@ def located(scenario, index: int) -> tuple[str, str]:
     start = len(scenario.particles)  # the table's first sphere
     for kind, k, source in sources:
         if index < start + source.count:
-            if kind == "particles_from":  # its ids after the largest before it (`Spheres.join`)
-                ids = scenario.spheres.id
-                atom = int(ids[index]) - (int(ids[:start].max()) if start else 0)
+            if kind == "particles_from":
+                atom = scenario.spheres.table_id(index, start)
                 return f"{kind}[{k}]", f"atom {atom} of {Path(source.lammps_data).name}"
             return f"{kind}[{k}]", f"sphere {index - start} of {kind}[{k}]"
         start += source.count

@@ -76,7 +76,8 @@ def test_a_packing_is_numbered_in_space_so_that_partners_lie_near_in_memory():
 def test_joined_tables_keep_their_ids_each_after_the_largest_before_it():
     """`Spheres.join`: a generated table numbered from 1, then a data file's atoms with ids
     of their own, then another table: every id once, the file's ids shifted by the largest
-    before them, so that one table alone keeps its ids as they are."""
+    before them, so that one table alone keeps its ids as they are; `table_id` gives each
+    sphere its table's own id back."""
     from dataclasses import replace
 
     from revdem_cli.assembly.spheres import Spheres, uniform
@@ -88,3 +89,5 @@ def test_joined_tables_keep_their_ids_each_after_the_largest_before_it():
     joined = Spheres.join([table(2), table(0), file_atoms, table(2)], ("m",))
     assert list(joined.id) == [1, 2, 9, 4, 42, 43, 44]
     assert Spheres.join([table(0), file_atoms], ("m",)).id is file_atoms.id
+    assert [joined.table_id(k, 2) for k in (2, 3, 4)] == [7, 2, 40]  # the file's own ids
+    assert [joined.table_id(k, 5) for k in (5, 6)] == [1, 2]
