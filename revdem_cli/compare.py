@@ -12,6 +12,7 @@ from revdem_cli.errors import InputError
 from revdem_cli.io import GRID_FIELDS
 from revdem_cli.io.h5md import frame_steps, open_trajectory, read_frame
 from revdem_cli.kernels.events import AMOUNT, COUNT, KINDS, LAST, PARTICLE, PARTNER
+from revdem_cli.state import particle_named
 
 
 def _max_norm(a: np.ndarray, b: np.ndarray) -> float:
@@ -155,8 +156,11 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     log = forward["observables/events/value"][int(later[0])]
     scenario = _scenario_of(forward)
     walls = [wall.name for wall in scenario.walls] if scenario else []
+    ids = forward["particles/all/id"][:]
     window = [k for k in range(len(KINDS)) if log[k, COUNT] > 0 and log[k, LAST] > divergence_step]
-    causes = sorted((_cause(k, log[k], walls) for k in window), key=lambda cause: -cause["step"])
+    causes = sorted(
+        (_cause(k, log[k], walls, ids) for k in window), key=lambda cause: -cause["step"]
+    )
     if not causes and scenario is not None and scenario.damping.drag < 1.0:
         causes = [_drag_amplification(scenario.damping.drag, int(steps[-1]), divergence_step)]
     return causes
@@ -176,6 +180,8 @@ def _drag_amplification(drag: float, restart_step: int, step: int) -> dict:
         "step": step,
         "particle": -1,
         "partner": -1,
+        "particle_id": -1,
+        "partner_id": -1,
         "amount": exponent,
         "occurrences": restart_step - step,
         "message": f"no mechanism destroyed information here, but the reversed run divides "
@@ -184,17 +190,22 @@ def _drag_amplification(drag: float, restart_step: int, step: int) -> dict:
     }
 
 
-def _cause(kind: int, entry, walls: list[str]) -> dict:
+def _cause(kind: int, entry, walls: list[str], ids: np.ndarray) -> dict:
+    """One mechanism of the event log `entry` as compare.json gives it: its last step, the
+    particle and partner (a sphere's index in the arrays, -1 - w for wall w, -1 for none)
+    with their ids (-1 for none), the amount, the count and one line that names them."""
     step, q, partner, amount = (
         int(entry[LAST]),
         int(entry[PARTICLE]),
         int(entry[PARTNER]),
         float(entry[AMOUNT]),
     )
-    other = (
-        f"wall {walls[-1 - partner]}" if partner < 0 and -1 - partner < len(walls) else str(partner)
-    )
-    contact = f"contact {q}-{other}" if partner < 0 else f"contact {q}-{partner}"
+    particle = particle_named(q, ids) if q >= 0 else "no particle"
+    if partner >= 0:
+        other = particle_named(partner, ids)
+    else:
+        other = f"wall {walls[-1 - partner]}" if -1 - partner < len(walls) else "a wall"
+    contact = f"the contact of {particle} and {other}"
     messages = {
         "contact_lost_with_shear_force": f"{contact} lost shear force {amount * 1e3:.3g} mN at "
         f"step {step}: the force zeroed at separation cannot be recovered",
@@ -204,14 +215,14 @@ def _cause(kind: int, entry, walls: list[str]) -> dict:
         "pairs forces with the velocity of the other half step when reversed",
         "viscous_damping": f"viscous contact damping acted up to step {step}: it pairs forces "
         "with the velocity of the other half step when reversed",
-        "velocity_fixed_point_under_drag": f"particle {q} reached a fixed point of the drag "
+        "velocity_fixed_point_under_drag": f"{particle} reached a fixed point of the drag "
         f"map at step {step} (|v| = {amount:.4g} m/s, terminal velocity or rest): the time spent "
         "there cannot be recovered",
         "rolling_limit": f"{contact} rolled at step {step}: the limit of its rolling law "
         f"removed {amount:.3g} N m of rolling moment, which cannot be recovered",
         "contact_lost_with_rolling_moment": f"{contact} lost rolling moment {amount:.3g} N m "
         f"at step {step}: the moment zeroed at separation cannot be recovered",
-        "motion_below_round_off": f"particle {q} moved {amount:.3g} m in a step at step {step}, "
+        "motion_below_round_off": f"{particle} moved {amount:.3g} m in a step at step {step}, "
         "too little to change its position in floating point: the motion is lost (the "
         "particle is at rest to round-off)",
     }
@@ -220,6 +231,8 @@ def _cause(kind: int, entry, walls: list[str]) -> dict:
         "step": step,
         "particle": q,
         "partner": partner,
+        "particle_id": int(ids[q]) if q >= 0 else -1,
+        "partner_id": int(ids[partner]) if partner >= 0 else -1,
         "amount": amount,
         "occurrences": int(entry[COUNT]),
         "message": messages[KINDS[kind]],

@@ -41,6 +41,9 @@ def test_figure_5_shear_forces_and_the_irreversibility_they_bring(tmp_path):
     assert verdict["reversible"] is paper["reversible"]
     cause = verdict["divergence_causes"][0]
     assert cause["mechanism"] == "contact_lost_with_shear_force"
+    assert (cause["particle"], cause["partner"]) == (0, 1)
+    assert (cause["particle_id"], cause["partner_id"]) == (1, 2)  # numbered from 1
+    assert cause["message"].startswith("the contact of particle 0 (id 1) and particle 1 (id 2)")
     assert cause["amount"] == pytest.approx(at_separation, rel=1e-6)
     assert 0 <= cause["step"] - verdict["first_divergence_step"] <= 50  # within a frame
 
