@@ -96,10 +96,17 @@ def _bonds(snapshot, contacts: dict[str, np.ndarray]) -> None:
         snapshot.log[f"bonds/{name}"] = contacts[name][pairs]
 
 
+GSD_IDS = "particles/Particle Identifier"
+"""The GSD log chunk of the spheres' ids (under `log/`)."""
+
+
 def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
     """Every frame as a GSD file (the `gsd` package, HOOMD schema): positions relative to
     the box's centre (HOOMD's boxes are centred on the origin), diameters, velocities, the
-    box edges, the step. GSD stores float32: positions to about 1e-7 of the box."""
+    box edges, the step, and each sphere's id, which the schema lacks, as the logged
+    per-particle quantity `particles/Particle Identifier` (OVITO's name for ids, which it
+    reads as that property, as from a LAMMPS dump). GSD stores float32: positions to about
+    1e-7 of the box."""
     import gsd.hoomd
 
     from revdem_cli.errors import WriteFailed
@@ -124,6 +131,7 @@ def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
                 snapshot.particles.velocity = frame.velocity.astype(np.float32)
                 snapshot.particles.typeid = (frame.type - 1).astype(np.uint32)
                 snapshot.particles.types = materials
+                snapshot.log[GSD_IDS] = frame.id
                 if frame.contacts is not None:
                     _bonds(snapshot, frame.contacts)
                 out.append(snapshot)

@@ -93,9 +93,9 @@ def packings(tmp_path_factory) -> dict[str, Path]:
 @pytest.mark.parametrize("kind", ["oedometer", "fcc"])
 @pytest.mark.parametrize("fmt", ["gsd", "lammps-dump"])
 def test_ovito_reads_every_frame_of_an_export(packings, kind, fmt, tmp_path):
-    """OVITO sees the frames, particles, radii and positions of the H5MD trajectory (GSD in
-    float32, relative to the box's centre; the dump with every digit), and the periodic
-    cell's edges as its box."""
+    """OVITO sees the frames, particles, ids, radii and positions of the H5MD trajectory
+    (GSD in float32, relative to the box's centre; the dump with every digit), and the
+    periodic cell's edges as its box."""
     from ovito.io import import_file
 
     trajectory = packings[kind]
@@ -105,12 +105,14 @@ def test_ovito_reads_every_frame_of_an_export(packings, kind, fmt, tmp_path):
     with h5py.File(trajectory, "r") as f:
         position = f["particles/all/position/value"][:]
         radius = f["particles/all/radius"][:]
+        ids = f["particles/all/id"][:]
         edges = f["particles/all/box/edges/value"][:]
     pipeline = import_file(str(target))
     assert pipeline.source.num_frames == len(position) > 3
     for frame in (0, len(position) // 2, len(position) - 1):
         data = pipeline.compute(frame)
         assert data.particles.count == len(radius)
+        np.testing.assert_array_equal(np.asarray(data.particles["Particle Identifier"]), ids)
         seen = np.asarray(data.particles.positions)
         if fmt == "gsd":
             np.testing.assert_allclose(np.asarray(data.particles["Radius"]), radius, rtol=1e-6)
