@@ -6,6 +6,8 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 # test workers (pytest-xdist): one a core this process may use, at most 4
 WORKERS ?= $(shell $(PYTHON) -c 'import os; print(min(4, len(os.sched_getaffinity(0))))')
+# the peers `make bench` runs beside revdem from ../shared/bench; PEERS= runs revdem alone
+PEERS ?= lammps liggghts yade
 
 .PHONY: run test lint bench paper clean
 
@@ -22,7 +24,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(WORKERS)
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/fcc_hertz.py --scaling
+	$(BIN)/python benchmarks/fcc_hertz.py --scaling --peers $(PEERS)
 	$(BIN)/python benchmarks/crossover.py
 	$(BIN)/python benchmarks/order.py
 	$(BIN)/python benchmarks/packing.py

@@ -247,9 +247,11 @@ def startup_times() -> dict:
 
 def peer(name: str, n: int, steps: int, procs: int, variant: str) -> dict | None:
     """A peer's particle-steps per second on the same workload with `procs` MPI ranks or
-    OpenMP threads, the best of REPEATS runs of its run.sh, or None if it cannot run."""
+    OpenMP threads, the best of REPEATS runs of its run.sh, or None, said on stderr, where
+    its run.sh is missing or gives no figure."""
     script = BENCH / name / "run.sh"
     if not script.exists():
+        print(f"{name}: no {script}; its column stays empty", file=sys.stderr)
         return None
     best = None
     for _ in range(REPEATS):
@@ -275,6 +277,10 @@ def peer(name: str, n: int, steps: int, procs: int, variant: str) -> dict | None
                     "kind": "threads" if "threads" in fields else "ranks",
                     "particle_steps_per_s": figure,
                 }
+    if best is None:
+        said = (done.stderr.strip().splitlines() or ["nothing on stderr"])[-1]
+        print(f"{name}: {script} gave no figure (exit status {done.returncode}: {said})",
+              file=sys.stderr)  # fmt: skip
     return best
 
 
@@ -331,6 +337,9 @@ def main() -> None:
     parser.add_argument("--scaling", action="store_true")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
     args = parser.parse_args()
+    if args.peers and not BENCH.is_dir():
+        alone = "--peers alone (make bench PEERS=) runs revdem alone"
+        parser.exit(2, f"{BENCH}: not there to run the peers from; {alone}\n")
     args.out.mkdir(parents=True, exist_ok=True)
     results = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
