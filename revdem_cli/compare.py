@@ -12,7 +12,7 @@ from revdem_cli.errors import InputError
 from revdem_cli.io import GRID_FIELDS
 from revdem_cli.io.h5md import frame_steps, open_trajectory, read_frame
 from revdem_cli.kernels.events import AMOUNT, COUNT, KINDS, LAST, PARTICLE, PARTNER
-from revdem_cli.state import particle_named
+from revdem_cli.state import particle_named, partner_named
 
 
 def _max_norm(a: np.ndarray, b: np.ndarray) -> float:
@@ -201,11 +201,7 @@ def _cause(kind: int, entry, walls: list[str], ids: np.ndarray) -> dict:
         float(entry[AMOUNT]),
     )
     particle = particle_named(q, ids) if q >= 0 else "no particle"
-    if partner >= 0:
-        other = particle_named(partner, ids)
-    else:
-        other = f"wall {walls[-1 - partner]}" if -1 - partner < len(walls) else "a wall"
-    contact = f"the contact of {particle} and {other}"
+    contact = f"the contact of {particle} and {partner_named(partner, ids, walls)}"
     messages = {
         "contact_lost_with_shear_force": f"{contact} lost shear force {amount * 1e3:.3g} mN at "
         f"step {step}: the force zeroed at separation cannot be recovered",

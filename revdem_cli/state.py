@@ -345,6 +345,14 @@ def particle_named(k: int, ids: np.ndarray) -> str:
     return f"particle {k} (id {int(ids[k])})"
 
 
+def partner_named(partner: int, ids: np.ndarray, walls: list[str]) -> str:
+    """A contact's partner as messages name it: a sphere (`particle_named`), or for partner
+    -1 - w wall w by its name ('a wall' where the names are not known)."""
+    if partner >= 0:
+        return particle_named(partner, ids)
+    return f"wall {walls[-1 - partner]}" if -1 - partner < len(walls) else "a wall"
+
+
 class BlownUp(RunFailed):
     """The state stopped being physical (kernels/health.py): a non-finite value, or an
     overlap deeper than integrator.overlap_limit allows."""
@@ -357,7 +365,7 @@ class BlownUp(RunFailed):
             quantity = ("position", "velocity", "angular velocity")[int(value)]
             found = f"{particle_named(particle, ids)} has a non-finite {quantity}"
         else:
-            other = f"wall {walls[-1 - partner]}" if partner < 0 else particle_named(partner, ids)
+            other = partner_named(partner, ids, walls)
             found = (
                 f"{particle_named(particle, ids)} and {other} overlap by {value:.3g} of the "
                 f"smaller radius (integrator.overlap_limit = {limit:g})"
