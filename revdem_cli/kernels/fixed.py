@@ -103,16 +103,20 @@ def in_range(y):
 
 
 @inline
+def snapped_value(value, step):
+    """A value rounded to the grid of `step` (`rounded`), held as a double and clamped to +-OUT
+    grid steps (NaN to OUT): see `snapped_in_range`."""
+    return in_range(rounded(value * (1.0 / step))) * step + 0.0
+
+
+@inline
 def snapped_in_range(vector, step):
     """A 3-vector rounded to the grid of `step` (`rounded`), held as doubles, each component
     clamped to +-OUT grid steps (NaN to OUT): the pair loop stores each pair's force so, once
     a pair, and the gather converts it to integers exactly, with no rounding and no
     undefined conversion, and sees a force beyond the range as a sum out of range."""
-    per = 1.0 / step
-    y0 = rounded(vector[0] * per)
-    y1 = rounded(vector[1] * per)
-    y2 = rounded(vector[2] * per)
-    return (in_range(y0) * step + 0.0, in_range(y1) * step + 0.0, in_range(y2) * step + 0.0)
+    return (snapped_value(vector[0], step), snapped_value(vector[1], step),
+            snapped_value(vector[2], step))  # fmt: skip
 
 
 @inline
@@ -187,9 +191,15 @@ def add_snapped(total, value, factor, per_step, largest):
 
 
 @inline
+def within_range(y):
+    """Whether a value in grid steps is within the range (NaN is not)."""
+    return abs(y) <= RANGE
+
+
+@inline
 def in_grid_range(y0, y1, y2):
-    """Whether values in grid steps are all within the range (NaN is not)."""
-    return abs(y0) <= RANGE and abs(y1) <= RANGE and abs(y2) <= RANGE
+    """Whether values in grid steps are all within the range (`within_range`)."""
+    return within_range(y0) and within_range(y1) and within_range(y2)
 
 
 @inline
@@ -208,28 +218,51 @@ def kick_steps(h, f, inv_m, step):
     return h * f * inv_m * (1.0 / step)
 
 
+KICK_BLOCK = 64
+"""Particles a half kick on the grid takes at a time (`_kick`): their inverse masses, each
+three times, fill 1.5 KB, which stays in the first-level cache."""
+
+
 @inline_arrays
-def kick_row(n, mirror, f, inv_m, q, h, step):
-    """The half kick of particle q on its grid, n += round(h f / m / step), mirror = n step;
-    whether it stayed in range."""
-    ok = True
-    for d in range(3):
-        n[q, d], fine = moved_on_grid(n[q, d], kick_steps(h, f[q, d], inv_m[q], step))
-        ok = ok & fine
-        mirror[q, d] = n[q, d] * step
-    return ok
+def kick_coordinates(begin, end, n, mirror, f, inv_m, h, step):
+    """The half kick of coordinates `begin` to `end` - 1 of the flat arrays n, mirror and f,
+    coordinate k with the inverse mass inv_m[k - begin]: n += round(h f / m / step), mirror =
+    n step; elementwise, which LLVM vectorises. Returns (coordinates whose value would have
+    left the range, which stay as they were; the last of them or -1)."""
+    out = 0
+    last = -1
+    for k in range(begin, end):
+        c = np.uint64(k)  # unsigned: no wraparound, which stops LLVM
+        moved, fine = moved_on_grid(n[c], kick_steps(h, f[c], inv_m[c - np.uint64(begin)], step))
+        n[c] = moved
+        mirror[c] = moved * step
+        out += not fine
+        last = max(last, -1 if fine else k)
+    return out, last
 
 
 def _kick(begin, end, n, mirror, f, inv_m, h, step):
-    """`kick_row` of particles `begin` to `end` - 1 (`by_parts`). Returns (particles with a
-    value out of range, the last of them)."""
+    """The half kick of particles `begin` to `end` - 1 on their grid (`by_parts`), n +=
+    round(h f / m / step), mirror = n step: KICK_BLOCK particles at a time, their inverse
+    masses copied three times each, so that the kick runs over their coordinates in one
+    elementwise loop (`kick_coordinates`: 3.4-3.9 ns a sphere against 8.2-11.7 a particle at
+    a time, which LLVM did not vectorise; 55 296 spheres, one core). Returns (values out of
+    range, the particle of the last of them or -1)."""
+    n, mirror, f = n.reshape(-1), mirror.reshape(-1), f.reshape(-1)
+    per_coordinate = np.empty(3 * KICK_BLOCK)
     out = 0
     last = -1
-    for q in range(begin, end):  # indexed unsigned: no wraparound, which stops LLVM
-        if not kick_row(n, mirror, f, inv_m, np.uint64(q), h, step):
-            out += 1
-            last = max(last, q)
-    return out, last
+    for first in range(begin, end, KICK_BLOCK):
+        size = min(KICK_BLOCK, end - first)
+        for k in range(size):
+            inverse = inv_m[np.uint64(first + k)]
+            for d in range(3):
+                per_coordinate[3 * k + d] = inverse
+        counts = kick_coordinates(3 * first, 3 * (first + size), n, mirror, f, per_coordinate, h,
+                                  step)  # fmt: skip
+        out += counts[0]
+        last = max(last, counts[1])
+    return out, last // 3 if last >= 0 else -1
 
 
 def _drift(n, v, h, step, mid, in_cell):

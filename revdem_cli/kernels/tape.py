@@ -155,7 +155,7 @@ def contact_grid(law, rolling, overlap, rstar, modulus):
 @inline_arrays
 def rekicked(f, inv, q, h, step):
     """The increment, in grid steps, of the reversed step's half kick h f / m of one
-    component, as `fixed.kick_row` takes it."""
+    component, as `fixed.kick_coordinates` takes it."""
     return fx.to_grid(fx.kick_steps(h, f, inv[q], step))
 
 
@@ -505,7 +505,7 @@ def replay(tape, p, pairs, cell, fixed, step, h, first):
 @jit
 def unkick(p, fixed, h):
     """Take back the half kick h f / m (and h t / I) the reversed step's gather gave with the
-    forces it found, before they are found again (`fixed.kick_row` undone)."""
+    forces it found, before they are found again (`fixed.kick_coordinates` undone)."""
     v_step = fixed.grid[fx.VELOCITY]
     w_step = fixed.grid[fx.ANGULAR_VELOCITY]
     for q in range(p.f.shape[0]):

@@ -347,3 +347,78 @@ def test_the_drift_cut_into_a_part_a_thread_gives_the_same_integers_and_overflow
     np.testing.assert_array_equal(n1, n2)
     np.testing.assert_array_equal(x1, x2)
     assert n1[3 * 10 + 1] == 3 * 10 + 1  # a value that would leave its grid stays
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
+def test_the_half_kick_on_its_grid_adds_each_rounded_increment_on_any_thread_count(
+    every_loop_parallel,
+):
+    """The half kick on the velocity grid (`fixed.kick`: blocks of particles, each
+    coordinate kicked in one elementwise loop) adds to each integer its increment h f / m in
+    grid steps rounded half away from zero, with the velocity the integer gives beside it;
+    one coordinate in each thread's part that would leave the grid stays and is reported
+    (how many, the particle of the last), the same on one thread and two."""
+    from revdem_cli.kernels import fixed
+
+    count = 1000  # above the crossovers, and many blocks of fixed.KICK_BLOCK
+    rng = np.random.default_rng(11)
+    f = rng.normal(size=(count, 3)) * 1e3
+    inv_m = rng.uniform(1.0, 1e4, count)
+    step = 2.0**-30
+    start = rng.integers(-(2**40), 2**40, size=(count, 3))
+    f[10, 1] = f[900, 2] = 1e300  # off the grid, one in each thread's part
+    for h in (0.5e-6, -0.5e-6):
+        y = h * f * inv_m[:, None] * (1.0 / step)  # `fixed.kick_steps`, in its order
+        y[10, 1] = y[900, 2] = 0.0  # these stay
+        expected = start + np.trunc(y + np.copysign(0.5, y)).astype(np.int64)
+        results = []
+        try:
+            for threads in (1, 2):
+                numba.set_num_threads(threads)
+                n, v = start.copy(), np.zeros((count, 3))
+                results.append((fixed.kick(count, n, v, f, inv_m, h, step), n, v))
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        for counts, n, v in results:
+            assert counts == (2, 900)
+            np.testing.assert_array_equal(n, expected)
+            np.testing.assert_array_equal(v, expected * step)
+
+
+@pytest.mark.parametrize("moment_out", [False, True])
+def test_sums_without_walls_kept_in_doubles_are_those_of_the_sums_in_full(moment_out):
+    """Without walls, where no sphere's force sum in doubles may have rounded, the gather
+    keeps the pair loop's sums and only rounds the moments onto their grid
+    (`gather.complete_sums`): the same forces, moments, and moment that left its grid
+    (reported as the moment of the last such particle) as the sums judged sphere by sphere
+    (`gather.sums_in_full`)."""
+    from revdem_cli.kernels import fixed
+    from revdem_cli.kernels.gather import complete_sums, sums_in_full
+
+    count = 300
+    rng = np.random.default_rng(12)
+    grid = np.zeros(9)
+    grid[fixed.FORCE], grid[fixed.TORQUE] = 2.0**-40, 2.0**-44
+    mass = rng.uniform(1e-3, 1e-2, count)
+    first = np.arange(count + 1, dtype=np.int32) * 6 // 2  # three pairs a sphere
+    start = first.copy()
+    f = np.round(rng.normal(size=(count, 3)) * 2.0**20) * grid[fixed.FORCE]  # on the grid
+    t = rng.normal(size=(count, 3)) * 1e-3
+    if moment_out:
+        t[17, 0] = t[250, 2] = 1e30
+    gravity = np.array([0.0, 0.0, -9.81])
+    no_pairs = np.zeros((0, 3))
+    no_walls = np.zeros((count, 0, 3))
+    found = []
+    for sums in (complete_sums, sums_in_full):
+        f_out, t_out = f.copy(), t.copy()
+        counts = sums(count, mass, gravity, first, start, np.zeros(0, dtype=np.int32),
+                      no_pairs, True, no_walls, no_walls, f_out, t_out, True, grid, 1e-3,
+                      False)  # fmt: skip
+        found.append((counts, f_out, t_out))
+    (fast, f_fast, t_fast), (full, f_full, t_full) = found
+    assert fast == full == ((2, 250, fixed.OF_MOMENT, 0) if moment_out else (0, -1, 0, 0))
+    np.testing.assert_array_equal(f_fast, f_full)
+    np.testing.assert_array_equal(t_fast, t_full)
+    steps = t_fast / grid[fixed.TORQUE]
+    np.testing.assert_array_equal(steps, np.round(steps))
