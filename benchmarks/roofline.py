@@ -139,14 +139,14 @@ def traffic(state) -> dict[str, int]:
     pair_reads = [i, j, p.x, p.radius, p.material, p.mass]
     pair_writes = [p.f]
     gather_reads = [p.f, p.inv_mass, p.v]
-    gather_writes = [p.f, p.v]
+    gather_writes = [p.v]  # without local damping (the benchmark's), the forces stay
     kick_reads, kick_writes = [p.f, p.inv_mass, p.v], [p.v]
     drift_reads, drift_writes = [p.v, p.x], [p.x]
     if shear:
         pair_reads += [p.v, p.omega, history]
         pair_writes += [history, destroyed, p.torque]
         gather_reads += [p.torque, p.inv_inertia, p.omega]
-        gather_writes += [p.torque, p.omega]
+        gather_writes += [p.omega]
         kick_reads += [p.torque, p.inv_inertia, p.omega]
         kick_writes += [p.omega]
     if fixed.v.shape[0] > 0:  # the integers read and written beside their images
@@ -154,7 +154,7 @@ def traffic(state) -> dict[str, int]:
         if shear:  # the forces kept beside the histories (`forces.compute_forces`)
             pair_writes.append(force)
         gather_reads += [pairs.first, pairs.start, p.mass, fixed.v] + spins
-        gather_writes += [fixed.v] + spins
+        gather_writes += [fixed.v] + spins + ([p.torque] if shear else [])  # moments rounded
         kick_reads += [fixed.v] + spins
         kick_writes += [fixed.v] + spins
         drift_reads, drift_writes = [p.v, fixed.x], [fixed.x, p.x]
