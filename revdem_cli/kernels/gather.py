@@ -167,17 +167,14 @@ sums_in_full = by_size(_sums_in_full, LIGHT)
 
 def _rounding(begin, end, mass, gravity, first, start, largest_pair, per_f):
     """Particles `begin` to `end` - 1 of a system without walls whose force sum in doubles may
-    have rounded (`_may_round`), elementwise, which LLVM vectorises: (how many, the last or
-    -1)."""
+    have rounded (`_may_round`), elementwise, which LLVM vectorises: (how many, -1: which
+    ones `complete_sums` does not ask)."""
     out = 0
-    last = -1
     for k in range(begin, end):
         q = np.uint64(k)  # unsigned: no wraparound, which stops LLVM
         weight = weight_of(mass[q], gravity)
-        rounds = _may_round(weight, 0.0, largest_pair, _terms(q, first, start, 0), per_f)
-        out += rounds
-        last = max(last, k if rounds else -1)
-    return out, last
+        out += _may_round(weight, 0.0, largest_pair, _terms(q, first, start, 0), per_f)
+    return out, -1
 
 
 def _moments_on_grid(begin, end, t, step):
