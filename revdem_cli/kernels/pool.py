@@ -10,19 +10,22 @@ first and milliseconds once a process has started some thousands. A step starts 
 So revdem runs the regions itself (`install`: the symbols numba's kernels link to,
 `numba_parallel_for` and `get_thread_id`, are its own), on threads of its own that wait
 for work by spinning, giving the core away at each turn (`sched_yield`, after POLLS
-reads), and nap once they have been idle for a while (`IDLE_TURNS`). The thread that
-starts a region takes rows itself; each row goes to whichever thread takes it first (an
-atomic counter), and the region is over once every row is done. A thread that is asleep,
-or descheduled on busy cores, never holds a region up unless it took a row; with no
-helper awake the caller runs every row. Row r always runs as thread r (`get_thread_id`,
-which a kernel's reductions index), so a reduction combines the same partial results in
-the same order whichever thread ran each row, as the layers do.
+reads), and nap once they have been idle for a while (`IDLE_TURNS`). Row r is thread r's
+own (the caller's row 0, helper k's row k): each thread claims its own row first, then any
+row still unclaimed (one atomic step a row, `_claim`), and the region is over once every
+row is done. So where every thread is running, row r runs on the same thread in every
+region, and the pair arrays a chunk of the pair loop wrote stay in that core's caches for
+the next region that reads them; a thread that is asleep, or descheduled on busy cores,
+never holds a region up unless it claimed a row, for the others take its row once theirs
+are done; with no helper awake the caller runs every row. Row r always runs as thread r
+(`get_thread_id`, which a kernel's reductions index), so a reduction combines the same
+partial results in the same order whichever thread ran each row, as the layers do.
 
 numba's layer still keeps each thread's thread count (`numba.set_num_threads`), which
 sizes the schedule. A region started while another is running (another Python thread's, or
 from inside a row) runs its rows in the calling thread. A schedule with more rows than
-threads, or a kernel with more arguments than MOST_ARRAYS, goes to the layer's own
-`parallel_for`; revdem's kernels have neither.
+threads (or than MOST_ROWS), or a kernel with more arguments than MOST_ARRAYS, goes to the
+layer's own `parallel_for`; revdem's kernels have neither.
 """
 
 from __future__ import annotations
@@ -51,8 +54,8 @@ from revdem_cli.kernels import (
     yield_core,
 )
 
-NEXT = 0  # (job << 32) | the next row to take, the job numbered modulo 2^31; the row is
-# CLOSED while a job is being posted
+NEXT = 0  # (job << 32) | 0 once the job is posted, CLOSED while it is being posted; the job
+# numbered modulo 2^31
 DONE = 8  # rows of the current job done
 BUSY = 16  # a job is in flight: taken by the thread that posts it
 JOBS = 17  # jobs posted
@@ -60,13 +63,19 @@ FN, ARGS, DIMS, STEPS, DATA, INNER, ARRAYS, ROWS = range(18, 26)  # the job: num
 # `parallel_for` arguments, and the rows of its schedule
 LAYER = 26  # the address of the layer's own `parallel_for`
 STOP = 27  # the helpers are to return (the process is ending)
-WORDS = 32
-"""NEXT, which the helpers read while they wait, and DONE, which the caller reads, lie 64
-bytes from each other and from the rest, so that no two of them share a cache line: the
-caller's writes of a job would otherwise take the line from under the helpers' reads."""
+CLAIMS = 32  # row r's claim: `open_in(job)` while nobody has claimed it in `job`, else the
+# last job it was claimed in: MOST_ROWS words
+MOST_ROWS = 256
+"""Rows of a schedule the pool runs; one with more goes to the layer's `parallel_for`."""
+
+WORDS = CLAIMS + MOST_ROWS
+"""NEXT, which the helpers read while they wait, DONE, which the caller reads, and the
+claims lie 64 bytes from each other and from the rest, so that no two of them share a cache
+line: the caller's writes of a job would otherwise take the line from under the helpers'
+reads."""
 
 CLOSED = 1 << 31
-"""The row that NEXT shows while a job's arguments are written: no row of any job."""
+"""NEXT's low word while a job's arguments are written."""
 
 MOST_ARRAYS = 1024
 """Arguments of a kernel the pool runs (numba passes each array and scalar as one); a
@@ -244,34 +253,45 @@ def _run_row(fn, args, dims, steps, data, inner, arrays, row):
 
 
 @jit
-def _take_row(pool, job):
-    """A row of job `job` for the calling thread, or -1 where none is left (or the job is
-    over)."""
-    while True:
-        now = count_now(pool, NEXT)
-        row = now & (CLOSED * 2 - 1)
-        if now >> 32 != job or row >= pool[ROWS]:
-            return -1
-        if swap_if(pool, NEXT, now, now + 1):
-            return row
+def open_in(job):
+    """A row's claim while it is open in job `job` (negative: no job's number). Every row a
+    job opens is claimed before the job is over, so only the current job's rows are ever
+    open, and a thread that read an earlier job's number can claim nothing."""
+    return -job - 1
 
 
 @jit
-def _work(pool, job):
-    """Take rows of job `job` and run them while any are left."""
+def _claim(pool, job, row):
+    """Whether the calling thread claims row `row` of job `job`: it was open, and is now
+    the caller's, as one atomic step."""
+    return swap_if(pool, CLAIMS + row, open_in(job), job)
+
+
+@jit
+def _work(pool, job, own):
+    """Claim and run rows of job `job`: the calling thread's own row `own` first, where the
+    job has it, then each other row still open, from own + 1 on round to own - 1. A thread
+    without a row of its own in the job (own >= its rows) takes none: the threads that have
+    one take what is left. Returns whether the job has a row of the thread's own."""
     fn, args, dims, steps, data = pool[FN], pool[ARGS], pool[DIMS], pool[STEPS], pool[DATA]
     inner, arrays = pool[INNER], pool[ARRAYS]
-    row = _take_row(pool, job)
-    while row >= 0:
-        _run_row(fn, args, dims, steps, data, inner, arrays, row)
-        take(pool, DONE)
-        row = _take_row(pool, job)
+    rows = pool[ROWS]  # a later job's where `job` is over: then no row is open in `job`
+    if own >= rows:
+        return False
+    for turn in range(rows):
+        row = (own + turn) % rows
+        if _claim(pool, job, row):
+            _run_row(fn, args, dims, steps, data, inner, arrays, row)
+            take(pool, DONE)
+    return True
 
 
 @jit
-def _serve():
-    """A helper's life: wait for a job, take its rows while any are left, and again, until
-    the pool stops."""
+def _serve(own):
+    """A helper's life, row `own` its own: wait for a job, claim its rows (`_work`), and
+    again, until the pool stops. Jobs without a row of its own (a run on fewer threads than
+    numba's pool) leave it idle, so that it naps: it does not spin on a core the run was
+    not given."""
     pool = numba.carray(pool_words(), WORDS)
     served = count_now(pool, NEXT) >> 32
     idle = 0
@@ -289,11 +309,11 @@ def _serve():
                 sleep = min(2 * sleep, NAP_US[1])
             continue
         served = now >> 32
-        idle = 0
-        sleep = NAP_US[0]
-        # a job's arguments are read after its NEXT and checked by the row's swap: they are
-        # rewritten only once every row of the job is done, which this row is not
-        _work(pool, served)
+        # a job's arguments are read after its NEXT and checked by the row's claim: they
+        # are rewritten only once every row of the job is done, which this row is not
+        if _work(pool, served, own):
+            idle = 0
+            sleep = NAP_US[0]
 
 
 @jit
@@ -331,12 +351,13 @@ def _all_done(pool, rows):
 )
 def parallel_for(fn, args, dims, steps, data, inner, arrays, threads):
     """numba's `parallel_for`, on the pool: the rows of the schedule (the outer dimension of
-    `dims`) taken by the calling thread and the helpers, each as its own thread id."""
+    `dims`) claimed by the calling thread and the helpers, each its own row first, each row
+    run as its own thread id."""
     pool = numba.carray(pool_words(), WORDS)
     fn_at, args_at, dims_at = address_of(fn), address_of(args), address_of(dims)
     steps_at, data_at = address_of(steps), address_of(data)
     rows = numba.carray(words_at(dims_at), 1)[0]
-    if rows > threads or arrays > MOST_ARRAYS or inner >= MOST_DIMS:  # not for the pool
+    if rows > min(threads, MOST_ROWS) or arrays > MOST_ARRAYS or inner >= MOST_DIMS:
         run_layer(fn_at, args_at, dims_at, steps_at, data_at, inner, arrays, threads)
         return
     if rows < 2 or not swap_if(pool, BUSY, 0, 1):  # alone, or inside another region
@@ -353,8 +374,10 @@ def parallel_for(fn, args, dims, steps, data, inner, arrays, threads):
     )  # fmt: skip
     pool[INNER], pool[ARRAYS], pool[ROWS] = inner, arrays, rows
     store_now(pool, DONE, 0)
-    store_now(pool, NEXT, job << 32)  # open: helpers may take rows
-    _work(pool, job)
+    for row in range(rows):
+        store_now(pool, CLAIMS + row, open_in(job))
+    store_now(pool, NEXT, job << 32)  # posted: helpers may claim rows
+    _work(pool, job, 0)
     while not _all_done(pool, rows):  # rows the helpers took
         yield_core()
     set_row(0)
@@ -374,7 +397,9 @@ def _start_helpers() -> None:
     """One helper thread for each thread of numba's pool but the caller's."""
     _helpers.clear()
     for k in range(numba.config.NUMBA_NUM_THREADS - 1):
-        helper = threading.Thread(target=_serve, name=f"revdem-pool-{k + 1}", daemon=True)
+        helper = threading.Thread(
+            target=_serve, args=(k + 1,), name=f"revdem-pool-{k + 1}", daemon=True
+        )
         helper.start()
         _helpers.append(helper)
 

@@ -91,6 +91,60 @@ def test_a_helper_takes_a_row_while_the_caller_runs_the_other():
     assert flags.tolist() == [1, 1, 1, 1]
 
 
+OWN_ROWS = """
+import ctypes, json, threading
+import numba, numpy as np
+from revdem_cli.kernels import count_now, pool, take, yield_core
+
+pthread_self = ctypes.CDLL(None).pthread_self
+pthread_self.restype = ctypes.c_ulong
+pthread_self.argtypes = []
+
+
+@numba.njit(parallel=True)
+def rows_on(threads, started, rows):
+    # each row notes the thread it runs on, then waits until every row has started
+    for r in numba.prange(rows):
+        threads[r] = pthread_self()
+        take(started, 0)
+        for _ in range(100_000_000):
+            if count_now(started, 0) >= rows:
+                break
+            yield_core()
+
+
+def helper_of(ident):
+    names = {threading.get_ident(): 0} | {h.ident: k + 1 for k, h in enumerate(pool._helpers)}
+    return names.get(ident, -1)
+
+
+seen = {}
+for rows in (4, 2):
+    numba.set_num_threads(rows)
+    seen[rows] = []
+    for _ in range(20):
+        threads, started = np.zeros(rows, dtype=np.uint64), np.zeros(1, dtype=np.int64)
+        rows_on(threads, started, rows)
+        seen[rows].append([helper_of(int(t)) for t in threads])
+print(json.dumps(seen))
+"""
+
+
+def test_each_thread_runs_its_own_row_in_every_region():
+    """Four threads of numba's pool (more than this machine may have cores: the rows give
+    their core away as they wait): in each region whose rows all run at once, row r runs on
+    thread r (0: the caller, k: helper k), on four threads and on two, where helpers 2 and
+    3 take no row. So a chunk of the pair loop meets the caches it filled the step before."""
+    env = os.environ | {"NUMBA_NUM_THREADS": "4"}
+    done = subprocess.run(
+        [sys.executable, "-c", OWN_ROWS], capture_output=True, text=True, env=env,
+        timeout=300, cwd=ROOT,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert seen == {"4": [[0, 1, 2, 3]] * 20, "2": [[0, 1]] * 20}
+
+
 @needs_two
 def test_the_jobs_count_round_modulo_two_to_the_31_and_helpers_follow():
     """The pool numbers its jobs in 31 bits; past the last number the count starts again at
