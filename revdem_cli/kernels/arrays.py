@@ -66,7 +66,8 @@ Pairs = namedtuple(
         "slots",  # the slots of the pairs (p, q) of each particle q, ascending in p, int32 (P,)
         "x_built",  # positions at the last build, single precision (a rebuild's test allows
         # for it: `neighbours.BUILT_ROUNDING`), m, float32 (N, 3)
-        "blocks",  # working rows of the pair loop, one block per chunk of the list (forces.py)
+        "blocks",  # working rows of the pair loop, a block for each thread of numba's pool
+        # (a chunk of the list each, `pairs.pair_loop`; forces.py)
         "foreign",  # whether each particle has a partner in an earlier chunk of the pair
         # loop's, which sums it apart (`pairs.sum_foreign`), bool (N,)
         "partials",  # partial sums of each block of particles (sums.py)

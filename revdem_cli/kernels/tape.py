@@ -55,7 +55,7 @@ from revdem_cli.kernels import inline, inline_arrays, jit
 from revdem_cli.kernels.cell import deforms
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law, reduced
 from revdem_cli.kernels.information import bits_of, grid_bits, ordered, unordered
-from revdem_cli.kernels.pairs import AMOUNT, MISSED, SPREAD, chunk_of
+from revdem_cli.kernels.pairs import AMOUNT, MISSED, SPREAD, after_chunk
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -439,23 +439,24 @@ def predict(tape, p, pairs, law):
     used = tape.span[2]
     n = p.x.shape[0]
     count = pairs.count[0]
-    chunks = pairs.blocks.shape[0]
     listed = pairs.earlier
-    for c in range(chunks):  # each chunk's list, in slot order (`pairs.MISSED`)
-        start = chunk_of(c, chunks, pairs.first, count)[1]
-        for row in range(start, chunk_of(c + 1, chunks, pairs.first, count)[1]):
-            if listed[row, MISSED] < 0.0:
-                break
-            k = np.int64(listed[row, MISSED])
-            cause = _cause(pairs.destroyed[k], pairs.overlap[k] <= 0.0, SLIP, LOST)
-            tape.contacts[label, cause] += 1
-            key = _keyed(pairs.i[k], pairs.j[k], n)
-            for axis in range(3):
-                amount = np.float64(listed[row, AMOUNT + axis]).view(np.int64)
-                if amount == 0:
-                    continue
-                used = _entry(tape.what, tape.where, tape.amount, used, SHEAR, key + axis, amount)
-                tape.bits[label, cause] += np.log2(1.0 + listed[row, SPREAD + axis])
+    row = 0
+    while row < count:  # each chunk's list, in slot order (`pairs.MISSED_COLUMNS`)
+        missed = listed[row, MISSED]
+        if missed < 0.0:  # the end of a chunk's list: -missed chunks
+            row = after_chunk(row, np.int64(-missed), pairs.first, count)
+            continue
+        k = np.int64(missed)
+        cause = _cause(pairs.destroyed[k], pairs.overlap[k] <= 0.0, SLIP, LOST)
+        tape.contacts[label, cause] += 1
+        key = _keyed(pairs.i[k], pairs.j[k], n)
+        for axis in range(3):
+            amount = np.float64(listed[row, AMOUNT + axis]).view(np.int64)
+            if amount == 0:
+                continue
+            used = _entry(tape.what, tape.where, tape.amount, used, SHEAR, key + axis, amount)
+            tape.bits[label, cause] += np.log2(1.0 + listed[row, SPREAD + axis])
+        row += 1
     tape.span[2] = used
 
 

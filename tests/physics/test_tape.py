@@ -6,6 +6,7 @@ entries of one mechanism, parts the reversal; the bits it recorded by mechanism.
 import math
 
 import h5py
+import numba
 import numpy as np
 import pytest
 
@@ -15,6 +16,7 @@ from revdem_cli.io import tape as tape_file
 from revdem_cli.io.tape import summary
 from revdem_cli.kernels.information import ordered, unordered
 from revdem_cli.kernels.tape import COMPARED, MECHANISMS
+from revdem_cli.threads import Stepper
 from tests.conftest import FLOOR, PLANE, SPHERE, crashed_after
 
 
@@ -281,13 +283,24 @@ def _fcc_jostled(friction: float) -> revdem.Experiment:
 
 
 @pytest.mark.parametrize(
-    "make", [lambda: _shear_collision(0.3), lambda: _fcc_jostled(0.05)], ids=["collision", "fcc"]
-)
-def test_the_predicted_tape_is_the_shadow_reversal_s_entry_for_entry(tmp_path, make, monkeypatch):
+    "make, threads",
+    [(lambda: _shear_collision(0.3), 1), (lambda: _fcc_jostled(0.05), 1),
+     (lambda: _fcc_jostled(0.05), 2)],
+    ids=["collision", "fcc", "fcc on two threads"],
+)  # fmt: skip
+def test_the_predicted_tape_is_the_shadow_reversal_s_entry_for_entry(
+    tmp_path, make, threads, monkeypatch, request
+):
     """Where the reversal finds all but the pairs' histories again (no damping, drag, moving
     cell or wall contact with history), the forward step predicts the histories the reversal
     would find instead of taking a shadow reversal; the tape is the same to the last entry
-    and bit, and reverses the run as exactly."""
+    and bit, and reverses the run as exactly. On two threads the pair loop lists them in two
+    chunks, which the tape reads one after the other."""
+    if threads > 1:
+        if numba.config.NUMBA_NUM_THREADS < threads:
+            pytest.skip(f"needs NUMBA_NUM_THREADS >= {threads}")
+        monkeypatch.setattr(Stepper, "_counts", staticmethod(lambda particles: (threads,)))
+        request.getfixturevalue("every_loop_parallel")
     chosen = []
     predictable = tape_file.predictable
 
