@@ -37,6 +37,7 @@ import threading
 
 import llvmlite.binding as ll
 import numba
+import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
@@ -377,7 +378,7 @@ def parallel_for(fn, args, dims, steps, data, inner, arrays, threads):
     for row in range(rows):
         store_now(pool, CLAIMS + row, open_in(job))
     store_now(pool, NEXT, job << 32)  # posted: helpers may claim rows
-    _work(pool, job, 0)
+    _work(pool, job, np.int64(0))  # row 0, the caller's own
     while not _all_done(pool, rows):  # rows the helpers took
         yield_core()
     set_row(0)
