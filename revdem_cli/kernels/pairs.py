@@ -690,9 +690,8 @@ def _pair_loop(
     before the next step: `forces.compute_forces` says when) or `sum_foreign` reads them;
     the histories and what was destroyed always. The chunks are as many as the threads the
     loop runs on (`threads_for`, as `by_size` chooses the build; at most the blocks).
-    Returns (the counts of
-    `events.note_destroyed`, in fixed point the largest magnitude of a component of a pair's
-    force, N, which the gather judges the sums by)."""
+    Returns (the counts of `events.note_destroyed`, in fixed point the largest magnitude of
+    a component of a pair's force, N, which the gather judges the sums by)."""
     strain = strain_rates(rate, length)
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = is_plain(law)

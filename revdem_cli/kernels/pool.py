@@ -70,10 +70,10 @@ MOST_ROWS = 256
 """Rows of a schedule the pool runs; one with more goes to the layer's `parallel_for`."""
 
 WORDS = CLAIMS + MOST_ROWS
-"""NEXT, which the helpers read while they wait, DONE, which the caller reads, and the
-claims lie 64 bytes from each other and from the rest, so that no two of them share a cache
-line: the caller's writes of a job would otherwise take the line from under the helpers'
-reads."""
+"""NEXT, which the helpers read while they wait, and DONE, which the caller reads, lie 64
+bytes from each other and from the rest, and the claims start a cache line of their own, so
+that none of them shares a line with the job's arguments: the caller's writes of a job would
+otherwise take the line from under the helpers' reads."""
 
 CLOSED = 1 << 31
 """NEXT's low word while a job's arguments are written."""
