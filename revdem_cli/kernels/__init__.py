@@ -151,14 +151,13 @@ def _by_size(n, *args):
     return SERIAL(*args)
 
 
-def by_size(loop, weight=HEAVY, least=0, **serial_constants):
+def by_size(loop, weight=HEAVY, least=0):
     """One compiled entry to a `prange` loop of the given `weight`, called as f(n, *args): its
     parallel build for n items from the weight's crossover (`parallel_from`) and `least` on
     when the calling thread computes with more than one thread (`revdem_cli.threads`), its
-    serial build otherwise (`threads_for`, which `by_parts` asks too); the serial build sees
-    `serial_constants` in place of its module's globals (`renamed`)."""
+    serial build otherwise (`threads_for`, which `by_parts` asks too)."""
     name = loop.__name__.lstrip("_")
-    serial = jit(renamed(loop, name + "_serial", **serial_constants))
+    serial = jit(renamed(loop, name + "_serial"))
     parallel = pjit(renamed(loop, name + "_parallel"))
     constants = dict(SERIAL=serial, PARALLEL=parallel, FROM=weight, LEAST=least)
     return jit(renamed(_by_size, name, **constants))
