@@ -69,7 +69,8 @@ Pairs = namedtuple(
         "blocks",  # working rows of the pair loop, a block for each thread of numba's pool
         # (a chunk of the list each, `pairs.pair_loop`; forces.py)
         "foreign",  # whether each particle has a partner in an earlier chunk of the pair
-        # loop's, which sums it apart (`pairs.sum_foreign`), bool (N,)
+        # loop's last call on more than one chunk, which sums it apart
+        # (`pairs.sum_foreign`), bool (N,)
         "partials",  # partial sums of each block of particles (sums.py)
     ],
 )

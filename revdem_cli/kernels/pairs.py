@@ -719,7 +719,8 @@ def _pair_loop(
             if torques:
                 put(t_sum, q, ZERO)
         foreign_end = lo  # the chunk's particles from here on have no partner in an earlier one
-        if chunks > 1:  # one chunk: none (`foreign` stays all False)
+        if chunks > 1:  # one chunk: none, and `foreign`, which an earlier call on more
+            # chunks may have marked, is not read (foreign_end = 0)
             foreign_end = mark_foreign(foreign, lo, beyond, pi, start, slots)
         listed = start_pair  # the chunk's next row of `earlier`
         if estar.shape[0] == 1:
