@@ -151,13 +151,14 @@ def _by_size(n, *args):
     return SERIAL(*args)
 
 
-def by_size(loop, weight=HEAVY, least=0):
+def by_size(loop, weight=HEAVY, least=0, **serial_constants):
     """One compiled entry to a `prange` loop of the given `weight`, called as f(n, *args): its
     parallel build for n items from the weight's crossover (`parallel_from`) and `least` on
     when the calling thread computes with more than one thread (`revdem_cli.threads`), its
-    serial build otherwise (`threads_for`, which `by_parts` asks too)."""
+    serial build otherwise (`threads_for`, which `by_parts` asks too); the serial build sees
+    `serial_constants` in place of its module's globals (`renamed`; `one_thread`)."""
     name = loop.__name__.lstrip("_")
-    serial = jit(renamed(loop, name + "_serial"))
+    serial = jit(renamed(loop, name + "_serial", **serial_constants))
     parallel = pjit(renamed(loop, name + "_parallel"))
     constants = dict(SERIAL=serial, PARALLEL=parallel, FROM=weight, LEAST=least)
     return jit(renamed(_by_size, name, **constants))
@@ -359,6 +360,13 @@ def threads_for(n, weight):
     (`threads_here`) from the weight's crossover on, one below; the one place `by_size` and
     `by_parts` choose."""
     return threads_here() if n >= crossover(weight) else 1
+
+
+@inline
+def one_thread(n, weight):
+    """`threads_for` as a serial build sees it (`by_size`'s serial constants): one thread, a
+    constant, so that the build's code for more folds away."""
+    return 1
 
 
 from revdem_cli.kernels import pool  # noqa: E402  (needs the helpers above)

@@ -28,7 +28,7 @@ all of whose pairs it holds; those with a partner in an earlier chunk are summed
 chunk is done, from the pair arrays (`sum_foreign`), so that every sum has the same terms in
 the same order on any thread count. That costs: on one thread, the fcc pair loop cut into
 16 chunks took 13-30 % longer than in one (256 and 4 000 spheres), so one thread works
-through the list in one chunk.
+through the list in one chunk; the serial build knows it, a constant (`one_thread`).
 """
 
 import math
@@ -36,7 +36,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import HEAVY, by_size, inline, threads_for
+from revdem_cli.kernels import HEAVY, by_size, inline, one_thread, threads_for
 from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.cell import affine_velocity, nearest_image, strain_rates
 from revdem_cli.kernels.contact import (
@@ -787,7 +787,9 @@ def chunk_of(c, chunks, first_pair, n_pairs):
     return np.int64(q), np.int64(first_pair[q])
 
 
-pair_loop = by_size(_pair_loop)
+pair_loop = by_size(_pair_loop, threads_for=one_thread)
+"""The serial build works through the list in one chunk, a constant (`one_thread`), so its
+code for more (`mark_foreign`, the flags, `sum_foreign`) folds away."""
 
 
 @inline

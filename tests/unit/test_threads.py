@@ -12,7 +12,8 @@ import pytest
 
 from revdem_cli import threads
 from revdem_cli.engine import run_scenario
-from revdem_cli.kernels import HEAVY, LIGHT, threads_for
+from revdem_cli.kernels import HEAVY, LIGHT, one_thread, threads_for
+from revdem_cli.kernels.pairs import pair_loop
 from revdem_cli.threads import Stepper
 from tests.conftest import crossovers
 from tests.physics.test_determinism import lattice
@@ -126,6 +127,15 @@ def test_a_loop_computes_on_the_threads_from_its_weights_crossover_read_at_each_
                 assert threads_for(10**6, HEAVY) == 1
     finally:
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+
+
+def test_the_pair_loops_serial_build_is_told_one_thread():
+    """`by_size`'s serial constants: the pair loop's serial build sees `threads_for` as
+    `one_thread`, a constant, so that its code for several chunks folds away; its parallel
+    build asks the calling thread."""
+    builds = pair_loop.py_func.__globals__
+    assert builds["SERIAL"].py_func.__globals__["threads_for"] is one_thread
+    assert builds["PARALLEL"].py_func.__globals__["threads_for"] is threads_for
 
 
 def test_a_run_is_bitwise_the_same_wherever_the_thread_count_changes(
