@@ -99,16 +99,21 @@ from revdem_cli.kernels import count_now, pool, take, yield_core
 pthread_self = ctypes.CDLL(None).pthread_self
 pthread_self.restype = ctypes.c_ulong
 pthread_self.argtypes = []
+WAIT = 2_000_000  # turns of a row's wait, a sched_yield each: about a second
 
 
-@numba.njit(parallel=True)
-def rows_on(threads, started, rows):
-    # each row notes the thread it runs on, then waits until every row has started
+@numba.njit(parallel=True, nogil=True)
+def rows_on(threads, started, together, rows):
+    # each row notes the thread it runs on, then waits until every row has started, for at
+    # most WAIT turns: a thread descheduled for longer (a busy machine) leaves its row to
+    # another, and the region's rows did not all run at once (together[r] = 0). Without the
+    # GIL, as revdem's kernels run: a helper still starting (in Python) needs it
     for r in numba.prange(rows):
         threads[r] = pthread_self()
         take(started, 0)
-        for _ in range(100_000_000):
+        for _ in range(WAIT):
             if count_now(started, 0) >= rows:
+                together[r] = 1
                 break
             yield_core()
 
@@ -124,8 +129,10 @@ for rows in (4, 2):
     seen[rows] = []
     for _ in range(20):
         threads, started = np.zeros(rows, dtype=np.uint64), np.zeros(1, dtype=np.int64)
-        rows_on(threads, started, rows)
-        seen[rows].append([helper_of(int(t)) for t in threads])
+        together = np.zeros(rows, dtype=np.int64)
+        rows_on(threads, started, together, rows)
+        if together.all():
+            seen[rows].append([helper_of(int(t)) for t in threads])
 print(json.dumps(seen))
 """
 
@@ -142,7 +149,9 @@ def test_each_thread_runs_its_own_row_in_every_region():
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     seen = json.loads(done.stdout.strip().splitlines()[-1])
-    assert seen == {"4": [[0, 1, 2, 3]] * 20, "2": [[0, 1]] * 20}
+    assert min(len(seen["4"]), len(seen["2"])) >= 15, seen  # of 20: most regions
+    assert all(rows == [0, 1, 2, 3] for rows in seen["4"]), seen
+    assert all(rows == [0, 1] for rows in seen["2"]), seen
 
 
 @needs_two
