@@ -300,26 +300,36 @@ def sparse_whole(tmp_path_factory) -> tuple[Path, float]:
 def test_a_signal_stops_at_a_whole_step_with_a_checkpoint_from_which_the_run_resumes(
     signum, status, sparse_whole, tmp_path, kills
 ):
+    """Each signal stops the run with one line and a checkpoint from which it resumes to the
+    uninterrupted run's files. A signal that arrives while Python writes a frame stops at
+    that frame's step, as it should; one that arrives while the compiled loop steps must stop
+    it between frames. The signal goes out at a few moments until one lands while stepping."""
     whole, seconds = sparse_whole
-    process = subprocess.Popen(
-        _sparse_command(tmp_path), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL
-    )
-    assert _stepping(process, tmp_path)
-    time.sleep(0.3 * seconds)
-    process.send_signal(signum)
-    _, stderr = process.communicate()
-    lines = stderr.decode().strip().splitlines()
-    assert process.returncode == status, stderr
-    assert len(lines) == 1 and "Traceback" not in lines[0]
-    assert signal.Signals(signum).name in lines[0]
-    assert f"revdem run --resume {tmp_path}" in lines[0]
-    (checkpoint,) = tmp_path.glob("*.checkpoint.h5")
-    stopped = read_restart(checkpoint, checkpoint=True).state.step
-    assert stopped % EVERY != 0, f"stopped at step {stopped}, a frame's, not between frames"
-    assert f"at step {stopped}:" in lines[0]
-    resumed = _resume(tmp_path)
-    assert resumed.returncode == 0, resumed.stderr
-    assert_same_files(whole, tmp_path)
+    stops = []
+    for attempt, fraction in enumerate((0.3, 0.2, 0.4)):
+        out = tmp_path / f"try{attempt}"
+        process = subprocess.Popen(
+            _sparse_command(out), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL
+        )
+        assert _stepping(process, out)
+        time.sleep(fraction * seconds)
+        process.send_signal(signum)
+        _, stderr = process.communicate()
+        lines = stderr.decode().strip().splitlines()
+        assert process.returncode == status, stderr
+        assert len(lines) == 1 and "Traceback" not in lines[0]
+        assert signal.Signals(signum).name in lines[0]
+        assert f"revdem run --resume {out}" in lines[0]
+        (checkpoint,) = out.glob("*.checkpoint.h5")
+        stopped = read_restart(checkpoint, checkpoint=True).state.step
+        assert f"at step {stopped}:" in lines[0]
+        resumed = _resume(out)
+        assert resumed.returncode == 0, resumed.stderr
+        assert_same_files(whole, out)
+        stops.append(stopped)
+        if stopped % EVERY != 0:
+            break
+    assert stops[-1] % EVERY != 0, f"stopped only at frames' steps {stops}, never between"
     kills[signal.Signals(signum).name] = kills.get(signal.Signals(signum).name, 0) + 1
 
 
