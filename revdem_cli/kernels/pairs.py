@@ -25,10 +25,11 @@ cut into as many chunks as the loop runs on threads, each particle's own pairs i
 (`chunk_of`), each chunk worked through with its own block of `Pairs.blocks` (one for each
 thread of numba's pool), so the loop allocates nothing. Summing, a chunk sums the particles
 all of whose pairs it holds; those with a partner in an earlier chunk are summed after every
-chunk is done, from the pair arrays (`sum_foreign`), so that every sum has the same terms in
-the same order on any thread count. That costs: on one thread, the fcc pair loop cut into
-16 chunks took 13-30 % longer than in one (256 and 4 000 spheres), so one thread works
-through the list in one chunk; the serial build knows it, a constant (`one_thread`).
+chunk is done, from the pair arrays (`sum_foreign`, dealt out to the threads `SHARE` at a
+time), so that every sum has the same terms in the same order on any thread count. That
+costs: on one thread, the fcc pair loop cut into 16 chunks took 13-30 % longer than in one
+(256 and 4 000 spheres), so one thread works through the list in one chunk; the serial
+build knows it, a constant (`one_thread`).
 """
 
 import math
@@ -629,6 +630,14 @@ def sum_foreign(q, mass, gravity, radius, pi, first_pair, start, slots, force, m
         put(t_sum, q, t)
 
 
+SHARE = 16
+"""Consecutive particles a thread takes at a time of those summed after the chunks
+(`sum_foreign`): those of a chunk lie together, at its start (and in a periodic packing
+at its end, whose last particles touch the first), and dealt out so they fall to every
+thread alike, the rows of the sums each thread writes (16 x 24 B) sharing few cache lines
+with another's."""
+
+
 def _pair_loop(
     x,
     v,
@@ -758,15 +767,20 @@ def _pair_loop(
             )  # fmt: skip
         if predicting and listed < end:
             earlier[listed, MISSED] = -chunks
-    if chunks > 1:  # the particles with partners in an earlier chunk
-        for c in numba.prange(chunks):
-            lo = chunk_of(c, chunks, first_pair, n_pairs)[0]
-            for q in range(lo, chunk_of(c + 1, chunks, first_pair, n_pairs)[0]):
-                if foreign[q]:
-                    sum_foreign(
-                        q, mass, gravity, radius, pi, first_pair, start, slots, force, moment,
-                        overlaps, rolling, f_sum, t_sum, torques, rolls, f_step, turned,
-                    )  # fmt: skip
+    if chunks > 1:  # the particles with partners in an earlier chunk, dealt out to the
+        # threads SHARE at a time, which shares out a chunk's evenly wherever they lie
+        for t in numba.prange(chunks):
+            for c in range(1, chunks):
+                lo = chunk_of(c, chunks, first_pair, n_pairs)[0]
+                hi = chunk_of(c + 1, chunks, first_pair, n_pairs)[0]
+                for share in range(lo + SHARE * t, hi, SHARE * chunks):
+                    for q in range(share, min(share + SHARE, hi)):
+                        if foreign[q]:
+                            sum_foreign(
+                                q, mass, gravity, radius, pi, first_pair, start, slots, force,
+                                moment, overlaps, rolling, f_sum, t_sum, torques, rolls, f_step,
+                                turned,
+                            )  # fmt: skip
     counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
     return counts, largest
 
