@@ -632,10 +632,10 @@ def sum_foreign(q, mass, gravity, radius, pi, first_pair, start, slots, force, m
 
 SHARE = 16
 """Consecutive particles a thread takes at a time of those summed after the chunks
-(`sum_foreign`): those of a chunk lie together, at its start (and in a periodic packing
-at its end, whose last particles touch the first), and dealt out so they fall to every
-thread alike, the rows of the sums each thread writes (16 x 24 B) sharing few cache lines
-with another's."""
+(`sum_foreign`). A chunk's lie together, at its start (and in a periodic packing at its
+end too, whose last particles touch the first): dealt out SHARE at a time, they fall to
+every thread alike, and the rows of the sums each thread writes (16 x 24 B) share few
+cache lines with another's."""
 
 
 def _pair_loop(
@@ -768,7 +768,7 @@ def _pair_loop(
         if predicting and listed < end:
             earlier[listed, MISSED] = -chunks
     if chunks > 1:  # the particles with partners in an earlier chunk, dealt out to the
-        # threads SHARE at a time, which shares out a chunk's evenly wherever they lie
+        # threads SHARE at a time, so that each thread gets its part wherever they lie
         for t in numba.prange(chunks):
             for c in range(1, chunks):
                 lo = chunk_of(c, chunks, first_pair, n_pairs)[0]
