@@ -228,9 +228,9 @@ def _progress(progress):
     from contextlib import nullcontext
 
     if progress:
-        from revdem_cli.report.progress import RunProgress
+        from revdem_cli.report.progress import RunProgress, kernels_compiled
 
-        return RunProgress(unit="steps")
+        return RunProgress(unit="steps", compiling=not kernels_compiled())
     return nullcontext()
 
 

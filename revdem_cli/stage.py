@@ -296,6 +296,8 @@ def run_stage(
         _record_now(state, model, dyn, clock, writer, events, tape)
     label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
     total = abs(frames[-1] - frames[0])
+    if progress is not None:  # shown from the stage's start, the time elapsed counting
+        progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
     stop = clock.stage.stop_when if direction > 0 else None
     pauses = frames  # a stop condition is checked at every observables row, and ends the
     if stop is not None:  # stage there with a frame

@@ -220,6 +220,8 @@ def crashed_after(experiment, folder, frames: int) -> list[str]:
     shown = []
 
     def stop(label, done, total, particles):
+        if done == 0:  # a stage's start, not a frame
+            return
         shown.append(label)
         if len(shown) == frames:
             raise RuntimeError("stopped")

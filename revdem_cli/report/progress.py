@@ -1,51 +1,65 @@
-"""Progress display for runs (rich): stage, steps, particle-steps per second, ETA."""
+"""Progress display for runs (rich): stage, steps, particle-steps per second, time elapsed
+and to go; before a run whose kernels numba has yet to compile, a line that says so."""
 
 from __future__ import annotations
 
 import time
 
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+COMPILING = "compiling the kernels: once after an install or upgrade, 3 to 4 min on 2 cores"
 
 
 class RunProgress:
     """Context manager; call it as progress(label, done, total, particles) once per output
-    frame, or progress(label, done, total) once per finished item counted in `unit`."""
+    frame, or progress(label, done, total) once per finished item counted in `unit`.
+    `compiling`: the run will compile its kernels first, which it says as it starts."""
 
-    def __init__(self, unit: str = "steps"):
+    def __init__(self, unit: str = "steps", compiling: bool = False):
         self.console = Console(stderr=True)
+        self.compiling = compiling
         self.bar = Progress(
             TextColumn("{task.description}"),
             BarColumn(),
             TextColumn("{task.completed:>9,.0f}/{task.total:,.0f} " + unit),
             TextColumn("{task.fields[rate]}"),
+            TimeElapsedColumn(),
             TimeRemainingColumn(),
             console=self.console,
             transient=False,
         )
         self.tasks: dict[str, int] = {}
-        self.started: dict[str, float] = {}
+        self.last: dict[str, tuple[float, int]] = {}  # each task's last call: time, done
 
     def __enter__(self) -> RunProgress:
         self.bar.__enter__()
+        if self.compiling:
+            self.console.print(COMPILING)
         return self
 
     def __exit__(self, *exc) -> None:
         self.bar.__exit__(*exc)
 
     def __call__(self, label: str, done: int, total: int, particles: int = 0) -> None:
-        if particles and not self.tasks:  # the first frame of a run: what it computes on
+        if particles and not self.tasks:  # the start of a run: what it computes on
             self.console.print(threads_line())
+        now = time.perf_counter()
         if label not in self.tasks:
             self.tasks[label] = self.bar.add_task(label, total=total, rate="")
-            self.started[label] = time.perf_counter()
-        elapsed = time.perf_counter() - self.started[label]
-        rate = (
-            f"{particles * done / elapsed:,.3g} particle-steps/s"
-            if elapsed > 0 and particles
-            else ""
-        )
-        self.bar.update(self.tasks[label], completed=done, rate=rate)
+            self.last[label] = (now, done)
+        then, done_then = self.last[label]
+        if now > then and done != done_then and particles:  # since the call before
+            rate = f"{particles * abs(done - done_then) / (now - then):,.3g} particle-steps/s"
+            self.bar.update(self.tasks[label], rate=rate)
+        self.last[label] = (now, done)
+        self.bar.update(self.tasks[label], completed=done)
 
 
 def threads_line() -> str:
@@ -58,3 +72,15 @@ def threads_line() -> str:
         f"computing on {count} thread{'s' * (count > 1)} at most ({info['threading_layer']} "
         f"layer; {info['cores_available']} cores available)"
     )
+
+
+def kernels_compiled() -> bool:
+    """Whether numba's disk cache holds the stage loop (`kernels.integrate.advance`, one
+    signature for every run) compiled from these sources, the index file numba keeps for
+    it: where it does not, a run's first steps wait minutes for it (*Compile time* in
+    benchmarks/RECORD.md)."""
+    from pathlib import Path
+
+    from revdem_cli.kernels.integrate import advance
+
+    return Path(advance._cache._cache_file._index_path).is_file()

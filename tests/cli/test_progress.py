@@ -1,0 +1,58 @@
+"""What a run shows while it works: its progress from each stage's start, and a line before a
+run whose kernels numba has yet to compile (minutes that would otherwise pass in silence)."""
+
+import os
+import subprocess
+import sys
+
+from typer.testing import CliRunner
+
+from revdem_cli import api
+from revdem_cli.cli import app
+from revdem_cli.report import progress
+from tests.conftest import CONFIGS, ROOT
+
+
+def test_a_run_reports_each_stage_from_its_start_then_at_every_frame(tmp_path):
+    calls = []
+    experiment = api.load(CONFIGS / "collision.toml", overrides=["stages.0.steps=3000"])
+    from revdem_cli.engine import run_scenario
+
+    run_scenario(
+        experiment.scenario, experiment.text, experiment.suffix, tmp_path, True,
+        lambda *call: calls.append(call),
+    )  # fmt: skip
+    labels = list(dict.fromkeys(label for label, *_ in calls))
+    assert len(labels) == 2, labels  # forward, then reversed
+    for label in labels:
+        done = [d for name, d, total, particles in calls if name == label]
+        assert done[0] == 0, f"{label}: first shown at {done[0]} steps, not at its start"
+        assert done == sorted(done) and done[-1] == 3000, (label, done)
+        assert len(done) > 2, f"{label}: shown {len(done)} times, not at each frame"
+
+
+def test_the_stage_loop_is_found_in_the_kernel_cache_once_compiled(tmp_path):
+    api.run(api.load(CONFIGS / "collision.toml", overrides=["stages.0.steps=10"]), tmp_path)
+    assert progress.kernels_compiled()
+
+
+def test_an_empty_kernel_cache_is_seen_as_one_to_compile(tmp_path):
+    check = "from revdem_cli.report.progress import kernels_compiled; print(kernels_compiled())"
+    env = os.environ | {"NUMBA_CACHE_DIR": str(tmp_path)}
+    done = subprocess.run(
+        [sys.executable, "-c", check], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
+
+
+def test_a_run_says_it_compiles_its_kernels_only_when_it_will(tmp_path, monkeypatch):
+    args = ["run", str(CONFIGS / "collision.toml"), "--set", "stages.0.steps=300"]
+    said = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(progress, "kernels_compiled", lambda compiled=compiled: compiled)
+        out = tmp_path / str(compiled)
+        result = CliRunner().invoke(app, [*args, "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        said[compiled] = progress.COMPILING in result.output
+    assert said == {True: False, False: True}
