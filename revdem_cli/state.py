@@ -26,7 +26,7 @@ from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, rebuild_pairs
 from revdem_cli.kernels.neighbours import build_pairs
-from revdem_cli.kernels.pairs import MISSED_COLUMNS, empty_blocks
+from revdem_cli.kernels.pairs import MISSED_COLUMNS, empty_balance, empty_blocks
 from revdem_cli.kernels.sums import empty_partials
 from revdem_cli.memory import release_freed_memory, untouched
 
@@ -268,6 +268,7 @@ def empty_pairs(
         x_built=np.zeros((n_particles, 3), dtype=np.float32),
         blocks=empty_blocks(numba.config.NUMBA_NUM_THREADS),
         foreign=np.zeros(n_particles, dtype=np.bool_),
+        balance=empty_balance(numba.config.NUMBA_NUM_THREADS),
         partials=empty_partials(n_particles),
     )
 
@@ -294,6 +295,7 @@ def grown(pairs: Pairs, capacity: int) -> Pairs:
     bigger.start[:] = pairs.start
     bigger.slots[:n] = pairs.slots[:n]
     bigger.x_built[:] = pairs.x_built
+    bigger.balance[:] = pairs.balance
     return bigger
 
 

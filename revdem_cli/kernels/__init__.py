@@ -15,6 +15,7 @@ import ctypes
 import hashlib
 import math
 import os
+import time
 import types
 from functools import partial
 from pathlib import Path
@@ -339,7 +340,7 @@ def link_libc(*names):
         ll.add_symbol(name, ctypes.cast(getattr(LIBC, name), ctypes.c_void_p).value)
 
 
-link_libc("sched_yield")
+link_libc("sched_yield", "clock_gettime")
 
 
 @intrinsic
@@ -352,6 +353,24 @@ def yield_core(typingctx):
         return context.get_dummy_value()
 
     return numba.types.none(), codegen
+
+
+@intrinsic
+def clock_ns(typingctx):
+    """Nanoseconds on the monotonic clock (clock_gettime(2), CLOCK_MONOTONIC): how long a
+    thread's part of a loop took, to share out the next call's by (`pairs.balanced`)."""
+
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        spec = cgutils.alloca_once(builder, ir.LiteralStructType([i64, i64]))  # timespec
+        kind = ir.FunctionType(ir.IntType(32), [ir.IntType(32), spec.type])
+        call = cgutils.get_or_insert_function(builder.module, kind, "clock_gettime")
+        builder.call(call, [ir.Constant(ir.IntType(32), time.CLOCK_MONOTONIC), spec])
+        seconds = builder.load(cgutils.gep_inbounds(builder, spec, 0, 0))
+        nanoseconds = builder.load(cgutils.gep_inbounds(builder, spec, 0, 1))
+        return builder.add(builder.mul(seconds, ir.Constant(i64, 10**9)), nanoseconds)
+
+    return numba.types.int64(), codegen
 
 
 @inline

@@ -71,6 +71,9 @@ Pairs = namedtuple(
         "foreign",  # whether each particle has a partner in an earlier chunk of the pair
         # loop's last call on more than one chunk, which sums it apart
         # (`pairs.sum_foreign`), bool (N,)
+        "balance",  # each chunk of the pair loop's list in its last call on more than
+        # one: its share of the pairs, the nanoseconds its thread took, its first particle
+        # (`pairs.balanced`), (threads of numba's pool, 3)
         "partials",  # partial sums of each block of particles (sums.py)
     ],
 )

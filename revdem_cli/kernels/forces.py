@@ -71,6 +71,7 @@ def loop_arguments(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h):
         pairs.start,
         pairs.slots,
         pairs.foreign,
+        pairs.balance,
     )
     wall_args = (
         p.x,

@@ -23,13 +23,16 @@ through three stages:
 Every pair's numbers are those of the scalar formulas, in the same order. The pair list is
 cut into as many chunks as the loop runs on threads, each particle's own pairs in one
 (`chunk_of`), each chunk worked through with its own block of `Pairs.blocks` (one for each
-thread of numba's pool), so the loop allocates nothing. Summing, a chunk sums the particles
-all of whose pairs it holds; those with a partner in an earlier chunk are summed after every
-chunk is done, from the pair arrays (`sum_foreign`, dealt out to the threads `SHARE` at a
-time), so that every sum has the same terms in the same order on any thread count. That
-costs: on one thread, the fcc pair loop cut into 16 chunks took 13-30 % longer than in one
-(256 and 4 000 spheres), so one thread works through the list in one chunk; the serial
-build knows it, a constant (`one_thread`).
+thread of numba's pool), so the loop allocates nothing. Each chunk holds the share of the
+pairs that its thread, at the pace it kept in the call before, finishes with the others
+(`balanced`): the chunks' work a pair differs (the later ones hold the particles summed
+apart), and so do their cores' speeds on a shared or busy machine. Summing, a chunk sums the
+particles all of whose pairs it holds; those with a partner in an earlier chunk are summed
+after every chunk is done, from the pair arrays (`sum_foreign`, dealt out to the threads
+`SHARE` at a time), so that every sum has the same terms in the same order on any thread
+count. That costs: on one thread, the fcc pair loop cut into 16 chunks took 13-30 % longer
+than in one (256 and 4 000 spheres), so one thread works through the list in one chunk; the
+serial build knows it, a constant (`one_thread`).
 """
 
 import math
@@ -37,7 +40,7 @@ import math
 import numba
 import numpy as np
 
-from revdem_cli.kernels import HEAVY, by_size, inline, one_thread, threads_for
+from revdem_cli.kernels import HEAVY, by_size, clock_ns, inline, one_thread, threads_for
 from revdem_cli.kernels.arrays import ContactLaw
 from revdem_cli.kernels.cell import affine_velocity, nearest_image, strain_rates
 from revdem_cli.kernels.contact import (
@@ -151,9 +154,32 @@ SPREAD = 4  # how far apart on the history's grid there (`information.grid_sprea
 MISSED_COLUMNS = 7
 """Columns of `Pairs.earlier`, each chunk of the list's pairs (`pair_loop`) listing from its
 first slot on those whose history the reversed step would miss, in slot order, ended where
-they are fewer than the chunk's pairs by a MISSED of minus the number of chunks, from which
-the reader finds the next chunk's first slot (`after_chunk`). What the tape records of them
-is found here, so that a row holds only that: 56 B."""
+they are fewer than the chunk's pairs by a MISSED of -(the next chunk's first slot + 1), the
+slot the reader goes on from (`next_listed`). What the tape records of them is found here, so
+that a row holds only that: 56 B."""
+
+
+@inline
+def next_listed(missed):
+    """The row of `Pairs.earlier` its reader goes on from after the MISSED entry `missed`
+    (< 0: the end of a chunk's list, `MISSED_COLUMNS`)."""
+    return np.int64(-missed) - 1
+
+
+PART = 0  # `Pairs.balance`: each chunk's share of the list's pairs in the last call
+TOOK = 1  # the nanoseconds its thread took over them (0: unknown)
+FIRST = 2  # its first particle in the last call (`chunk_of`)
+BALANCE_COLUMNS = 3
+
+LEAST_PART = 0.2
+"""The least share of the pairs a chunk takes, in even shares (1 / chunks), and 2 - LEAST_PART
+the most (`balanced`): a thread whose core was taken from it for a call is not left idle for
+the calls after."""
+
+
+def empty_balance(chunks: int) -> np.ndarray:
+    """`Pairs.balance` of a pair loop on at most `chunks` chunks: none timed yet."""
+    return np.zeros((chunks, BALANCE_COLUMNS))
 
 
 def empty_blocks(chunks: int) -> np.ndarray:
@@ -677,6 +703,7 @@ def _pair_loop(
     start,
     slots,
     foreign,
+    balance,
     keep,
 ):
     """Force on i from j for every listed pair (Hanley 2020 Eq 4-10) and, with a tangential
@@ -698,7 +725,8 @@ def _pair_loop(
     moments (in fixed point normals) and overlaps only where `keep` (something reads them
     before the next step: `forces.compute_forces` says when) or `sum_foreign` reads them;
     the histories and what was destroyed always. The chunks are as many as the threads the
-    loop runs on (`threads_for`, as `by_size` chooses the build; at most the blocks).
+    loop runs on (`threads_for`, as `by_size` chooses the build; at most the blocks), each
+    the share of the pairs `balance` gives it (`balanced`), where its time is kept too.
     Returns (the counts of `events.note_destroyed`, in fixed point the largest magnitude of
     a component of a pair's force, N, which the gather judges the sums by)."""
     strain = strain_rates(rate, length)
@@ -719,10 +747,13 @@ def _pair_loop(
     turned = law.history_grid != 0.0  # fixed point: `moment` holds the pairs' normals
     torques = moment.shape[0] > 0
     rolls = rolling.shape[0] > 0
+    if chunks > 1:
+        balanced(balance, chunks, first_pair, n_pairs)
     for c in numba.prange(chunks):
+        began = clock_ns() if chunks > 1 else 0
         block = blocks[c]
-        lo, start_pair = chunk_of(c, chunks, first_pair, n_pairs)
-        beyond, end = chunk_of(c + 1, chunks, first_pair, n_pairs)
+        lo, start_pair = chunk_of(c, chunks, first_pair, n_pairs, balance)
+        beyond, end = chunk_of(c + 1, chunks, first_pair, n_pairs, balance)
         for q in range(lo, beyond):  # each of the chunk's particles' sums starts at its weight
             put(f_sum, q, weight_summed(mass[q], gravity, f_step))
             if torques:
@@ -766,13 +797,15 @@ def _pair_loop(
                 foreign, foreign_end, force, moment, overlaps, turned,
             )  # fmt: skip
         if predicting and listed < end:
-            earlier[listed, MISSED] = -chunks
+            earlier[listed, MISSED] = -(end + 1)  # `next_listed`
+        if chunks > 1:
+            balance[c, TOOK] = max(clock_ns() - began, 1)
     if chunks > 1:  # the particles with partners in an earlier chunk, dealt out to the
         # threads SHARE at a time, so that each thread gets its part wherever they lie
         for t in numba.prange(chunks):
             for c in range(1, chunks):
-                lo = chunk_of(c, chunks, first_pair, n_pairs)[0]
-                hi = chunk_of(c + 1, chunks, first_pair, n_pairs)[0]
+                lo = chunk_of(c, chunks, first_pair, n_pairs, balance)[0]
+                hi = chunk_of(c + 1, chunks, first_pair, n_pairs, balance)[0]
                 for share in range(lo + SHARE * t, hi, SHARE * chunks):
                     for q in range(share, min(share + SHARE, hi)):
                         if foreign[q]:
@@ -786,34 +819,57 @@ def _pair_loop(
 
 
 @inline
-def chunk_of(c, chunks, first_pair, n_pairs):
+def chunk_of(c, chunks, first_pair, n_pairs, balance):
     """(first particle, first pair) of chunk c of the `chunks` the pair loop cuts the list
-    into (c = chunks: the ends): the particle whose own pairs reach pair c n_pairs / chunks,
-    so that each particle's own pairs lie in one chunk (`Pairs.first`: each particle's
-    first pair, ascending). The same cut in every build; the tape reads `Pairs.earlier` by
-    it (`after_chunk`)."""
+    into this call (c = chunks: the ends), as `balanced` cut it (`Pairs.balance`): at a
+    particle's first pair, so that each particle's own pairs lie in one chunk
+    (`Pairs.first`: each particle's first pair, ascending)."""
     n = first_pair.shape[0] - 1
     if c == 0:
         return np.int64(0), np.int64(0)
     if c >= chunks:
         return np.int64(n), np.int64(n_pairs)
-    q = np.searchsorted(first_pair, c * n_pairs // chunks)
-    return np.int64(q), np.int64(first_pair[q])
+    q = np.int64(balance[c, FIRST])
+    return q, np.int64(first_pair[q])
+
+
+@inline
+def balanced(balance, chunks, first_pair, n_pairs):
+    """Cut the list into `chunks` chunks for this call (`Pairs.balance`): each chunk's share
+    of the pairs moves from the last call's halfway to the share that its thread, at the
+    pace it kept then (its pairs a nanosecond), finishes with the others, within LEAST_PART
+    and 2 - LEAST_PART even shares; even shares where the last call cut the list into
+    another number of chunks. Each chunk starts at the particle whose first pair its share
+    reaches (FIRST, `chunk_of`). No sum depends on the cut (`sum_in_order`)."""
+    known = True
+    for c in range(balance.shape[0]):
+        known = known and (balance[c, TOOK] > 0.0) == (c < chunks)
+        if c >= chunks:
+            balance[c, TOOK] = 0.0
+    pace = 0.0
+    if known:
+        for c in range(chunks):
+            pace += balance[c, PART] / balance[c, TOOK]
+    total = 0.0
+    for c in range(chunks):
+        part = 1.0 / chunks
+        if known:
+            finishing = balance[c, PART] / balance[c, TOOK] / pace
+            part = 0.5 * (balance[c, PART] + finishing)
+            part = min(max(part, LEAST_PART / chunks), (2.0 - LEAST_PART) / chunks)
+        balance[c, PART] = part
+        total += part
+    reached = 0.0
+    for c in range(chunks):
+        balance[c, PART] /= total
+        balance[c, FIRST] = np.searchsorted(first_pair, np.int64(reached * n_pairs))
+        reached += balance[c, PART]
+        balance[c, TOOK] = 0.0
 
 
 pair_loop = by_size(_pair_loop, threads_for=one_thread)
 """The serial build works through the list in one chunk, a constant (`one_thread`), so its
 code for more (`mark_foreign`, the flags, `sum_foreign`) folds away."""
-
-
-@inline
-def after_chunk(slot, chunks, first_pair, n_pairs):
-    """The first pair of the chunk after the one that holds pair `slot`, the list cut into
-    `chunks` (`chunk_of`; n_pairs after the last)."""
-    c = 1
-    while chunk_of(c, chunks, first_pair, n_pairs)[1] <= slot:
-        c += 1
-    return chunk_of(c, chunks, first_pair, n_pairs)[1]
 
 
 def _contact_normals(x, radius, image, pi, pj, n_pairs, normals, overlaps):

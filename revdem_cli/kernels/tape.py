@@ -55,7 +55,7 @@ from revdem_cli.kernels import inline, inline_arrays, jit
 from revdem_cli.kernels.cell import deforms
 from revdem_cli.kernels.contact import NO_ROLLING, NO_SHEAR, history_step, normal_law, reduced
 from revdem_cli.kernels.information import bits_of, grid_bits, ordered, unordered
-from revdem_cli.kernels.pairs import AMOUNT, MISSED, SPREAD, after_chunk
+from revdem_cli.kernels.pairs import AMOUNT, MISSED, SPREAD, next_listed
 
 OFF, RECORD, REPLAY = range(3)
 
@@ -443,8 +443,8 @@ def predict(tape, p, pairs, law):
     row = 0
     while row < count:  # each chunk's list, in slot order (`pairs.MISSED_COLUMNS`)
         missed = listed[row, MISSED]
-        if missed < 0.0:  # the end of a chunk's list: -missed chunks
-            row = after_chunk(row, np.int64(-missed), pairs.first, count)
+        if missed < 0.0:  # the end of a chunk's list
+            row = next_listed(missed)
             continue
         k = np.int64(missed)
         cause = _cause(pairs.destroyed[k], pairs.overlap[k] <= 0.0, SLIP, LOST)
