@@ -81,7 +81,8 @@ it loses, up to `PROBE_EVERY_MOST`."""
 PROBE_EVERY_MOST = 320.0
 
 PROBE = 0.02
-"""A trial of the thread count not in use lasts this many seconds at the current rate."""
+"""A trial of the thread count not in use lasts this many seconds at its last rate; so does
+the first stretch on a count chosen on a rate older than the other count's."""
 
 
 class Stepper:
@@ -101,7 +102,8 @@ class Stepper:
         self._rate: dict[int, float] = {}  # steps a second, the latest stretch on each count
         self._stretch: dict[int, int] = {}  # steps of the next stretch on each count
         self._warm: set[int] = set()  # counts past their first stretch
-        self._count = 0
+        self._timed_at: dict[int, float] = {}  # seconds of stepping when each rate was taken
+        self._last = 0  # the count of the last stretch
         self._stepped = 0.0  # seconds of stepping
         self._probe_at = PROBE_EVERY
         self._probe_every = PROBE_EVERY
@@ -116,6 +118,7 @@ class Stepper:
         self._rate.clear()
         self._stretch.clear()
         self._warm.clear()
+        self._timed_at.clear()
         self._probe_every = PROBE_EVERY
         self._probe_at = self._stepped + PROBE_EVERY
 
@@ -155,10 +158,17 @@ class Stepper:
         if untimed:
             return untimed[0], self._stretch.get(untimed[0], 1)
         best = self._best(counts)
-        if len(counts) > 1 and self._stepped >= self._probe_at:
-            other = next(count for count in counts if count != best)
+        if len(counts) == 1:
+            return best, self._stretch[best]
+        other = next(count for count in counts if count != best)
+        if self._stepped >= self._probe_at:
             self._probe_at = self._stepped + self._probe_every
             return other, max(1, int(self._rate[best] * PROBE))
+        if best != self._last and self._timed_at[best] < self._timed_at[other]:
+            # chosen on an older rate than the one it beat (a stage whose steps grow
+            # costlier, as a pour gains contacts, made the other's fresh rate the lower):
+            # timed again first, not stepped for a stretch sized by that rate
+            return best, min(self._stretch[best], max(1, int(self._rate[best] * PROBE)))
         return best, self._stretch[best]
 
     def _best(self, counts: tuple[int, ...]) -> int:
@@ -174,6 +184,7 @@ class Stepper:
         of at least PROBE seconds (or half a PAUSE, if shorter) gives it one."""
         self.steps_with[count] = self.steps_with.get(count, 0) + steps
         self._stepped += seconds
+        self._last = count
         if steps == 0:
             return
         rate = steps / max(seconds, 1e-9)
@@ -185,6 +196,7 @@ class Stepper:
             return
         was_best = max(self._rate, key=self._rate.get) if self._rate else count
         self._rate[count] = rate
+        self._timed_at[count] = self._stepped
         if count != was_best:  # a trial: it won, or it waits twice as long for the next
             won = rate > self._rate[was_best]
             self._probe_every = PROBE_EVERY if won else min(2 * self._probe_every, PROBE_EVERY_MOST)

@@ -111,6 +111,35 @@ def test_a_new_stage_times_its_thread_counts_afresh(quick):
     assert stepper.steps_with[1] - before[1] > 0.9 * 20000, stepper.steps_with
 
 
+def test_a_count_chosen_on_a_rate_older_than_the_other_s_is_timed_again_first(quick, monkeypatch):
+    """A stage whose steps grow costlier, as a pour gains contacts: one thread leads, then
+    every step costs five times more. One thread's fresh rate falls below the rate two
+    threads had when steps were cheap; two threads, still the slower, then step for a
+    trial's length (PROBE seconds at that rate, or at one thread's for a trial), not for a
+    stretch sized by it (PAUSE seconds)."""
+    monkeypatch.setattr(threads, "PROBE", 0.001)  # a trial shorter than a stretch, as in a run
+    costlier_from = 6000
+    stretches = []  # (count, first step, steps, the rates the stepper held)
+    stepper = Stepper()
+
+    def loop(particles, stepping, step, stop, until, obs, obs_steps):
+        count = numba.get_num_threads()
+        stretches.append((count, step, until - step, dict(stepper._rate)))
+        while step != until:
+            _busy((2e-5 if count == 1 else 4e-5) * (5 if step >= costlier_from else 1))
+            step += 1
+        return 0, step, 0, None
+
+    particles = SimpleNamespace(x=np.zeros((PARTICLES, 3)))
+    obs, obs_steps = np.zeros((1, 1)), np.zeros(1, dtype=np.int64)
+    stepper.advance(loop, (particles,), None, 0, 12000, obs, obs_steps)
+    after = [s for s in stretches if s[0] == 2 and s[1] >= costlier_from]
+    assert after, "two threads never tried once steps grew costlier"
+    count, first, steps, rates = after[0]
+    assert steps <= max(1, int(max(rates.values()) * threads.PROBE)), (first, steps, rates)
+    assert stepper.steps_with[1] > 0.8 * 12000, stepper.steps_with
+
+
 def test_a_loop_computes_on_the_threads_from_its_weights_crossover_read_at_each_call():
     """`threads_for`, where every parallel loop chooses: one thread below the crossover of its
     weight, the calling thread's count from it on; a crossover changed after the first call
