@@ -116,10 +116,10 @@ def _use_threads(threads: int | None) -> None:
         raise InputError(f"--threads {threads}: {exc}") from None
 
 
-def _progress_of(unit: str):
+def _progress_of(unit: str, compiling: bool):
     from revdem_cli.report.progress import RunProgress
 
-    return RunProgress(unit=unit)
+    return RunProgress(unit=unit, compiling=compiling)
 
 
 @app.command()
@@ -439,12 +439,15 @@ def sweep(
 
     Example: revdem sweep configs/collision_shear.toml --set contact.friction=0.1,0.3,inf
     """
+    from revdem_cli.report.progress import kernels_compiled
     from revdem_cli.sweep import read_sweep, run_sweep
 
     plan = read_sweep(scenario, sets or [])
     from contextlib import nullcontext
 
-    with nullcontext() if quiet else _progress_of("variants") as shown:
+    compiling = scheduler is None and not kernels_compiled()  # a local cluster's workers
+    # compile into this machine's cache; a remote one's workers keep caches of their own
+    with nullcontext() if quiet else _progress_of("variants", compiling) as shown:
         rows, tables = run_sweep(plan, out, scheduler, workers, shown, threads)
     failed = [row for row in rows if row["error"]]
     for path in tables:

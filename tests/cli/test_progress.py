@@ -46,6 +46,18 @@ def test_an_empty_kernel_cache_is_seen_as_one_to_compile(tmp_path):
     assert done.stdout.strip() == "False"
 
 
+def test_a_local_sweep_says_its_workers_compile_the_kernels_when_they_will(tmp_path, monkeypatch):
+    args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--workers", "1"]
+    args += ["--set", "stages.0.steps=50,100"]
+    said = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(progress, "kernels_compiled", lambda compiled=compiled: compiled)
+        result = CliRunner().invoke(app, [*args, "--out", str(tmp_path / str(compiled))])
+        assert result.exit_code == 0, result.output
+        said[compiled] = progress.COMPILING in result.output
+    assert said == {True: False, False: True}
+
+
 def test_a_run_says_it_compiles_its_kernels_only_when_it_will(tmp_path, monkeypatch):
     args = ["run", str(CONFIGS / "collision.toml"), "--set", "stages.0.steps=300"]
     said = {}
