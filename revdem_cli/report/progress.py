@@ -55,11 +55,12 @@ class RunProgress:
             self.tasks[label] = self.bar.add_task(label, total=total, rate="")
             self.last[label] = (now, done)
         then, done_then = self.last[label]
+        shown = {}
         if now > then and done != done_then and particles:  # since the call before
-            rate = f"{particles * abs(done - done_then) / (now - then):,.3g} particle-steps/s"
-            self.bar.update(self.tasks[label], rate=rate)
+            rate = particles * abs(done - done_then) / (now - then)
+            shown["rate"] = f"{rate:,.3g} particle-steps/s"
         self.last[label] = (now, done)
-        self.bar.update(self.tasks[label], completed=done)
+        self.bar.update(self.tasks[label], completed=done, **shown)
 
 
 def threads_line() -> str:
