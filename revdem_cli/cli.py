@@ -324,7 +324,8 @@ def info(
 
     Kind, direction, scenario, stages, particles, frames and steps, dt, and the reversal
     verdict when the run's NAME.compare.json lies beside the trajectory. --system: the
-    threading layer numba loaded, the threads and cores, numba's version and kernel cache.
+    threading layer numba loaded, the threads and cores, numba's version, the kernel caches
+    and what they hold.
 
     Example: revdem info out/collision.forward.h5
     """

@@ -1,69 +1,24 @@
 """Compiled kernels: small pure functions over arrays. Nothing here imports config, io or cli.
 
 JIT flags live here, in one place. `fastmath` stays off everywhere: it reorders arithmetic
-and would break the reversibility that is the point of revdem.
-
-Compiled code is cached on disk. numba invalidates a cached function only when its own file
-changes, yet a caller's cache holds the compiled code of the functions it calls from other
-files; so the cache directory is keyed by a hash of every kernel source file, every contact
-law (revdem_cli/laws) and every wall shape (revdem_cli/wall_shapes), and any change to any
-of them starts a fresh cache. Inside it, code lies by module (`_PackageLocator`), not by
-the sources' absolute path: a fresh clone of the same sources compiles nothing.
+and would break the reversibility that is the point of revdem. Compiled code is cached on
+disk, where `revdem_cli.kernel_cache` says, which is imported before anything compiles.
 """
 
 import ctypes
-import hashlib
 import math
 import os
 import time
 import types
 from functools import partial
-from pathlib import Path
 
 import llvmlite.binding as ll
 import numba
 from llvmlite import ir
 from numba.core import cgutils
-from numba.core.caching import CacheImpl, UserProvidedCacheLocator
 from numba.extending import intrinsic
 
-
-def _cache_dir() -> str:
-    package = Path(__file__).parent
-    sources = sorted(package.glob("*.py"))
-    for registry in ("laws", "wall_shapes"):  # compiled helpers found by name
-        sources += sorted(package.parent.joinpath(registry).glob("*.py"))
-    digest = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()[:16]
-    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "revdem", "numba"
-    )
-    return os.path.join(base, f"{numba.__version__}-{digest}")
-
-
-numba.config.CACHE_DIR = _cache_dir()
-
-_PACKAGE = Path(__file__).resolve().parents[1]
-
-
-class _PackageLocator(UserProvidedCacheLocator):
-    """Where numba caches revdem's compiled functions: under CACHE_DIR by the module's place
-    in the package, not (as numba does) by the absolute path of its folder, so that every
-    copy of the same sources (a clone, a reinstall, a CI checkout) finds the code compiled
-    for them; numba still checks each file's content against the cache index."""
-
-    def __init__(self, py_func, py_file):
-        super().__init__(py_func, py_file)
-        place = Path(py_file).resolve().relative_to(_PACKAGE).parent
-        self._cache_path = os.path.join(numba.config.CACHE_DIR, *place.parts)
-
-    @classmethod
-    def from_function(cls, py_func, py_file):
-        if not Path(py_file).resolve().is_relative_to(_PACKAGE):
-            return None
-        return super().from_function(py_func, py_file)
-
-
-CacheImpl._locator_classes.insert(0, _PackageLocator)
+from revdem_cli import kernel_cache  # noqa: F401  (where the compiled code is cached)
 
 LAYERS = ("omp", "workqueue", "tbb")
 """numba's threading layers in the order revdem takes the first that loads. revdem's kernels

@@ -195,15 +195,21 @@ def system_summary() -> dict:
     """This machine as revdem computes on it (`revdem info --system`)."""
     import numba
 
-    from revdem_cli import __version__, threads
+    from revdem_cli import __version__, kernel_cache, threads
     from revdem_cli.kernels import HEAVY, LIGHT, parallel_from
 
+    cache = Path(numba.config.CACHE_DIR)
+    others = kernel_cache.others(cache)
     return {
         "revdem": __version__,
         "numba": numba.__version__,
         **threads.summary(),
         "parallel_from_particles": {"light": parallel_from[LIGHT], "heavy": parallel_from[HEAVY]},
-        "kernel_cache": numba.config.CACHE_DIR,
+        "kernel_cache": str(cache),
+        "kernel_cache_bytes": kernel_cache.size(cache),
+        "other_kernel_caches": len(others),
+        "other_kernel_caches_bytes": sum(kernel_cache.size(p) for p in others),
+        "other_kernel_caches_kept": kernel_cache.CACHES_KEPT,
     }
 
 
@@ -219,5 +225,12 @@ def system_lines(summary: dict) -> list[str]:
         f"parallel loops:  from {summary['parallel_from_particles']['heavy']} particles for the "
         f"pairs and walls, {summary['parallel_from_particles']['light']} for the kicks and drifts "
         "(serial below)",
-        f"kernel cache:    {summary['kernel_cache']}",
+        f"kernel cache:    {summary['kernel_cache']} ({_megabytes(summary['kernel_cache_bytes'])}"
+        f"; {summary['other_kernel_caches']} of other versions beside it, "
+        f"{_megabytes(summary['other_kernel_caches_bytes'])}: a new version keeps the "
+        f"{summary['other_kernel_caches_kept']} last used)",
     ]
+
+
+def _megabytes(size: int) -> str:
+    return f"{size / 1e6:.0f} MB"
