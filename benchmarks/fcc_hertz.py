@@ -12,21 +12,22 @@ components uniform in [-0.01, 0.01] m/s, dt = 1 us, skin 0.5 mm; `frictionless`,
 
 Each measurement runs in a process of its own (its thread count, its memory): the stepping
 loop's particle-steps per second (N x steps / loop time, set-up and compilation excluded,
-the best of REPEATS timings, as is LAMMPS's figure),
+as is LAMMPS's figure; the best of REPEATS processes),
 the state's bytes per sphere, the process's peak memory per sphere above what it held
 before the spheres were made, and a digest of the final state, which must not depend on the
 thread count. Beside them: the JIT compile time (a run with an empty kernel cache), the warm
 start (a second `revdem run configs/collision.toml` of one step, from process start to
 exit). The peers (LAMMPS, LIGGGHTS and Yade, each through ../shared/bench/PEER/run.sh, which
 installs it when missing) run the same workload at the sizes of --peer-sizes, with as many
-MPI ranks or OpenMP threads as revdem has threads, right after revdem's measurement; beside
-each figure its ratio to each peer and to the fastest of them (`--peers` with no names runs
-none). Before them ../shared/bench/check.sh runs the three on a small case from one velocity
-field; its output goes to OUT/peers_check.txt. The cost of fixed-point arithmetic (n = 24,
-the most threads) comes from a process of its own that steps a floating-point run and a
-fixed-point one in turns of TURN steps (`arithmetic_cost`), so that both meet the same
-machine. Results go to OUT/fcc_hertz.json; --scaling adds the time per particle-step
-against N, OUT/scaling.png.
+MPI ranks or OpenMP threads as revdem has threads, in turns with revdem: REPEATS rounds of
+revdem's process and each peer's run, so that all meet the same slow spells of a shared
+machine; beside each figure its ratio to each peer and to the fastest of them, best to
+best (`--peers` with no names runs none). Before them ../shared/bench/check.sh runs the
+three on a small case from one velocity field; its output goes to OUT/peers_check.txt.
+The cost of fixed-point arithmetic (n = 24, the most threads) comes from a process of its
+own that steps a floating-point run and a fixed-point one in turns of TURN steps
+(`arithmetic_cost`), so that both meet the same machine. Results go to OUT/fcc_hertz.json;
+--scaling adds the time per particle-step against N, OUT/scaling.png.
 """
 
 from __future__ import annotations
@@ -50,9 +51,8 @@ STEPS = {10: 1000, 24: 200, 64: 20}
 at n = 64 (about a million spheres) for a few seconds of stepping."""
 
 REPEATS = 3
-"""Each figure is the best of this many timings (one process, one after another for revdem;
-separate runs for each peer): the machines are shared, and a slower timing measures the other
-work on them."""
+"""Each figure is the best of this many timings, revdem's and each peer's taken in turns, one
+a process: the machines are shared, and a slower timing measures the other work on them."""
 
 DIAMETER = 0.01
 SPACING = 0.999 * DIAMETER * 2**0.5
@@ -92,8 +92,11 @@ def _rss(field: str) -> int:
     return 0
 
 
-def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict:
-    """Build the benchmark and time its stepping loop, in this process."""
+def measure(
+    n: int, variant: str, steps: int, arithmetic: str = "float", repeats: int = REPEATS
+) -> dict:
+    """Build the benchmark and time its stepping loop, in this process: the best of
+    `repeats` stretches of `steps` steps."""
     import numpy as np
 
     from revdem_cli.config import Scenario
@@ -108,7 +111,7 @@ def measure(n: int, variant: str, steps: int, arithmetic: str = "float") -> dict
     model = Model.of(scenario)
     state = initial_state(scenario)
     setup = time.perf_counter() - started
-    loop = min(loop_seconds(state, model, steps) for _ in range(REPEATS))
+    loop = min(loop_seconds(state, model, steps) for _ in range(repeats))
     arrays = [state.particles, state.pairs, state.walls, state.cell, state.fixed]
     state_bytes = sum(a.nbytes for bundle in arrays for a in bundle if isinstance(a, np.ndarray))
     count = len(state.particles.x)
@@ -220,9 +223,11 @@ def measured_apart(
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def in_process(n: int, variant: str, steps: int, threads: int, arithmetic: str = "float") -> dict:
+def in_process(
+    n: int, variant: str, steps: int, threads: int, arithmetic="float", repeats=REPEATS
+) -> dict:
     """`measure` in a fresh process with `threads` threads."""
-    return measured_apart("fcc_hertz", n, variant, steps, arithmetic, threads=threads)
+    return measured_apart("fcc_hertz", n, variant, steps, arithmetic, repeats, threads=threads)
 
 
 def startup_times() -> dict:
@@ -247,41 +252,60 @@ def startup_times() -> dict:
 
 def peer(name: str, n: int, steps: int, procs: int, variant: str) -> dict | None:
     """A peer's particle-steps per second on the same workload with `procs` MPI ranks or
-    OpenMP threads, the best of REPEATS runs of its run.sh, or None, said on stderr, where
-    its run.sh is missing or gives no figure."""
+    OpenMP threads, from one run of its run.sh, or None, said on stderr, where its run.sh is
+    missing or gives no figure."""
     script = BENCH / name / "run.sh"
     if not script.exists():
         print(f"{name}: no {script}; its column stays empty", file=sys.stderr)
         return None
-    best = None
-    for _ in range(REPEATS):
-        done = subprocess.run(
-            ["bash", str(script), str(n), str(steps), str(procs), variant],
-            capture_output=True,
-            text=True,
-        )
-        for line in done.stdout.splitlines():
-            words = line.split()
-            if not words or words[0] != name:
-                continue
+    done = subprocess.run(
+        ["bash", str(script), str(n), str(steps), str(procs), variant],
+        capture_output=True,
+        text=True,
+    )
+    for line in done.stdout.splitlines():
+        words = line.split()
+        if words and words[0] == name:
             fields = dict(word.split("=", 1) for word in words[1:] if "=" in word)
-            figure = float(fields["particle_steps_per_s"])
-            if best is None or figure > best["particle_steps_per_s"]:
-                best = {
-                    "peer": name,
-                    "n": n,
-                    "variant": variant,
-                    "particles": int(fields["particles"]),
-                    "steps": steps,
-                    "procs": procs,
-                    "kind": "threads" if "threads" in fields else "ranks",
-                    "particle_steps_per_s": figure,
-                }
-    if best is None:
-        said = (done.stderr.strip().splitlines() or ["nothing on stderr"])[-1]
-        print(f"{name}: {script} gave no figure (exit status {done.returncode}: {said})",
-              file=sys.stderr)  # fmt: skip
-    return best
+            return {
+                "peer": name,
+                "n": n,
+                "variant": variant,
+                "particles": int(fields["particles"]),
+                "steps": steps,
+                "procs": procs,
+                "kind": "threads" if "threads" in fields else "ranks",
+                "particle_steps_per_s": float(fields["particle_steps_per_s"]),
+            }
+    said = (done.stderr.strip().splitlines() or ["nothing on stderr"])[-1]
+    print(f"{name}: {script} gave no figure (exit status {done.returncode}: {said})",
+          file=sys.stderr)  # fmt: skip
+    return None
+
+
+def in_turns_with_peers(
+    n: int, variant: str, steps: int, threads: int, peers: list[str]
+) -> tuple[dict, dict]:
+    """REPEATS rounds, each of one revdem process (`in_process`, one stretch of `steps`
+    steps) and one run of each peer, so that all meet the same spells of the machine:
+    (revdem's best, with every round's rate and digest; each peer's best, with every round's
+    rate, where it gave any)."""
+    runs, theirs = [], {name: [] for name in peers}
+    for _ in range(REPEATS):
+        runs.append(in_process(n, variant, steps, threads, repeats=1))
+        for name in peers:
+            figure = peer(name, n, steps, threads, variant)
+            if figure is not None:
+                theirs[name].append(figure)
+    rate = "particle_steps_per_s"
+    best = max(runs, key=lambda run: run[rate])
+    best |= {"rounds": [run[rate] for run in runs], "digests": sorted({r["digest"] for r in runs})}
+    bests = {
+        name: max(figures, key=lambda f: f[rate]) | {"rounds": [f[rate] for f in figures]}
+        for name, figures in theirs.items()
+        if figures
+    }
+    return best, bests
 
 
 def peers_check(out: Path) -> Path | None:
@@ -366,8 +390,9 @@ def main() -> None:
             digests = set()
             for threads in args.threads:
                 load = os.getloadavg()[0]
-                row = in_process(n, variant, steps, threads)
-                digests.add(row["digest"])
+                peers = args.peers if n in args.peer_sizes else []
+                row, bests = in_turns_with_peers(n, variant, steps, threads, peers)
+                digests.update(row["digests"])
                 row["load_average_1min"] = load
                 row["peers"], row["ratio_to"] = {}, {}
                 line = (
@@ -376,9 +401,7 @@ def main() -> None:
                     f"{row['peak_bytes_per_particle']:10.0f}"
                 )
                 for name in args.peers:
-                    theirs = (
-                        peer(name, n, steps, threads, variant) if n in args.peer_sizes else None
-                    )
+                    theirs = bests.get(name)
                     if theirs is None:
                         line += f" {'-':>9} {'-':>5}"
                         continue
