@@ -100,8 +100,15 @@ def use_cache(cache: Path) -> None:
 
 
 def size(path: Path) -> int:
-    """Bytes of the files under `path`."""
-    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+    """Bytes of the files under `path` (none for one that another process removes meanwhile,
+    `prune_caches`)."""
+    total = 0
+    for f in path.rglob("*"):
+        try:
+            total += f.stat().st_size if f.is_file() else 0
+        except FileNotFoundError:
+            continue
+    return total
 
 
 class _PackageLocator(UserProvidedCacheLocator):

@@ -225,10 +225,10 @@ def system_lines(summary: dict) -> list[str]:
         f"parallel loops:  from {summary['parallel_from_particles']['heavy']} particles for the "
         f"pairs and walls, {summary['parallel_from_particles']['light']} for the kicks and drifts "
         "(serial below)",
-        f"kernel cache:    {summary['kernel_cache']} ({_megabytes(summary['kernel_cache_bytes'])}"
-        f"; {summary['other_kernel_caches']} of other versions beside it, "
-        f"{_megabytes(summary['other_kernel_caches_bytes'])}: a new version keeps the "
-        f"{summary['other_kernel_caches_kept']} last used)",
+        f"kernel cache:    {summary['kernel_cache']} ({_megabytes(summary['kernel_cache_bytes'])});"
+        f" beside it {summary['other_kernel_caches']} of other versions "
+        f"({_megabytes(summary['other_kernel_caches_bytes'])}), of which a new version keeps the "
+        f"{summary['other_kernel_caches_kept']} last used",
     ]
 
 
