@@ -848,8 +848,6 @@ def balanced(balance, chunks, first_pair, n_pairs):
     known = True
     for c in range(balance.shape[0]):
         known = known and (balance[c, TOOK] > 0.0) == (c < chunks)
-        if c >= chunks:
-            balance[c, TOOK] = 0.0
     pace = 0.0
     if known:
         for c in range(chunks):
@@ -868,7 +866,7 @@ def balanced(balance, chunks, first_pair, n_pairs):
         balance[c, PART] /= total
         balance[c, FIRST] = np.searchsorted(first_pair, np.int64(reached * n_pairs))
         reached += balance[c, PART]
-        balance[c, TOOK] = 0.0
+    balance[:, TOOK] = 0.0  # until this call's chunks have taken it
 
 
 pair_loop = by_size(_pair_loop, threads_for=one_thread)

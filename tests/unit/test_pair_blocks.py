@@ -124,6 +124,12 @@ def test_the_shares_of_the_list_settle_where_the_threads_finish_together():
             assert np.allclose(parts[-1], [1 - LEAST_PART / 2, LEAST_PART / 2], rtol=1e-12)
     balanced(balance, 3, first_pair, n_pairs)  # timed on two chunks, now three
     assert np.array_equal(balance[:3, PART], [1 / 3, 1 / 3, 1 / 3])
+    balance[:3, TOOK] = (1.0, 1.0, 1.0)  # timed on three, now two: even, then by pace again
+    balanced(balance, 2, first_pair, n_pairs)
+    assert np.array_equal(balance[:2, PART], [0.5, 0.5]) and not balance[:, TOOK].any()
+    balance[:2, TOOK] = (1.0, 3.0)
+    balanced(balance, 2, first_pair, n_pairs)
+    assert np.isclose(balance[0, PART], 0.5 * (0.5 + 0.75), rtol=1e-12)
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two threads")
