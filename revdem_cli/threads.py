@@ -81,8 +81,8 @@ it loses, up to `PROBE_EVERY_MOST`."""
 PROBE_EVERY_MOST = 320.0
 
 PROBE = 0.02
-"""A trial of the thread count not in use lasts this many seconds at its last rate; so does
-the first stretch on a count chosen on a rate older than the other count's."""
+"""A trial of the thread count not in use lasts this many seconds at the faster count's last
+rate; so does the first stretch on a count chosen on a rate older than the other count's."""
 
 
 class Stepper:
@@ -161,14 +161,15 @@ class Stepper:
         if len(counts) == 1:
             return best, self._stretch[best]
         other = next(count for count in counts if count != best)
+        trial = max(1, int(self._rate[best] * PROBE))  # steps of PROBE seconds
         if self._stepped >= self._probe_at:
             self._probe_at = self._stepped + self._probe_every
-            return other, max(1, int(self._rate[best] * PROBE))
+            return other, trial
         if best != self._last and self._timed_at[best] < self._timed_at[other]:
             # chosen on an older rate than the one it beat (a stage whose steps grow
             # costlier, as a pour gains contacts, made the other's fresh rate the lower):
             # timed again first, not stepped for a stretch sized by that rate
-            return best, min(self._stretch[best], max(1, int(self._rate[best] * PROBE)))
+            return best, min(self._stretch[best], trial)
         return best, self._stretch[best]
 
     def _best(self, counts: tuple[int, ...]) -> int:
