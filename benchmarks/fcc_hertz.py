@@ -224,7 +224,12 @@ def measured_apart(
 
 
 def in_process(
-    n: int, variant: str, steps: int, threads: int, arithmetic="float", repeats=REPEATS
+    n: int,
+    variant: str,
+    steps: int,
+    threads: int,
+    arithmetic: str = "float",
+    repeats: int = REPEATS,
 ) -> dict:
     """`measure` in a fresh process with `threads` threads."""
     return measured_apart("fcc_hertz", n, variant, steps, arithmetic, repeats, threads=threads)
