@@ -257,12 +257,9 @@ def startup_times() -> dict:
 
 def peer(name: str, n: int, steps: int, procs: int, variant: str) -> dict | None:
     """A peer's particle-steps per second on the same workload with `procs` MPI ranks or
-    OpenMP threads, from one run of its run.sh, or None, said on stderr, where its run.sh is
-    missing or gives no figure."""
+    OpenMP threads, from one run of its run.sh, or None, said on stderr, where it gives no
+    figure."""
     script = BENCH / name / "run.sh"
-    if not script.exists():
-        print(f"{name}: no {script}; its column stays empty", file=sys.stderr)
-        return None
     done = subprocess.run(
         ["bash", str(script), str(n), str(steps), str(procs), variant],
         capture_output=True,
@@ -369,6 +366,9 @@ def main() -> None:
     if args.peers and not BENCH.is_dir():
         alone = "--peers alone (make bench PEERS=) runs revdem alone"
         parser.exit(2, f"{BENCH}: not there to run the peers from; {alone}\n")
+    for name in [name for name in args.peers if not (BENCH / name / "run.sh").exists()]:
+        print(f"{name}: no {BENCH / name / 'run.sh'}; left out", file=sys.stderr)
+        args.peers.remove(name)
     args.out.mkdir(parents=True, exist_ok=True)
     results = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
