@@ -33,12 +33,16 @@ BYTES_PER_SPHERE_AND_WALL = 160
 """Memory of the contact history of a sphere with a wall, bytes (5 vectors and 4 scalars)."""
 
 
+CGROUP_LIMIT = Path("/sys/fs/cgroup/memory.max")
+"""The memory limit of this process's control group (cgroup v2), bytes, or `max`."""
+
+
 def memory_bytes() -> int:
     """Physical memory of this machine, or the memory limit of its control group if that is
     lower, bytes."""
     memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     try:
-        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        limit = CGROUP_LIMIT.read_text().strip()
     except OSError:
         return memory
     return min(memory, int(limit)) if limit.isdigit() else memory

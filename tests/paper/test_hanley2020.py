@@ -1,5 +1,8 @@
-"""Hanley 2020's verification cases against the numbers the paper reports
-(scenarios/hanley2020/paper_numbers.toml)."""
+"""Hanley 2020's verification cases that run in minutes against the numbers the paper
+reports (scenarios/hanley2020/paper_numbers.toml): the collisions, the drops A and C and the
+fcc triaxial test. The full oedometer (up to 2.1e6 steps) and drop B (8e6) are set beside the
+paper by `make paper` (`revdem report`, scenarios/report/hanley2020.md); the oedometer's
+physics is tested small in tests/physics/test_oedometer.py."""
 
 import json
 import tomllib

@@ -55,6 +55,7 @@ def test_no_contact_gives_zero_fabric_and_coordination():
     assert not row["fabric"].any()
     assert row["mechanical_coordination_number"] == 0.0
     assert row["fabric_deviator"] == 0.0
+    assert row["sliding_fraction"] == 0.0
 
 
 def test_a_compressed_fcc_lattice_is_isotropic():

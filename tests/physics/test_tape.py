@@ -331,8 +331,26 @@ def test_a_tape_in_small_blocks_streams_to_disk_and_back(tmp_path, monkeypatch):
     """Blocks of 64 steps: the recording is written out 235 times and read back block by
     block from the end, and the reversal is still exact."""
     monkeypatch.setattr(tape_file, "STEPS_PER_BLOCK", 64)
-    taped = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path)
+    written, read = [], []  # the steps of each block appended; each load's last step and span
+    append, load = tape_file._append_block, tape_file.Replayer.load
+
+    def appended(path, block):
+        written.append(block[3].shape[0])  # the block's counts: one a step
+        append(path, block)
+
+    def loaded(replayer, step):
+        load(replayer, step)
+        read.append((step, int(replayer.buffers.span[1])))
+
+    monkeypatch.setattr(tape_file, "_append_block", appended)
+    monkeypatch.setattr(tape_file.Replayer, "load", loaded)
+    experiment = _fixed(_shear_collision(0.3), tape=True)
+    taped = revdem.run(experiment, tmp_path)
     assert taped.comparison["bitwise_identical"]
+    steps = experiment.scenario.stages[0].steps
+    assert written == [64] * (steps // 64) + [steps % 64] and len(written) == 235
+    assert [step for step, _ in read] == list(range(steps, 0, -64))  # from the end
+    assert [span for _, span in read] == written  # 64 steps a load, the rest at the start
 
 
 def test_a_step_with_more_entries_than_the_block_holds_is_recorded_again(tmp_path, monkeypatch):

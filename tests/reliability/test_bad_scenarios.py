@@ -13,6 +13,7 @@ import copy
 import datetime
 import json
 import math
+import os
 import re
 import string
 import tempfile
@@ -555,8 +556,24 @@ def test_huge_counts_are_refused_before_anything_is_generated(tried, data):
         refused(tried, "huge count", scenario, suffix, *expected)
 
 
-def test_memory_is_this_machines():
-    assert 2**26 < host.memory_bytes() < 2**50
+PHYSICAL = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+@pytest.mark.parametrize(
+    ("limit", "expected"),
+    [
+        (None, PHYSICAL),  # no control group file
+        ("max\n", PHYSICAL),  # no limit
+        ("1048576\n", 1048576),
+        (f"{PHYSICAL + 4096}\n", PHYSICAL),  # a limit above the machine's memory
+    ],
+)
+def test_memory_is_this_machines_or_its_control_groups_if_lower(tmp_path, limit, expected):
+    path = tmp_path / "memory.max"
+    if limit is not None:
+        path.write_text(limit)
+    with mock.patch.object(host, "CGROUP_LIMIT", path):
+        assert host.memory_bytes() == expected
 
 
 def test_yaml_numbers_are_read_as_yaml_1_2_reads_them():

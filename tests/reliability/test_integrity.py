@@ -20,7 +20,7 @@ runner = CliRunner()
 
 @pytest.fixture(scope="module")
 def restart(tmp_path_factory) -> Path:
-    """The shear collision, 200 steps (a pair with shear history), forward only."""
+    """The shear collision, 2 000 steps (a pair with shear history), forward only."""
     out = tmp_path_factory.mktemp("shear")
     args = ["run", CONFIGS / "collision_shear.toml", "--out", out, "-q", "--no-reverse"]
     result = runner.invoke(app, [str(a) for a in [*args, "--set", "stages.0.steps=2000"]])

@@ -161,7 +161,8 @@ def test_the_forces_do_not_depend_on_where_the_list_is_cut(took):
                     0.0, empty_events(), 1, True,
                 )  # fmt: skip
                 results.append((threads, pairs.balance[:2, PART].copy(), p.f.copy(),
-                                p.torque.copy(), pairs.force[:n_pairs].copy()))  # fmt: skip
+                                p.torque.copy(), pairs.force[:n_pairs].copy(),
+                                pairs.history[:n_pairs].copy()))  # fmt: skip
         finally:
             numba.set_num_threads(was)
     one, two = results[:3], results[3:]
