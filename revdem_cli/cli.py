@@ -10,14 +10,15 @@ import typer
 from typer.core import TyperGroup
 
 from revdem_cli import __version__
-from revdem_cli.errors import InputError, RunFailed
+from revdem_cli.errors import InputError, RunFailed, path_problem
 from revdem_cli.timestep.command import dt as _dt
 
 
 class _Commands(TyperGroup):
-    """Turns bad input anywhere in a command into one line on stderr and exit status 2, and a
-    run that cannot go on (RunFailed) or a failure of the machine or the file system
-    (RuntimeError, OSError, MemoryError) into one line and exit status 1. Any other
+    """Turns bad input anywhere in a command into one line on stderr and exit status 2 (a
+    path given that cannot be used too: `errors.path_problem`), and a run that cannot go on
+    (RunFailed) or a failure of the machine or the file system (RuntimeError, OSError,
+    MemoryError) into one line and exit status 1. Any other
     exception is a bug and keeps its traceback."""
 
     def main(self, *args, standalone_mode: bool = True, **kwargs):
@@ -56,7 +57,14 @@ class _Commands(TyperGroup):
         except RunFailed as exc:
             typer.echo(f"failed: {exc}", err=True)
             raise typer.Exit(1) from None
-        except (RuntimeError, OSError, MemoryError) as exc:
+        except OSError as exc:
+            problem = path_problem(exc)  # a path given that cannot be used: bad input
+            if problem is not None:
+                typer.echo(f"error: {problem}", err=True)
+                raise typer.Exit(2) from None
+            typer.echo(f"failed: {type(exc).__name__}: {exc}", err=True)
+            raise typer.Exit(1) from None
+        except (RuntimeError, MemoryError) as exc:
             typer.echo(f"failed: {type(exc).__name__}: {exc}", err=True)
             raise typer.Exit(1) from None
 
@@ -385,6 +393,7 @@ def export(
         given = "give one" if format is None else f"got {format!r}"
         raise InputError(f"export: --format must be one of {', '.join(formats)}; {given}")
     target = out or trajectory.with_suffix(formats[format])
+    _refuse_overwriting_hdf5(target, trajectory)
     if format == "vtk":
         from revdem_cli.io.vtk import export_vtk
 
@@ -399,6 +408,16 @@ def export(
         "lammps-data": particles.export_lammps_data,
     }[format]
     typer.echo(f"wrote {exporter(trajectory, target)}")
+
+
+def _refuse_overwriting_hdf5(target: Path, trajectory: Path) -> None:
+    """InputError where an export would write over the trajectory it reads or another HDF5
+    file (a run's trajectory, restart or tape): an export's formats are never HDF5."""
+    import h5py
+
+    if target.is_file() and (target.resolve() == trajectory.resolve() or h5py.is_hdf5(target)):
+        what = "the trajectory exported" if target.resolve() == trajectory.resolve() else "HDF5"
+        raise InputError(f"export: --out {target}: {what}, which an export would overwrite")
 
 
 @app.command()

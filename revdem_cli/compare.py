@@ -2,17 +2,43 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
 import numpy as np
 
 from revdem_cli.config import Reversal, Scenario
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, check_regular
 from revdem_cli.io import GRID_FIELDS
 from revdem_cli.io.h5md import frame_steps, open_trajectory, read_frame
 from revdem_cli.kernels.events import AMOUNT, COUNT, KINDS, LAST, PARTICLE, PARTNER
 from revdem_cli.state import particle_named, partner_named
+
+VERDICT_KEYS = (
+    "reversible",
+    "bitwise_identical",
+    "max_position_error_rel",
+    "max_velocity_error",
+    "first_divergence_step",
+)
+"""What every NAME.compare.json holds (`compare_trajectories`), which its readers rely on."""
+
+
+def read_verdict(path: Path) -> dict:
+    """A run's NAME.compare.json, as `compare_trajectories` wrote it; InputError naming the
+    file where it is not one (FileNotFoundError where it is missing)."""
+    check_regular(path, "a comparison")
+    try:
+        verdict = json.loads(Path(path).read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: not a revdem comparison ({exc})") from None
+    if not isinstance(verdict, dict):
+        raise InputError(f"{path}: not a revdem comparison (not a JSON object)")
+    missing = [key for key in VERDICT_KEYS if key not in verdict]
+    if missing:
+        raise InputError(f"{path}: not a revdem comparison (no {', '.join(missing)})")
+    return verdict
 
 
 def _max_norm(a: np.ndarray, b: np.ndarray) -> float:

@@ -1,6 +1,9 @@
 """Errors that the command line turns into one clear line: bad input (exit status 2), and
 a run that cannot go on (exit status 1)."""
 
+import errno
+import os
+
 
 class InputError(Exception):
     """Bad input from the user: a scenario field, a file, a command-line value.
@@ -41,7 +44,6 @@ class WriteFailed(RunFailed):
 def why_not_written(exc: BaseException) -> str:
     """The reason of a failed write in a few words: the system's for its errno (HDF5 puts it
     in its message), else the message itself."""
-    import os
     import re
 
     number = getattr(exc, "errno", None)
@@ -51,3 +53,31 @@ def why_not_written(exc: BaseException) -> str:
     if number:
         return f"{os.strerror(number)} (errno {number})"
     return " ".join(str(exc).split())[:200] or type(exc).__name__
+
+
+PATH_ERRORS = frozenset(
+    {errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENOENT, errno.EACCES, errno.EPERM,
+     errno.EROFS, errno.ENAMETOOLONG}
+)  # fmt: skip
+"""The errnos of a path the user gave that cannot be used as given (`path_problem`), as
+opposed to a failure of the machine (a full disk, a lost mount)."""
+
+
+def path_problem(exc: OSError) -> str | None:
+    """What is wrong with the path an OSError names, in one line that says where: a file
+    where a folder is needed (the path itself or one above it), a folder where a file is,
+    or the system's reason; None where it names no path or the error is not the path's."""
+    from pathlib import Path
+
+    if exc.filename is None or exc.errno not in PATH_ERRORS:
+        return None
+    path = Path(exc.filename)
+    if exc.errno in (errno.ENOTDIR, errno.EEXIST):
+        blocking = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
+        if blocking == path:
+            return f"{path}: a file, not a folder"
+        if blocking is not None:
+            return f"{path}: {blocking} is a file, not a folder"
+    if exc.errno == errno.EISDIR:
+        return f"{path}: a folder, not a file"
+    return f"{path}: {os.strerror(exc.errno)}"

@@ -201,9 +201,8 @@ def read_restart(path: str | Path, checkpoint: bool | None = False) -> Restart:
     path = Path(path)
     f = open_hdf5(path)
     with f:
-        meta = _meta(f, path, checkpoint)
         try:
-            return _read(f, meta, path)
+            return _read(f, _meta(f, path, checkpoint), path)
         except DAMAGE as exc:
             raise InputError(f"{path}: damaged revdem restart file ({one_line(exc)})") from None
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import h5py
@@ -19,7 +18,7 @@ def describe(path: str | Path) -> dict:
     try:
         with f:
             if "revdem" in f and f["revdem"].attrs.get("kind") == "restart":
-                return _restart(path, f)
+                return _restart(path)
             if "parameters/revdem" in f and "particles/all/position" in f:
                 return _trajectory(path, f)
             if f.attrs.get("kind") == "revdem tape":
@@ -51,6 +50,8 @@ def _scenario(text: str) -> dict:
 
 
 def _trajectory(path: Path, f: h5py.File) -> dict:
+    from revdem_cli.compare import read_verdict
+
     attrs = f["parameters/revdem"].attrs
     steps = f["particles/all/position/step"][:]
     info = {
@@ -65,7 +66,7 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
     }
     comparison = path.with_name(f"{info['scenario']}.compare.json")
     if comparison.exists():
-        verdict = json.loads(comparison.read_text())
+        verdict = read_verdict(comparison)
         info["comparison"] = {
             key: verdict[key]
             for key in (
@@ -92,21 +93,24 @@ def _tape(path: Path, f: h5py.File) -> dict:
     }
 
 
-def _restart(path: Path, f: h5py.File) -> dict:
-    """A restart file, or a checkpoint: a restart taken part-way through a run."""
-    attrs = f["revdem"].attrs
-    checkpoint = f["revdem"].get("checkpoint")
+def _restart(path: Path) -> dict:
+    """A restart file, or a checkpoint: a restart taken part-way through a run; read whole,
+    every checksum checked, as `revdem reverse` and `--resume` read it."""
+    from revdem_cli.io.restart import read_restart
+
+    restart = read_restart(path, checkpoint=None)
+    resumption = restart.resumption
     return {
         "file": str(path),
-        "kind": "restart" if checkpoint is None else "checkpoint",
-        "direction": "forward" if checkpoint is None else str(checkpoint.attrs["phase"]),
-        **_scenario(str(attrs["scenario_json"])),
-        "particles": int(f["particles/x"].shape[0]),
-        "step": int(attrs["step"]),
-        "stage": str(attrs["stage"]),
-        "stage_dt": float(attrs["stage_dt"]),
-        "trajectory": str(attrs["trajectory"]),
-        **_tape_of(path, str(attrs.get("tape", ""))),
+        "kind": "restart" if resumption is None else "checkpoint",
+        "direction": "forward" if resumption is None else resumption.phase,
+        **_scenario(restart.scenario_json),
+        "particles": int(restart.state.particles.x.shape[0]),
+        "step": int(restart.state.step),
+        "stage": restart.stage,
+        "stage_dt": float(restart.stage_dt),
+        "trajectory": restart.trajectory,
+        **_tape_of(path, restart.tape),
     }
 
 

@@ -9,7 +9,8 @@ case reports is measured by the entry of MEASURES of the same name; `relative_to
 
 from __future__ import annotations
 
-import json
+import errno
+import os
 import shutil
 import tomllib
 from collections.abc import Callable
@@ -17,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from revdem_cli.compare import read_verdict
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import open_trajectory, read_observable
 
@@ -127,16 +129,34 @@ MEASURES: dict[str, tuple[str, Callable]] = {
 
 
 class _Run:
+    """A case's run in a directory: its files NAME.forward.h5, NAME.reverse.h5 and
+    NAME.compare.json, each FileNotFoundError naming it where it is missing."""
+
     def __init__(self, directory: Path, name: str, case: dict):
-        self.forward = directory / f"{name}.forward.h5"
-        self.reverse = directory / f"{name}.reverse.h5"
-        self.comparison = directory / f"{name}.compare.json"
-        self.case = case
+        self.directory, self.name, self.case = Path(directory), name, case
+
+    def _file(self, kind: str) -> Path:
+        path = self.directory / f"{self.name}.{kind}"
+        if not path.exists():
+            raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), str(path))
+        return path
+
+    @property
+    def forward(self) -> Path:
+        return self._file("forward.h5")
+
+    @property
+    def reverse(self) -> Path:
+        return self._file("reverse.h5")
 
     def verdict(self) -> dict:
-        if not self.comparison.exists():
-            raise FileNotFoundError(self.comparison.name)
-        return json.loads(self.comparison.read_text())
+        return read_verdict(self._file("compare.json"))
+
+    @property
+    def ran(self) -> bool:
+        """Whether the case has a run in the directory (its trajectory or its verdict)."""
+        return any((self.directory / f"{self.name}.{kind}").exists()
+                   for kind in ("forward.h5", "compare.json"))  # fmt: skip
 
 
 def _judge(how: str, paper, ours, tolerance: float | None) -> bool:
@@ -156,7 +176,8 @@ def _show(value) -> str:
 
 
 def case_rows(name: str, case: dict, directory: Path) -> list[tuple[str, str, str, str]]:
-    """(quantity, paper, revdem, agrees) for each number the case reports."""
+    """(quantity, paper, revdem, agrees) for each number the case reports; InputError naming
+    a file of its run that is damaged."""
     run = _Run(directory, name, case)
     rows = []
     for key, paper in case.items():
@@ -168,8 +189,8 @@ def case_rows(name: str, case: dict, directory: Path) -> list[tuple[str, str, st
         how, measure = MEASURES[key]
         try:
             ours = measure(run)
-        except (FileNotFoundError, InputError):
-            rows.append((key, _show(paper), f"no run in {directory}", ""))
+        except FileNotFoundError as exc:  # no run, or a run without its reversal
+            rows.append((key, _show(paper), f"no {Path(exc.filename).name}", ""))
             continue
         tolerance = case.get(f"{key}_relative_tolerance", case.get("relative_tolerance"))
         agrees = _judge(how, paper, ours, tolerance)
@@ -180,12 +201,43 @@ def case_rows(name: str, case: dict, directory: Path) -> list[tuple[str, str, st
     return rows
 
 
-def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
-    """Write the Markdown page to `out`; InputError for a paper file that cannot be read."""
+def read_paper(paper_path: Path) -> dict[str, dict]:
+    """The cases of a paper file (its tables), each number it reports checked to be one;
+    InputError naming the file and the entry otherwise, or where no table reports a number
+    revdem measures (a scenario file given for it, say)."""
     try:
         paper = tomllib.loads(Path(paper_path).read_text())
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InputError(f"{paper_path}: cannot read the paper's numbers ({exc})") from None
+    cases = {name: case for name, case in paper.items() if isinstance(case, dict)}
+    if not any(key in MEASURES for case in cases.values() for key in case):
+        raise InputError(
+            f"{paper_path}: not a paper's numbers: no table reports a number revdem measures "
+            "(see scenarios/hanley2020/paper_numbers.toml)"
+        )
+    for name, case in cases.items():
+        for key, value in case.items():
+            if key not in MEASURES:
+                continue
+            if MEASURES[key][0] == "equal" and not isinstance(value, bool):
+                raise InputError(f"{paper_path}: {name}.{key} = {value!r}: give true or false")
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            if MEASURES[key][0] != "equal" and not number:
+                raise InputError(f"{paper_path}: {name}.{key} = {value!r}: give a number")
+    return cases
+
+
+def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
+    """Write the Markdown page to `out`; InputError for a paper file that cannot be read, a
+    directory that holds no run of its cases, or a run's file that is damaged."""
+    paper = read_paper(paper_path)
+    if not Path(directory).is_dir():
+        raise InputError(f"{directory}: no such folder of runs")
+    if not any(_Run(directory, name, case).ran for name, case in paper.items()):
+        raise InputError(
+            f"{directory}: no run of a case of {paper_path} (NAME.forward.h5 or "
+            f"NAME.compare.json, NAME one of {', '.join(paper)})"
+        )
     lines = [
         f"# {paper_path} against the runs in {directory}",
         "",
@@ -193,8 +245,6 @@ def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
         "NAME.compare.json.",
     ]
     for name, case in paper.items():
-        if not isinstance(case, dict):
-            continue
         title = f"## {name}" + (f" ({case['section']})" if "section" in case else "")
         lines += ["", title, ""]
         if "config" in case:

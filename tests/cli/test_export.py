@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
-from tests.conftest import CONFIGS
+from tests.conftest import CONFIGS, assert_one_line_error
 
 runner = CliRunner()
 
@@ -66,6 +66,16 @@ def test_export_needs_a_format_and_a_trajectory(smoke_run):
     ):
         result = runner.invoke(app, args)
         assert result.exit_code == 2 and message in result.output, result.output
+
+
+@pytest.mark.parametrize("fmt", ["gsd", "lammps-data"])
+def test_an_export_never_writes_over_the_trajectory_or_another_runs_file(smoke_run, fmt):
+    forward, restart = (smoke_run / f"collision_smoke.{kind}.h5" for kind in ("forward", "restart"))
+    kept = {path: path.read_bytes() for path in (forward, restart)}
+    for target, what in ((forward, "the trajectory exported"), (restart, "HDF5")):
+        args = ["export", str(forward), "--format", fmt, "--out", str(target)]
+        assert_one_line_error(runner.invoke(app, args), f"--out {target}: {what}, which")
+    assert all(path.read_bytes() == data for path, data in kept.items())
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
-from tests.conftest import ROOT
+from tests.conftest import ROOT, assert_one_line_error
 
 runner = CliRunner()
 
@@ -37,14 +37,19 @@ def test_report_judges_each_number_against_the_run(smoke_run, tmp_path):
     assert "| no | yes | **no** |" in rows["reversible"]  # the paper file says otherwise
     assert "| 0.066 ± 10% | 0 | **no** |" in rows["max_shear_force"]  # no shear law
     assert "not measured" in rows["coefficient_of_restitution"]
-    assert drop.splitlines()[-1] == f"| reversible | yes | no run in {smoke_run} |  |"
+    assert drop.splitlines()[-1] == "| reversible | yes | no drop_A.compare.json |  |"
 
 
 def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypatch):
     monkeypatch.chdir(ROOT)
-    result = runner.invoke(app, ["report", str(smoke_run), "--out", str(tmp_path / "r.md")])
+    runs = tmp_path / "runs"  # the smoke collision's verdict as the paper's collision's
+    runs.mkdir()
+    (runs / "collision.compare.json").symlink_to(smoke_run / "collision_smoke.compare.json")
+    result = runner.invoke(app, ["report", str(runs), "--out", str(tmp_path / "r.md")])
     assert result.exit_code == 0, result.output
-    assert "## collision_shear (§4, Figure 5)" in (tmp_path / "r.md").read_text()
+    page = (tmp_path / "r.md").read_text()
+    assert "## collision_shear (§4, Figure 5)" in page
+    assert "| max_position_error_rel | ≤ 1e-10 |" in page
     missing = runner.invoke(app, ["report", str(smoke_run), "--paper", str(tmp_path / "no")])
     assert missing.exit_code == 2 and "cannot read the paper's numbers" in missing.output
 
@@ -65,3 +70,27 @@ def test_report_shows_each_runs_figures_beside_the_page(smoke_run, tmp_path):
     assert result.exit_code == 0, result.output
     assert "![collision_smoke.speed](collision_smoke.speed.png)" in page.read_text()
     assert (tmp_path / "pages" / "collision_smoke.speed.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_folder_without_runs_and_a_file_that_is_no_papers_are_refused(smoke_run, tmp_path):
+    paper = tmp_path / "paper.toml"
+    paper.write_text(PAPER)
+    page = tmp_path / "page.md"
+
+    def report(directory, paper_path):
+        args = ["report", str(directory), "--paper", str(paper_path), "--out", str(page)]
+        return runner.invoke(app, args)
+
+    assert_one_line_error(report(tmp_path / "none", paper), "none: no such folder of runs")
+    (tmp_path / "empty").mkdir()
+    no_run = "empty: no run of a case of"
+    assert_one_line_error(report(tmp_path / "empty", paper), no_run, "collision_smoke, drop_A")
+    scenario = ROOT / "configs" / "collision.toml"
+    assert_one_line_error(report(smoke_run, scenario), "no table reports a number")
+    wrong = tmp_path / "wrong.toml"
+    wrong.write_text(PAPER.replace("max_shear_force = 0.066", 'max_shear_force = "big"'))
+    given = "collision_smoke.max_shear_force = 'big': give a number"
+    assert_one_line_error(report(smoke_run, wrong), given)
+    wrong.write_text(PAPER.replace("reversible = false", "reversible = 0"))
+    assert_one_line_error(report(smoke_run, wrong), "reversible = 0: give true or false")
+    assert not page.exists()

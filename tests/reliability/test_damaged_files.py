@@ -264,3 +264,26 @@ def test_overwritten_bytes_give_a_result_or_one_line(run, tried, data):
         assert result.exit_code in (0, 2), (result.output, result.exception)
         if result.exit_code == 2:
             assert_one_line_error(result, f"error: {path}: ")
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ("{bad", "not a revdem comparison (Expecting property name"),
+        ("[1, 2]", "not a revdem comparison (not a JSON object)"),
+        ("{}", "not a revdem comparison (no reversible, bitwise_identical"),
+    ],
+    ids=["not-json", "a-list", "empty"],
+)
+def test_a_damaged_verdict_beside_a_trajectory_is_named(run, tmp_path, text, why):
+    """`info` on a trajectory and `report` on its folder read the NAME.compare.json beside
+    it: a damaged one is named in one line, not taken for the trajectory nor for no run."""
+    trajectory = copy(run, "forward", tmp_path)
+    verdict = tmp_path / f"{NAME}.compare.json"
+    verdict.write_text(text)
+    assert_one_line_error(runner.invoke(app, ["info", str(trajectory)]), f"{verdict}: {why}")
+    paper = tmp_path / "paper.toml"
+    paper.write_text(f'[{NAME}]\nconfig = "c.yaml"\nreversible = true\n')
+    report = ["report", str(tmp_path), "--paper", str(paper), "--out", str(tmp_path / "r.md")]
+    assert_one_line_error(runner.invoke(app, report), f"{verdict}: {why}")
+    assert not (tmp_path / "r.md").exists()

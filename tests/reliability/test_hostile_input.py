@@ -214,3 +214,26 @@ def test_a_forced_run_that_fails_leaves_none_of_the_earlier_runs_files(tmp_path)
     assert failed.exit_code == 1 and "blown up" in failed.output
     assert not (tmp_path / "collision.compare.json").exists()
     assert invoke("info", tmp_path / "collision.forward.h5").exit_code == 0
+
+
+SMOKE = str(CONFIGS / "smoke" / "collision.yaml")
+
+
+@pytest.mark.parametrize(
+    ("arguments", "fragment"),
+    [
+        (["run", SMOKE, "--out", "{file}/sub"], "{file}/sub: {file} is a file, not a folder"),
+        (["run", SMOKE, "--out", "{file}"], "{file}: a file, not a folder"),
+        (["dt", "--shape", "sphere", "--radius", "1", "--density", "1000", "--kn", "1e6",
+          "--figures", "{file}/x"], "{file}/x: {file} is a file, not a folder"),
+    ],
+    ids=["run-under-a-file", "run-into-a-file", "dt-figures"],
+)  # fmt: skip
+def test_an_output_path_through_a_file_is_one_line(arguments, fragment, tmp_path):
+    """A path given that cannot be used (a file where a folder is to be made) is bad input:
+    one line naming it and what is in the way, exit status 2, and the file left alone."""
+    file = tmp_path / "afile"
+    file.write_text("kept\n")
+    result = invoke(*(a.format(file=file) for a in arguments))
+    assert_one_line_error(result, fragment.format(file=file))
+    assert file.read_text() == "kept\n"

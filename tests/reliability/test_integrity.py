@@ -85,9 +85,12 @@ def test_every_dataset_of_a_restart_is_checked(restart, tmp_path):
     for name in names:
         folder = tmp_path / name.replace("/", "_")
         folder.mkdir()
-        result = reverse(flipped(restart, folder, name), folder / "out")
+        damaged = flipped(restart, folder, name)
+        result = reverse(damaged, folder / "out")
         assert_one_line_error(result, f"damaged revdem restart ({name} fails its checksum)")
         assert not (folder / "out").exists()
+        result = runner.invoke(app, ["info", str(damaged)])  # read as `reverse` reads it
+        assert_one_line_error(result, f"damaged revdem restart ({name} fails its checksum)")
 
 
 def test_every_dataset_of_a_checkpoint_is_checked(checkpoint, tmp_path):
