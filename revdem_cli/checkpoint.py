@@ -141,7 +141,8 @@ def find_checkpoint(out_dir: Path) -> Path:
     """The one checkpoint in `out_dir`; InputError if there is none or more than one."""
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
-        raise InputError(f"--resume {out_dir}: no such directory")
+        what = "a file, not the folder of a run" if out_dir.exists() else "no such directory"
+        raise InputError(f"--resume {out_dir}: {what}")
     found = find_checkpoints(out_dir)
     if not found:
         raise InputError(

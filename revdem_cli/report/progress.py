@@ -39,17 +39,19 @@ class RunProgress:
         self.last: dict[str, tuple[float, int]] = {}  # each task's last call: time, done
 
     def __enter__(self) -> RunProgress:
-        self.bar.__enter__()
         if self.compiling:
             self.console.print(COMPILING)
         return self
 
     def __exit__(self, *exc) -> None:
-        self.bar.__exit__(*exc)
+        if self.tasks:  # a display that never showed a bar leaves no blank line
+            self.bar.__exit__(*exc)
 
     def __call__(self, label: str, done: int, total: int, particles: int = 0) -> None:
-        if particles and not self.tasks:  # the start of a run: what it computes on
-            self.console.print(threads_line())
+        if not self.tasks:  # the first call: the display starts
+            if particles:  # the start of a run: what it computes on
+                self.console.print(threads_line())
+            self.bar.__enter__()
         now = time.perf_counter()
         if label not in self.tasks:
             self.tasks[label] = self.bar.add_task(label, total=total, rate="")

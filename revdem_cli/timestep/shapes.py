@@ -154,8 +154,9 @@ def polyhedron(vertices: np.ndarray, density: float, source: str) -> Body:
     return _body("polyhedron", volume, density, principal, half_lengths)
 
 
-def _vertex_rows(text: str, path: Path) -> list:
-    """Rows of a vertex file: JSON ([[x, y, z], ...] or {"vertices": [...]}) or plain text."""
+def _vertex_rows(text: str, path: Path) -> list[tuple[str, object]]:
+    """(where, row) of each vertex of a vertex file: JSON ([[x, y, z], ...] or
+    {"vertices": [...]}; where: `vertex k`, from 0) or plain text (where: `line n`)."""
     if path.suffix.lower() == ".json":
         try:
             data = json.loads(text)
@@ -163,9 +164,12 @@ def _vertex_rows(text: str, path: Path) -> list:
             raise InputError(
                 f"vertex file {path}: not valid JSON ({exc.msg}, line {exc.lineno})"
             ) from None
-        return data["vertices"] if isinstance(data, dict) and "vertices" in data else data
+        rows = data["vertices"] if isinstance(data, dict) and "vertices" in data else data
+        if not isinstance(rows, list):
+            raise InputError(f"vertex file {path}: expected a list of vertices [x, y, z]")
+        return [(f"vertex {k}", row) for k, row in enumerate(rows)]
     lines = (line.split("#", 1)[0].replace(",", " ").split() for line in text.splitlines())
-    return [fields for fields in lines if fields]
+    return [(f"line {n}", fields) for n, fields in enumerate(lines, start=1) if fields]
 
 
 def read_vertices(path: Path) -> np.ndarray:
@@ -178,12 +182,16 @@ def read_vertices(path: Path) -> np.ndarray:
     except UnicodeDecodeError:
         raise InputError(f"vertex file {path}: not a text file") from None
     rows = _vertex_rows(text, Path(path))
-    try:
-        vertices = np.array(rows, dtype=float)
-    except (TypeError, ValueError):
-        vertices = None
-    if vertices is None or vertices.ndim != 2 or vertices.shape[1] != 3:
-        raise InputError(f"vertex file {path}: expected three numbers x y z for every vertex")
+    for where, row in rows:
+        try:
+            point = np.array(row, dtype=float)
+        except (TypeError, ValueError):
+            point = None
+        if point is None or point.shape != (3,):
+            raise InputError(
+                f"vertex file {path}: {where}: expected three numbers x y z, got {row!r}"
+            )
+    vertices = np.array([row for _, row in rows], dtype=float).reshape(-1, 3)
     if not np.isfinite(vertices).all():
         raise InputError(f"vertex file {path}: vertex coordinates must be finite numbers")
     return vertices

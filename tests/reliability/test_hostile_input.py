@@ -1,6 +1,9 @@
 """Hostile input that once crashed revdem (a segmentation fault, a traceback) or slipped past
 it: each gets one line and exit status 2 now, and the compiled kernels never see it."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -237,3 +240,14 @@ def test_an_output_path_through_a_file_is_one_line(arguments, fragment, tmp_path
     result = invoke(*(a.format(file=file) for a in arguments))
     assert_one_line_error(result, fragment.format(file=file))
     assert file.read_text() == "kept\n"
+
+
+def test_resuming_from_no_folder_or_a_file_is_one_line_with_progress_shown(tmp_path):
+    """Without -q too: the progress display, never started, adds no blank line."""
+    (tmp_path / "afile").write_text("kept\n")
+    command = [sys.executable, "-m", "revdem_cli.cli", "run", "--resume", str(tmp_path / "none")]
+    done = subprocess.run(command, capture_output=True, text=True)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr == f"error: --resume {tmp_path / 'none'}: no such directory\n"
+    result = invoke("run", "--resume", tmp_path / "afile")
+    assert_one_line_error(result, "afile: a file, not the folder of a run")

@@ -163,8 +163,18 @@ def test_vertex_files_in_text_and_json(tmp_path):
 @pytest.mark.parametrize(
     "name, content, message",
     [
-        ("short.txt", "1 2 3\n4 5\n", "expected three numbers"),
-        ("words.txt", "1 2 x\n", "expected three numbers"),
+        (
+            "short.txt",
+            "1 2 3\n# a comment\n4 5\n",
+            r"line 3: expected three numbers x y z, got \['4', '5'\]",
+        ),
+        ("words.txt", "1 2 x\n", "line 1: expected three numbers"),
+        (
+            "ragged.json",
+            "[[1, 2, 3], [1, 2]]",
+            r"vertex 1: expected three numbers x y z, got \[1, 2\]",
+        ),
+        ("scalar.json", "3", "expected a list of vertices"),
         ("broken.json", "[[1, 2, 3],", "not valid JSON"),
         ("nan.txt", "1 2 nan\n", "finite"),
     ],
