@@ -52,8 +52,9 @@ _UNITS = re.compile(r"units\s*=\s*(\w+)")
 
 
 def _fail(path: Path, line: int | None, what: str) -> InputError:
-    where = f" line {line}" if line is not None else ""
-    return InputError(f"{path}:{where}: {what}")
+    """The one line that names the data file, its line where known, and what is wrong."""
+    where = f" line {line}:" if line is not None else ""
+    return InputError(f"{path}:{where} {what}")
 
 
 def _numbers(path: Path, number: int, words: list[str], count: int, what: str) -> list[float]:

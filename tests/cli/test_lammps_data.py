@@ -225,7 +225,7 @@ def test_a_data_file_round_trip_keeps_every_number(tmp_path):
     [
         (lambda t: t.replace("Atoms # sphere", "Atoms # atomic"), ["line 10", "atom_style atomic"]),
         (lambda t: t.replace("units = si", "units = lj"), ["line 1", "units lj"]),
-        (lambda t: t.replace("108 atoms", "109 atoms"), ["109 atoms", "108"]),
+        (lambda t: t.replace("108 atoms", "109 atoms"), ["bad.data: the header gives 109 atoms"]),
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 1 0.01 2000 0 0 0"), ["density 2000"]),
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 2 0.01 1000 0 0 0"), ["atom type 2"]),
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 1 -0.01 1000 0 0 0"), ["line 12"]),
