@@ -41,6 +41,14 @@ def _number(value):
     return value
 
 
+def _number_or_inf(value):
+    """A number as `_number` takes it, which may be infinite but not NaN (pydantic would
+    check NaN against the field's bounds and say it is out of them)."""
+    if isinstance(_number(value), float) and math.isnan(value):
+        raise ValueError("Input should be a finite number or inf")
+    return value
+
+
 def _time_step(value):
     """A time step as the file wrote it: a positive, finite number of seconds, or 'auto'."""
     if value == "auto":
@@ -65,7 +73,7 @@ TimeStep = Annotated[
     WithJsonSchema({"anyOf": [{"type": "number", "exclusiveMinimum": 0}, {"const": "auto"}]}),
 ]
 """A time step, s, or 'auto': chosen at the start of each stage (`packing.automatic_dt`)."""
-FloatOrInf = Annotated[float, Field(allow_inf_nan=True), BeforeValidator(_number)]
+FloatOrInf = Annotated[float, Field(allow_inf_nan=True), BeforeValidator(_number_or_inf)]
 Int = Annotated[int, BeforeValidator(_number)]
 Vector3 = Annotated[tuple[Float, Float, Float], Field(description="three components (x, y, z)")]
 
@@ -141,8 +149,6 @@ class _Contact(_Model):
                 "rolling resistance needs a tangential law: the spheres turn only under "
                 "contact moments, which frictionless contacts do not make"
             )
-        if self.friction is not None and math.isnan(self.friction):
-            raise ValueError("friction must be a number or inf")
         return self
 
 
@@ -551,12 +557,6 @@ class StageContact(_Model):
         ge=0,
         description="viscous tangential damping during this stage, fraction of critical, -",
     )
-
-    @model_validator(mode="after")
-    def _friction_number(self) -> StageContact:
-        if self.friction is not None and math.isnan(self.friction):
-            raise ValueError("friction must be a number or inf")
-        return self
 
 
 class Stage(_Model):

@@ -68,6 +68,14 @@ def test_a_bad_override_exits_2(scenario):
     assert_one_line_error(result, "integrator.dt", "greater than 0")
 
 
+@pytest.mark.parametrize("field", ["contact.friction", "contact.normal_damping"])
+def test_nan_in_a_number_is_refused_as_not_finite_where_inf_is_allowed_too(field):
+    shear = CONFIGS / "collision_shear.toml"
+    result = invoke("validate", shear, "--set", f"{field}=nan")
+    assert_one_line_error(result, f"{shear}: {field}: Input should be a finite number")
+    assert invoke("validate", shear, "--set", "contact.friction=inf").exit_code == 0
+
+
 def test_run_writes_all_outputs_and_prints_the_comparison(scenario, tmp_path):
     out = tmp_path / "out"
     result = invoke("run", scenario(), "--out", out, "--quiet")
