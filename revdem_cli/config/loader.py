@@ -117,17 +117,28 @@ def parse_text(text: str, suffix: str, origin: str) -> dict:
 
 
 def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
-    """Apply ``key.sub=value`` overrides; values are read as TOML values, else as strings."""
+    """Apply ``key.sub=value`` overrides, each value as `read_value` reads it."""
     for item in overrides:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise InputError(f"--set {item}: expected key=value")
-        try:
-            value = tomllib.loads(f"v = {raw}")["v"]
-        except tomllib.TOMLDecodeError:
-            value = raw
-        set_field(data, key, value, "--set ")
+        set_field(data, key, read_value(raw, f"--set {item}"), "--set ")
     return data
+
+
+def read_value(raw: str, where: str):
+    """A `--set` value as a TOML value (1e-7, inf, [0, 0, 1], "text"), else as the text itself
+    (hertz); InputError naming `where` if it opens a list, a table or quoted text that TOML
+    cannot read ([bogus], [1, 2), which would else be taken for text."""
+    try:
+        return tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        if raw.lstrip()[:1] in ("[", "{", '"', "'"):
+            raise InputError(
+                f"{where}: cannot read {raw.strip()} as a TOML value (a list of numbers "
+                '[0, 0, 1], of text ["speed", "forces"]; a table {x = 1}; quoted text "a b")'
+            ) from None
+        return raw
 
 
 def set_field(data: dict, key: str, value, label: str = "") -> None:

@@ -68,6 +68,13 @@ def test_a_bad_override_exits_2(scenario):
     assert_one_line_error(result, "integrator.dt", "greater than 0")
 
 
+@pytest.mark.parametrize("item", ["output.figures=[bogus]", "particles.0.position=[1,2"])
+def test_a_set_value_toml_cannot_read_is_named_not_taken_for_text(scenario, item):
+    result = invoke("validate", scenario(), "--set", item)
+    value = item.partition("=")[2]
+    assert_one_line_error(result, f"--set {item}: cannot read {value} as a TOML value")
+
+
 @pytest.mark.parametrize("field", ["contact.friction", "contact.normal_damping"])
 def test_nan_in_a_number_is_refused_as_not_finite_where_inf_is_allowed_too(field):
     shear = CONFIGS / "collision_shear.toml"
