@@ -274,7 +274,11 @@ def compare(
 def validate(
     scenario: Annotated[Path, typer.Argument(help="Scenario file (.toml, .yaml or .yml).")],
     overrides: Annotated[
-        list[str] | None, typer.Option("--set", help="Override a scenario field.")
+        list[str] | None,
+        typer.Option(
+            "--set",
+            help="Override a scenario field; of a sweep file, key=v1,v2,... as sweep takes it.",
+        ),
     ] = None,
 ) -> None:
     """Check a scenario, time-step study or sweep file without running it.
@@ -282,15 +286,15 @@ def validate(
     Example: revdem validate configs/collision.toml
     """
     from revdem_cli.config import load_scenario
-    from revdem_cli.sweep import load_variants, read_sweep
+    from revdem_cli.sweep import load_variants, read_sweep_file
     from revdem_cli.timestep.study import read_study
 
     study = read_study(scenario, overrides or [])
     if study is not None:
         typer.echo(f"{scenario}: valid time-step study: figures {study.figures}")
         return
-    sweep = read_sweep(scenario, [])
-    if sweep.scenario != scenario:
+    sweep = read_sweep_file(scenario, overrides or [])
+    if sweep is not None:
         variants = load_variants(sweep)
         typer.echo(f"{scenario}: valid sweep: {len(variants)} variants of {sweep.scenario}")
         return

@@ -6,7 +6,8 @@ Each variant runs in its own folder under the sweep's output directory. The resu
 the reversal and the final kinetic and total energies of the forward run.
 
 A sweep file is a TOML file with `kind = "sweep"`, the scenario it varies (a path relative
-to the file) and the same `set` strings as the command line:
+to the file) and the same `set` strings as the command line (a field is set once in each; a
+`--set` given with the file replaces the file's values of its field):
 
     kind = "sweep"
     scenario = "../collision_shear.toml"
@@ -78,37 +79,76 @@ def split_values(raw: str) -> list[str]:
     return [value.strip() for value in values]
 
 
-def parse_sets(sets: list[str]) -> dict[str, list[str]]:
-    """`["a.b=1,2", "c=x"]` -> {"a.b": ["1", "2"], "c": ["x"]}; a later key replaces one before."""
+def parse_sets(sets: list[str], origin: str = "") -> dict[str, list[str]]:
+    """`["a.b=1,2", "c=x"]` -> {"a.b": ["1", "2"], "c": ["x"]}, each value read as a `--set`
+    value is (`config.read_value`); a key given twice is refused. `origin` is the sweep file
+    whose `set` list the strings are, named with the entry in errors (FILE: set[1]), or ""
+    for the command line's --set options."""
+    from revdem_cli.config import read_value
+
     grid: dict[str, list[str]] = {}
-    for item in sets:
+    given: dict[str, str] = {}  # key -> the string that set it
+    for index, item in enumerate(sets):
+        entry = f"set[{index}] = {item!r}" if origin else f"--set {item}"
+        where = f"{origin}: {entry}" if origin else entry
         key, sep, raw = item.partition("=")
-        values = split_values(raw)
-        if not sep or not key.strip() or "" in values:
-            raise InputError(f"--set {item}: expected key=value or key=value1,value2,...")
-        grid[key.strip()] = values
+        key, values = key.strip(), split_values(raw)
+        if not sep or not key or "" in values:
+            raise InputError(f"{where}: expected key=value or key=value1,value2,...")
+        if key in grid:
+            raise InputError(
+                f"{where}: {key} is given twice (also in {given[key]}); give its values "
+                f"together, {key}=V1,V2,..."
+            )
+        for value in values:
+            read_value(value, where)
+        grid[key], given[key] = values, entry
     return grid
 
 
 def read_sweep(path: Path, sets: list[str]) -> Sweep:
-    """The sweep of a sweep file or of a scenario file, with `sets` added."""
+    """The sweep of a sweep file (`read_sweep_file`) or of a scenario file, with `sets`."""
+    return read_sweep_file(path, sets) or Sweep(Path(path), parse_sets(sets))
+
+
+def read_sweep_file(path: Path, sets: list[str]) -> Sweep | None:
+    """The sweep of a sweep file, its `set` list with the command line's `sets` added (a key
+    set there replaces the file's values of it); None if the file is not a sweep file."""
     path = Path(path)
+    data = _sweep_fields(path)
+    if data is None:
+        return None
+    unknown = set(data) - {"kind", "scenario", "set"}
+    if unknown or not isinstance(data.get("scenario"), str):
+        raise InputError(
+            f"{path}: a sweep file has kind, scenario (a path) and set (a list)"
+            + (f"; unknown: {', '.join(sorted(unknown))}" if unknown else "")
+        )
+    entries = data.get("set", [])
+    if not isinstance(entries, list) or not all(isinstance(item, str) for item in entries):
+        raise InputError(
+            f'{path}: set: expected a list of "field=v1,v2,..." strings, got {entries!r:.80}'
+        )
+    scenario = path.parent / data["scenario"]
+    if _sweep_fields(scenario) is not None:
+        raise InputError(
+            f"{path}: scenario: {data['scenario']} is a sweep file; the scenario of a sweep "
+            "cannot be a sweep"
+        )
+    return Sweep(scenario, parse_sets(entries, str(path)) | parse_sets(sets))
+
+
+def _sweep_fields(path: Path) -> dict | None:
+    """The fields of the sweep file at `path`; None if it is not one (a scenario, a study, a
+    file that cannot be read: their readers say what is wrong)."""
     check_regular(path, "scenario file")
-    if path.suffix.lower() == ".toml":
-        try:
-            data = tomllib.loads(path.read_text())
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-            data = {}  # not a sweep file; the scenario loader says what is wrong
-        if data.get("kind") == KIND:
-            unknown = set(data) - {"kind", "scenario", "set"}
-            if unknown or not isinstance(data.get("scenario"), str):
-                raise InputError(
-                    f"{path}: a sweep file has kind, scenario (a path) and set (a list)"
-                    + (f"; unknown: {', '.join(sorted(unknown))}" if unknown else "")
-                )
-            scenario = path.parent / data["scenario"]
-            return Sweep(scenario, parse_sets([*data.get("set", []), *sets]))
-    return Sweep(path, parse_sets(sets))
+    if path.suffix.lower() != ".toml":
+        return None
+    try:
+        data = tomllib.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return None
+    return data if data.get("kind") == KIND else None
 
 
 def folder_name(index: int, variant: dict[str, str]) -> str:

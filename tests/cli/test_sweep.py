@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from revdem_cli.cli import app
 from revdem_cli.errors import InputError
 from revdem_cli.sweep import parse_sets, read_sweep
-from tests.conftest import CONFIGS
+from tests.conftest import CONFIGS, assert_one_line_error
 
 runner = CliRunner()
 MASS = 1000.0 * 4.0 / 3.0 * math.pi * 0.005**3  # each sphere of configs/smoke/collision.yaml
@@ -71,8 +71,8 @@ def test_six_variants_on_two_workers_give_one_table(tmp_path):
 
 
 def test_values_split_at_commas_outside_brackets():
-    assert parse_sets(["a.b=1,2", "c=[0,1],[2,3]", "d='x,y'", "a.b=3"]) == {
-        "a.b": ["3"],
+    assert parse_sets(["a.b=1,2", "c=[0,1],[2,3]", "d='x,y'"]) == {
+        "a.b": ["1", "2"],
         "c": ["[0,1]", "[2,3]"],
         "d": ["'x,y'"],
     }
@@ -81,36 +81,69 @@ def test_values_split_at_commas_outside_brackets():
             parse_sets([bad])
 
 
-@pytest.mark.parametrize("name", ["collision_friction.toml", "drop_drag_height.toml"])
-def test_shipped_sweep_files_name_valid_variants(name):
-    from revdem_cli.config import load_scenario
+def sweep_file(tmp_path, text: str):
+    """A sweep file in tmp_path of the shear collision, its other lines `text`."""
+    path = tmp_path / "sweep.toml"
+    scenario = CONFIGS / "collision_shear.toml"
+    path.write_text(f'kind = "sweep"\nscenario = "{scenario}"\n{text}\n')
+    return path
 
-    sweep = read_sweep(CONFIGS / "sweeps" / name, [])
-    variants = sweep.variants()
-    assert len(variants) >= 5
-    for variant in variants:
-        scenario, _ = load_scenario(sweep.scenario, [f"{k}={v}" for k, v in variant.items()])
-        assert sum(stage.steps for stage in scenario.stages) <= 600_000
+
+def test_a_field_set_twice_is_refused_not_cut_to_its_last_values(tmp_path):
+    sets = ["--set", "contact.friction=0.1", "--set", "contact.friction=0.2"]
+    out = ["--out", str(tmp_path / "out")]
+    result = runner.invoke(app, ["sweep", str(CONFIGS / "collision_shear.toml"), *sets, *out])
+    assert_one_line_error(
+        result, "--set contact.friction=0.2: contact.friction is given twice (also in --set "
+    )
+
+
+@pytest.mark.parametrize("command", ["sweep", "validate"])
+def test_a_field_set_twice_in_a_sweep_file_is_refused(command, tmp_path):
+    path = sweep_file(tmp_path, 'set = ["contact.friction=0.1", "contact.friction=0.2"]')
+    out = ["--out", str(tmp_path / "out")] if command == "sweep" else []
+    assert_one_line_error(
+        runner.invoke(app, [command, str(path), *out]),
+        f"{path}: set[1] = 'contact.friction=0.2': contact.friction is given twice (also in set[0]",
+    )
+
+
+def test_a_set_option_replaces_the_sweep_files_values_of_its_field(tmp_path):
+    path = sweep_file(tmp_path, 'set = ["contact.friction=0.1,0.3", "stages.0.steps=100"]')
+    sweep = read_sweep(path, ["contact.friction=inf"])
+    assert sweep.grid == {"contact.friction": ["inf"], "stages.0.steps": ["100"]}
+
+
+@pytest.mark.parametrize("command", ["sweep", "validate"])
+def test_a_sweep_file_is_checked_with_the_set_options_given(command, tmp_path):
+    path = sweep_file(tmp_path, 'set = ["contact.friction=0.1,0.3"]')
+    out = ["--out", str(tmp_path / "out")] if command == "sweep" else []
+    result = runner.invoke(app, [command, str(path), "--set", "stages.0.steps=abc", *out])
+    assert_one_line_error(result, "stages[0].steps: Input should be a valid number")
 
 
 @pytest.mark.parametrize(
-    ("values", "message"), [("1e-7,-1", "greater than 0"), ("1e-7,1e-3", "critical time step")]
+    ("text", "message"),
+    [
+        (
+            'set = "contact.friction=0.1"',
+            "set: expected a list of \"field=v1,v2,...\" strings, got 'contact.friction=0.1'",
+        ),
+        ('set = ["stages.0.steps=100", 3]', 'set: expected a list of "field=v1,v2,..." strings'),
+        ('set = ["contact.friction"]', "set[0] = 'contact.friction': expected key=value"),
+        ('set = ["contact.friction=0.1,[x"]', "set[0] = 'contact.friction=0.1,[x': cannot read [x"),
+    ],
 )
-def test_a_bad_variant_stops_the_sweep_before_it_starts(tmp_path, values, message):
-    smoke = str(CONFIGS / "smoke" / "collision.yaml")
-    out = tmp_path / "out"
-    result = runner.invoke(app, ["sweep", smoke, "--set", f"integrator.dt={values}", "--out", out])
-    assert result.exit_code == 2 and message in result.output, result.output
-    assert not out.exists()
+def test_a_bad_set_of_a_sweep_file_names_the_file_and_its_entry(tmp_path, text, message):
+    path = sweep_file(tmp_path, text)
+    result = runner.invoke(app, ["validate", str(path)])
+    assert_one_line_error(result, f"{path}: {message}")
+    assert "--set" not in result.output
 
 
-def test_a_variant_that_fails_is_recorded_not_raised(tmp_path):
-    from revdem_cli.config import load_scenario
-    from revdem_cli.sweep import run_variant
-
-    scenario, text = load_scenario(CONFIGS / "smoke" / "collision.yaml", ["stages.0.steps=100"])
-    taken = tmp_path / "taken"
-    taken.write_text("")
-    row = run_variant(scenario.model_dump_json(), text, ".yaml", taken)
-    assert row["error"].startswith("FileExistsError")
-    assert row["reversible"] is None and row["kinetic_energy"] is None
+def test_the_scenario_of_a_sweep_cannot_be_a_sweep(tmp_path):
+    sweep_file(tmp_path, 'set = ["contact.friction=0.1"]')
+    path = tmp_path / "outer.toml"
+    path.write_text('kind = "sweep"\nscenario = "sweep.toml"\nset = []\n')
+    result = runner.invoke(app, ["sweep", str(path), "--out", str(tmp_path / "out")])
+    assert_one_line_error(result, f"{path}: scenario: sweep.toml is a sweep file")
