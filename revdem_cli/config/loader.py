@@ -192,6 +192,30 @@ def read_particle_files(data: dict, base: Path, origin: str) -> None:
         source.setdefault("count", atoms)
 
 
+def check_no_kind(data: dict, origin: str) -> None:
+    """A scenario file says no kind; InputError if this one does: a time-step study or a sweep
+    file named with the command that runs it, another kind with the kinds known."""
+    if "kind" not in data:
+        return
+    from revdem_cli import sweep
+    from revdem_cli.timestep import study
+
+    kinds = {
+        study.KIND: ("a time-step study", "revdem run"),
+        sweep.KIND: ("a sweep file", "revdem sweep"),
+    }
+    kind = data["kind"]
+    if isinstance(kind, str) and kind in kinds:
+        what, command = kinds[kind]
+        raise InputError(
+            f"{origin}: kind: '{kind}' is {what}, not a scenario; run it with {command}"
+        )
+    known = ", ".join(f"'{name}'" for name in kinds)
+    raise InputError(
+        f"{origin}: kind: unknown kind {kind!r:.60} (known: {known}; a scenario has none)"
+    )
+
+
 def scenario_from_text(
     text: str, suffix: str, origin: str, overrides: list[str] = (), host: bool = False
 ) -> Scenario:
@@ -205,6 +229,7 @@ def scenario_from_text(
 def scenario_from_data(data: dict, origin: str, base: Path, host: bool = False) -> Scenario:
     """A scenario from its fields as parsed, checked as `scenario_from_text` says; files it
     names are relative to `base`. `origin` names it in error messages."""
+    check_no_kind(data, origin)
     read_particle_files(data, base, origin)
     try:
         scenario = Scenario.model_validate(data)

@@ -147,3 +147,20 @@ def test_the_scenario_of_a_sweep_cannot_be_a_sweep(tmp_path):
     path.write_text('kind = "sweep"\nscenario = "sweep.toml"\nset = []\n')
     result = runner.invoke(app, ["sweep", str(path), "--out", str(tmp_path / "out")])
     assert_one_line_error(result, f"{path}: scenario: sweep.toml is a sweep file")
+
+
+@pytest.mark.parametrize("command", ["validate", "run", "sweep"])
+def test_a_misspelt_kind_is_named_with_the_kinds_known(command, tmp_path):
+    path = sweep_file(tmp_path, 'set = ["contact.friction=0.1"]')
+    path.write_text(path.read_text().replace('"sweep"', '"sweeps"'))
+    out = ["--out", str(tmp_path / "out")] if command != "validate" else []
+    result = runner.invoke(app, [command, str(path), *out])
+    assert_one_line_error(
+        result, f"{path}: kind: unknown kind 'sweeps' (known: 'critical_time_step', 'sweep'"
+    )
+
+
+def test_a_sweep_file_given_to_run_is_sent_to_revdem_sweep(tmp_path):
+    path = sweep_file(tmp_path, 'set = ["contact.friction=0.1"]')
+    result = runner.invoke(app, ["run", str(path), "--out", str(tmp_path / "out")])
+    assert_one_line_error(result, f"{path}: kind: 'sweep' is a sweep file", "revdem sweep")

@@ -217,11 +217,11 @@ def test_bad_study_fields_exit_2_naming_the_field(tmp_path, old, new, fragments)
     assert not (tmp_path / "out").exists()
 
 
-def test_a_file_without_the_study_kind_is_a_dem_scenario(tmp_path):
+def test_a_file_of_another_kind_is_no_study_and_no_scenario(tmp_path):
     path = tmp_path / "other.toml"
     path.write_text(STUDY.read_text().replace('"critical_time_step"', '"something_else"'))
     assert read_study(path) is None
     result = invoke("run", path, "--out", tmp_path / "out")
-    assert_one_line_error(result, "other.toml: materials: missing required field")
+    assert_one_line_error(result, "other.toml: kind: unknown kind 'something_else' (known: ")
     with pytest.raises(InputError, match=r"^s\.toml: kind: missing required field"):
         study_from_text("name = 's'", ".toml", "s.toml")
