@@ -251,7 +251,7 @@ def run(
     out = Path(out)
     keep_checkpoint(out, experiment.name, force)
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
-        check_time_step(experiment.scenario)
+        check_time_step(experiment.scenario, experiment.origin)
     keep_outputs(output_paths_of(experiment, out, reverse), force)
     with _progress(progress) as shown:
         outputs = run_scenario(experiment.scenario, experiment.text, experiment.suffix, out,

@@ -291,9 +291,10 @@ def _stage_files(run: Run, index: int) -> tuple[str, str]:
     return (tape if reversal.tape and (last or reversal.all_stages) else ""), previous
 
 
-def check_time_step(scenario: Scenario) -> None:
+def check_time_step(scenario: Scenario, origin: str = "") -> None:
     """Refuse a time step above the critical estimate of `timestep.guard`, or above its
-    kinematic limit, saying by how much."""
+    kinematic limit, saying by how much; the message starts with `origin`, the file the
+    scenario was read from, where given."""
     from revdem_cli.timestep.guard import critical_time_step, kinematic_dt
 
     steps = [("integrator.dt", scenario.integrator.dt)] + [
@@ -303,6 +304,7 @@ def check_time_step(scenario: Scenario) -> None:
     if not steps:
         return
     field, dt = max(steps, key=lambda item: item[1])
+    where = f"{origin}: {field}" if origin else field
     limits = [
         ("critical time step", *critical_time_step(scenario)),
         ("kinematic limit", *kinematic_dt(scenario)),
@@ -313,7 +315,7 @@ def check_time_step(scenario: Scenario) -> None:
         if dt > limit:
             times = f"{dt / limit:.3g} times" if limit > 0.0 else "above"
             raise InputError(
-                f"{field} = {dt:.3g} s is {times} the {name} {limit:.3g} s "
+                f"{where} = {dt:.3g} s is {times} the {name} {limit:.3g} s "
                 f"({reason}); use a smaller dt, or --allow-unstable-dt to run anyway"
             )
 

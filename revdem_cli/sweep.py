@@ -222,7 +222,7 @@ def load_variants(sweep: Sweep, host: bool = False) -> list[tuple]:
         for variant in sweep.variants()
     ]
     for scenario, _ in loaded:
-        check_time_step(scenario)
+        check_time_step(scenario, str(sweep.scenario))
     return loaded
 
 

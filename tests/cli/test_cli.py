@@ -133,7 +133,8 @@ def test_version():
 def test_a_time_step_above_the_critical_estimate_is_refused_unless_allowed(scenario, tmp_path):
     path = scenario()
     result = invoke("run", path, "--set", "integrator.dt=1e-3", "--out", tmp_path / "a")
-    assert_one_line_error(result, "integrator.dt = 0.001 s is", "times the critical time step")
+    message = f"error: {path}: integrator.dt = 0.001 s is"
+    assert_one_line_error(result, message, "times the critical time step")
     assert not (tmp_path / "a").exists()
     allowed = invoke(
         "run",
