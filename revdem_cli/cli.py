@@ -280,12 +280,20 @@ def validate(
             help="Override a scenario field; of a sweep file, key=v1,v2,... as sweep takes it.",
         ),
     ] = None,
+    allow_unstable_dt: Annotated[
+        bool,
+        typer.Option(
+            "--allow-unstable-dt", help="Pass a dt above the critical estimate, as run does."
+        ),
+    ] = False,
 ) -> None:
-    """Check a scenario, time-step study or sweep file without running it.
+    """Check a scenario, time-step study or sweep file without running it, as run and sweep
+    check it before they start: a time step above the critical estimate too.
 
     Example: revdem validate configs/collision.toml
     """
     from revdem_cli.config import load_scenario
+    from revdem_cli.engine import check_time_step
     from revdem_cli.sweep import load_variants, read_sweep_file
     from revdem_cli.timestep.study import read_study
 
@@ -299,6 +307,8 @@ def validate(
         typer.echo(f"{scenario}: valid sweep: {len(variants)} variants of {sweep.scenario}")
         return
     spec, _ = load_scenario(scenario, overrides or [])
+    if not allow_unstable_dt:
+        check_time_step(spec, str(scenario))
     steps = sum(stage.steps for stage in spec.stages)
     typer.echo(
         f"{scenario}: valid: {len(spec.spheres)} particles, {len(spec.stages)} "

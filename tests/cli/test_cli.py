@@ -136,6 +136,10 @@ def test_a_time_step_above_the_critical_estimate_is_refused_unless_allowed(scena
     message = f"error: {path}: integrator.dt = 0.001 s is"
     assert_one_line_error(result, message, "times the critical time step")
     assert not (tmp_path / "a").exists()
+    checked = invoke("validate", path, "--set", "integrator.dt=1e-3")
+    assert_one_line_error(checked, message, "times the critical time step")
+    passed = invoke("validate", path, "--set", "integrator.dt=1e-3", "--allow-unstable-dt")
+    assert passed.exit_code == 0 and passed.output.startswith(f"{path}: valid"), passed.output
     allowed = invoke(
         "run",
         path,
