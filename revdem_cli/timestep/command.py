@@ -45,6 +45,12 @@ def _positive(option: str, value: float | None) -> float:
     return value
 
 
+def _non_negative(option: str, value: float) -> float:
+    if not (math.isfinite(value) and value >= 0.0):
+        raise InputError(f"{option} must be zero or positive, got {value:g}")
+    return value
+
+
 def _body(particle: _Particle, prefix: str):
     """The Body the options describe, its volume, mass, moments and half-lengths positive
     finite float64 numbers; InputError names the options at fault."""
@@ -119,8 +125,7 @@ class _Case:
         other = _body(self.other.or_else(self.first), "other-")
         kn = _positive("--kn", self.kn)
         ks = _positive("--ks", self.ks if self.ks is not None else kn)
-        if not (math.isfinite(self.damping) and self.damping >= 0.0):
-            raise InputError(f"--damping must be zero or positive, got {self.damping:g}")
+        _non_negative("--damping", self.damping)
         if self.omega_max is not None:
             _positive("--omega-max", self.omega_max)
         if not 0 <= self.trvp_order <= 4:
@@ -140,7 +145,8 @@ class _Case:
 
 
 def _sweep_values(spec: str) -> tuple[str, list[float]]:
-    """`name=start:stop:count` as the name and `count` evenly spaced values."""
+    """`name=start:stop:count` as the name and `count` evenly spaced values, each one the
+    option takes (its ends are checked as the option is, naming --sweep)."""
     import numpy as np
 
     name, _, span = spec.partition("=")
@@ -153,6 +159,9 @@ def _sweep_values(spec: str) -> tuple[str, list[float]]:
         raise InputError(f"--sweep {spec!r}: expected {name}=START:STOP:COUNT") from None
     if not 1 <= count <= MAX_SWEEP:
         raise InputError(f"--sweep {spec!r}: COUNT must be between 1 and {MAX_SWEEP}")
+    check = _non_negative if name == "damping" else _positive
+    for end in (start, stop):
+        check(f"--sweep {spec!r}: {name}", end)
     values = np.linspace(start, stop, count)
     return name, values.tolist()
 

@@ -160,6 +160,10 @@ def test_density_sweep_goes_to_stdout():
         ((*ELLIPSOID, "--omega-max", 0), ["--omega-max"]),
         ((*ELLIPSOID, "--sweep", "mass=1:2:3"), ["--sweep", "one of"]),
         ((*ELLIPSOID, "--sweep", "kn=1:2"), ["--sweep", "START:STOP:COUNT"]),
+        ((*ELLIPSOID, "--sweep", "kn=1:0:5"), ["--sweep 'kn=1:0:5': kn must be", "got 0"]),
+        ((*ELLIPSOID, "--sweep", "density=-1:1:3"), ["--sweep 'density=-1:1:3': density"]),
+        ((*ELLIPSOID, "--sweep", "kn=nan:1:5"), ["--sweep 'kn=nan:1:5': kn", "got nan"]),
+        ((*ELLIPSOID, "--sweep", "damping=-1:1:2"), ["--sweep 'damping=-1:1:2': damping"]),
         ((*ELLIPSOID, "--sweep", "kn=1:2:3", "--json"), ["--sweep", "--json"]),
         ((*ELLIPSOID, "--out", "x.csv"), ["--out", "--sweep"]),
         (
