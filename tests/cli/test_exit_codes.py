@@ -1,5 +1,7 @@
 """Exit status: 0 ok, 2 bad input, 1 when a run fails otherwise; bugs keep their traceback."""
 
+import errno
+
 import pytest
 from typer.testing import CliRunner
 
@@ -11,13 +13,29 @@ runner = CliRunner()
 SMOKE = str(CONFIGS / "smoke" / "collision.yaml")
 
 
-def test_a_run_that_cannot_write_its_output_exits_1_with_one_line(tmp_path):
-    taken = tmp_path / "a_file"
-    taken.write_text("")
-    result = runner.invoke(app, ["run", SMOKE, "--out", str(taken), "-q"])
-    assert result.exit_code == 1
+@pytest.mark.parametrize(
+    ("error", "status", "line"),
+    [
+        (OSError(errno.EIO, "Input/output error", "out/x.h5"), 1, "failed: OSError: "),
+        (OSError(errno.EISDIR, "Is a directory", "out/x.h5"), 2, "error: out/x.h5: a folder"),
+        (OSError(errno.ENOSPC, "No space left on device"), 1, "failed: OSError: "),
+    ],
+    ids=["machine", "path", "no-path"],
+)
+def test_a_file_system_error_is_one_line_bad_input_only_where_a_path_given_is(
+    tmp_path, monkeypatch, error, status, line
+):
+    """An OSError the machine made exits 1; one about a path the user gave that cannot be
+    used (`errors.path_problem`) exits 2, as bad input."""
+
+    def failing(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(engine, "run_scenario", failing)
+    result = runner.invoke(app, ["run", SMOKE, "--out", str(tmp_path), "-q"])
+    assert result.exit_code == status
     lines = result.output.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("failed: FileExistsError"), result.output
+    assert len(lines) == 1 and lines[0].startswith(line), result.output
 
 
 def test_a_programming_error_is_not_turned_into_a_message(tmp_path, monkeypatch):
