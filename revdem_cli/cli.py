@@ -104,6 +104,16 @@ def _root(
     """revdem: reversible DEM experiments and critical time steps."""
 
 
+AllowUnstableDt = Annotated[
+    bool,
+    typer.Option(
+        "--allow-unstable-dt",
+        help="Take a dt above the critical estimate (or the kinematic limit), which is refused "
+        "otherwise.",
+    ),
+]
+
+
 Threads = Annotated[
     int | None,
     typer.Option(
@@ -146,10 +156,7 @@ def run(
         bool, typer.Option("--no-reverse", help="Run forward only, even if a stage is reversed.")
     ] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
-    allow_unstable_dt: Annotated[
-        bool,
-        typer.Option("--allow-unstable-dt", help="Run even if dt exceeds the critical estimate."),
-    ] = False,
+    allow_unstable_dt: AllowUnstableDt = False,
     force: Annotated[
         bool, typer.Option("--force", help="Overwrite the outputs of an earlier run in --out.")
     ] = False,
@@ -280,12 +287,7 @@ def validate(
             help="Override a scenario field; of a sweep file, key=v1,v2,... as sweep takes it.",
         ),
     ] = None,
-    allow_unstable_dt: Annotated[
-        bool,
-        typer.Option(
-            "--allow-unstable-dt", help="Pass a dt above the critical estimate, as run does."
-        ),
-    ] = False,
+    allow_unstable_dt: AllowUnstableDt = False,
 ) -> None:
     """Check a scenario, time-step study or sweep file without running it, as run and sweep
     check it before they start: a time step above the critical estimate too.
@@ -303,7 +305,7 @@ def validate(
         return
     sweep = read_sweep_file(scenario, overrides or [])
     if sweep is not None:
-        variants = load_variants(sweep)
+        variants = load_variants(sweep, allow_unstable_dt=allow_unstable_dt)
         typer.echo(f"{scenario}: valid sweep: {len(variants)} variants of {sweep.scenario}")
         return
     spec, _ = load_scenario(scenario, overrides or [])
@@ -465,6 +467,7 @@ def sweep(
             "may use over --workers, at least 1).",
         ),
     ] = None,
+    allow_unstable_dt: AllowUnstableDt = False,
 ) -> None:
     """Run every combination of --set values, forward and reversed, in parallel (dask).
 
@@ -482,7 +485,7 @@ def sweep(
     compiling = scheduler is None and not kernels_compiled()  # a local cluster's workers
     # compile into this machine's cache; a remote one's workers keep caches of their own
     with nullcontext() if quiet else _progress_of("variants", compiling) as shown:
-        rows, tables = run_sweep(plan, out, scheduler, workers, shown, threads)
+        rows, tables = run_sweep(plan, out, scheduler, workers, shown, threads, allow_unstable_dt)
     failed = [row for row in rows if row["error"]]
     for path in tables:
         typer.echo(f"wrote {path}")

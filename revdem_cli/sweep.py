@@ -159,10 +159,12 @@ def folder_name(index: int, variant: dict[str, str]) -> str:
     return re.sub(r"[^\w.=+-]", "", name)
 
 
-def run_variant(scenario_json: str, text: str, suffix: str, out_dir: Path) -> dict:
-    """Run one variant (its validated scenario as JSON) forward and reversed into `out_dir`;
-    its results (a row of RESULTS). Runs on a worker; a failure is recorded, not raised.
-    """
+def run_variant(
+    scenario_json: str, text: str, suffix: str, out_dir: Path, allow_unstable_dt: bool = False
+) -> dict:
+    """Run one variant (its validated scenario as JSON) forward and reversed into `out_dir`
+    (`allow_unstable_dt`: at a time step above the critical estimate too); its results (a
+    row of RESULTS). Runs on a worker; a failure is recorded, not raised."""
     from revdem_cli.config import Scenario
     from revdem_cli.engine import run_scenario
     from revdem_cli.io.h5md import open_trajectory, read_observable
@@ -171,7 +173,9 @@ def run_variant(scenario_json: str, text: str, suffix: str, out_dir: Path) -> di
     row = dict.fromkeys(RESULTS)
     try:
         scenario = Scenario.model_validate_json(scenario_json)
-        outputs = run_scenario(scenario, text, suffix, Path(out_dir), reverse=True)
+        outputs = run_scenario(
+            scenario, text, suffix, Path(out_dir), reverse=True, allow_unstable_dt=allow_unstable_dt
+        )
     except (InputError, RuntimeError, OSError, MemoryError) as exc:
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
@@ -211,9 +215,10 @@ def _client(scheduler: str | None, workers: int, threads: int | None):
         yield client
 
 
-def load_variants(sweep: Sweep, host: bool = False) -> list[tuple]:
-    """(scenario, text) of every variant, each validated and its time step checked; with
-    `host`, each also checked against this machine's memory (`config.host`)."""
+def load_variants(sweep: Sweep, host: bool = False, allow_unstable_dt: bool = False) -> list[tuple]:
+    """(scenario, text) of every variant, each validated and its time step checked (unless
+    `allow_unstable_dt`); with `host`, each also checked against this machine's memory
+    (`config.host`)."""
     from revdem_cli.config import load_scenario
     from revdem_cli.engine import check_time_step
 
@@ -222,7 +227,8 @@ def load_variants(sweep: Sweep, host: bool = False) -> list[tuple]:
         for variant in sweep.variants()
     ]
     for scenario, _ in loaded:
-        check_time_step(scenario, str(sweep.scenario))
+        if not allow_unstable_dt:
+            check_time_step(scenario, str(sweep.scenario))
     return loaded
 
 
@@ -233,14 +239,16 @@ def run_sweep(
     workers: int = 2,
     progress: Callable[[str, int, int], None] | None = None,
     threads: int | None = None,
+    allow_unstable_dt: bool = False,
 ) -> tuple[list[dict], list[Path]]:
-    """Run every variant; returns the table's rows and the table files written."""
+    """Run every variant (`allow_unstable_dt`: those whose time step is above the critical
+    estimate too); returns the table's rows and the table files written."""
     from distributed import as_completed
 
     out_dir = Path(out_dir)
     variants = sweep.variants()
     # bad input stops the sweep before it starts; a local cluster runs on this machine
-    loaded = load_variants(sweep, host=scheduler is None)
+    loaded = load_variants(sweep, scheduler is None, allow_unstable_dt)
     varying = [key for key, values in sweep.grid.items() if len(values) > 1]
     folders = [
         folder_name(index, {key: variant[key] for key in varying})
@@ -256,6 +264,7 @@ def run_sweep(
                 text,
                 suffix,
                 out_dir / folder,
+                allow_unstable_dt,
                 key=f"variant-{folder}",
             ): index
             for index, ((scenario, text), folder) in enumerate(zip(loaded, folders, strict=True))

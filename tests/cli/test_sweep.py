@@ -164,3 +164,18 @@ def test_a_sweep_file_given_to_run_is_sent_to_revdem_sweep(tmp_path):
     path = sweep_file(tmp_path, 'set = ["contact.friction=0.1"]')
     result = runner.invoke(app, ["run", str(path), "--out", str(tmp_path / "out")])
     assert_one_line_error(result, f"{path}: kind: 'sweep' is a sweep file", "revdem sweep")
+
+
+@pytest.mark.parametrize(("allowed", "error"), [(False, "InputError: "), (True, "BlownUp: ")])
+def test_a_variant_runs_at_an_unstable_time_step_only_where_allowed(tmp_path, allowed, error):
+    """A variant's time step is checked on its worker as `revdem run` checks it; allowed
+    (`revdem sweep --allow-unstable-dt`), the variant runs, and dt = 2.6 times the critical
+    step drives the colliding pair through each other in its first step."""
+    from revdem_cli.config import load_scenario
+    from revdem_cli.sweep import run_variant
+
+    overrides = ["integrator.dt=1e-3", "stages.0.steps=5"]
+    scenario, text = load_scenario(CONFIGS / "smoke" / "collision.yaml", overrides)
+    row = run_variant(scenario.model_dump_json(), text, ".yaml", tmp_path, allowed)
+    assert row["error"].startswith(error), row["error"]
+    assert "times the critical time step" in row["error"]
