@@ -14,6 +14,13 @@ import typer
 from revdem_cli.errors import InputError, WriteFailed
 
 SHAPES = ("sphere", "ellipsoid", "superquadric", "polyhedron")
+SIZES = {
+    "sphere": ("radius",),
+    "ellipsoid": ("semi_axes",),
+    "superquadric": ("semi_axes", "exponents"),
+    "polyhedron": ("vertices",),
+}
+"""The options that size a particle of each shape (`_Particle`'s fields)."""
 SWEEPABLE = ("kn", "ks", "density", "damping", "omega-max")
 MAX_SWEEP = 10_000
 """Most values one --sweep takes (each one an assessment, several with --verify)."""
@@ -49,6 +56,21 @@ def _non_negative(option: str, value: float) -> float:
     if not (math.isfinite(value) and value >= 0.0):
         raise InputError(f"{option} must be zero or positive, got {value:g}")
     return value
+
+
+def _check_sizes(given: _Particle, shape: str | None, prefix: str) -> None:
+    """InputError for a size option `given` that a particle of `shape` does not take (an
+    option silently left unused would leave its user believing it counted)."""
+    if shape not in SIZES:
+        return  # `_described` names the shape
+    for name in ("radius", "semi_axes", "exponents", "vertices"):
+        if getattr(given, name) is not None and name not in SIZES[shape]:
+            takes = ", ".join(f"--{prefix}{size.replace('_', '-')}" for size in SIZES[shape])
+            article = "an" if shape[0] in "aeiou" else "a"
+            raise InputError(
+                f"--{prefix}{name.replace('_', '-')} does not size {article} {shape}; it takes "
+                f"{takes}"
+            )
 
 
 def _body(particle: _Particle, prefix: str):
@@ -121,8 +143,10 @@ class _Case:
     def assess(self, check: bool):
         from revdem_cli.timestep.assessment import assess
 
-        first = _body(self.first, "")
-        other = _body(self.other.or_else(self.first), "other-")
+        other = self.other.or_else(self.first)
+        _check_sizes(self.first, self.first.shape, "")
+        _check_sizes(self.other, other.shape, "other-")
+        first, other = _body(self.first, ""), _body(other, "other-")
         kn = _positive("--kn", self.kn)
         ks = _positive("--ks", self.ks if self.ks is not None else kn)
         _non_negative("--damping", self.damping)

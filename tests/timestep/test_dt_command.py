@@ -156,6 +156,18 @@ def test_density_sweep_goes_to_stdout():
         ),
         ((*ELLIPSOID, "--shape", "superquadric", "--exponents", 3, 1), ["--exponents", "(0, 2]"]),
         ((*ELLIPSOID, "--other-shape", "sphere"), ["--other-radius", "required"]),
+        (
+            ("--shape", "sphere", "--radius", 1, "--semi-axes", 1, 1, 1, "--density", 1, "--kn", 1),
+            ["--semi-axes does not size a sphere; it takes --radius"],
+        ),
+        (
+            (*ELLIPSOID, "--exponents", 1, 1),
+            ["--exponents does not size an ellipsoid; it takes --semi-axes"],
+        ),
+        (
+            (*ELLIPSOID, "--other-shape", "sphere", "--other-radius", 1, "--other-vertices", "v"),
+            ["--other-vertices does not size a sphere; it takes --other-radius"],
+        ),
         ((*ELLIPSOID, "--damping", -1), ["--damping"]),
         ((*ELLIPSOID, "--omega-max", 0), ["--omega-max"]),
         ((*ELLIPSOID, "--sweep", "mass=1:2:3"), ["--sweep", "one of"]),
