@@ -382,6 +382,7 @@ def export(
         ),
     ] = None,
     vtk: Annotated[bool, typer.Option("--vtk", help="The same as --format vtk.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
     out: Annotated[
         Path | None,
         typer.Option(
@@ -410,20 +411,23 @@ def export(
         raise InputError(f"export: --format must be one of {', '.join(formats)}; {given}")
     target = out or trajectory.with_suffix(formats[format])
     _refuse_overwriting_hdf5(target, trajectory)
-    if format == "vtk":
-        from revdem_cli.io.vtk import export_vtk
+    from contextlib import nullcontext
 
-        written = export_vtk(trajectory, target)
-        typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
-        return
     from revdem_cli.io import particles
+    from revdem_cli.io.vtk import export_vtk
 
     exporter = {
+        "vtk": export_vtk,
         "gsd": particles.export_gsd,
         "lammps-dump": particles.export_lammps_dump,
         "lammps-data": particles.export_lammps_data,
     }[format]
-    typer.echo(f"wrote {exporter(trajectory, target)}")
+    with nullcontext() if quiet else _progress_of("frames", False) as shown:
+        written = exporter(trajectory, target, shown)
+    if format == "vtk":
+        typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
+    else:
+        typer.echo(f"wrote {written}")
 
 
 def _refuse_overwriting_hdf5(target: Path, trajectory: Path) -> None:

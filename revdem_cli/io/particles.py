@@ -12,7 +12,7 @@ of the spheres (open boundaries).
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,15 +38,24 @@ class Frame:
     contacts: dict[str, np.ndarray] | None  # the frame's contact list, if the run wrote it
 
 
-def frames(trajectory: str | Path) -> Iterator[Frame]:
-    """The frames of a revdem trajectory, checked by `open_trajectory` first."""
+FrameProgress = Callable[[str, int, int], None]
+"""progress(label, done, total), called as each frame is written (`report.progress`)."""
+
+
+def frames(
+    trajectory: str | Path, last_only: bool = False, progress: FrameProgress | None = None
+) -> Iterator[Frame]:
+    """The frames of a revdem trajectory (`last_only`: its last), checked by
+    `open_trajectory` first; `progress` told of each once its consumer has it done."""
     with open_trajectory(trajectory) as f:
         particles = f["particles/all"]
         radius, mass, ids = particles["radius"][:], particles["mass"][:], particles["id"][:]
         species = particles["species"][:] if "species" in particles else np.zeros_like(ids)
         periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
-        for k, step in enumerate(frame_steps(f)):
+        steps = frame_steps(f)
+        for k in range(len(steps) - 1 if last_only else 0, len(steps)):
+            step = steps[k]
             position = read_frame(f, "position", k)
             if periodic:
                 lower, upper = np.zeros(3), particles["box/edges/value"][k]
@@ -56,9 +65,13 @@ def frames(trajectory: str | Path) -> Iterator[Frame]:
             yield Frame(int(step), float(times[k]), lower, upper, periodic, ids, species + 1,
                         radius, mass, position, read_frame(f, "velocity", k),
                         read_frame(f, "angular_velocity", k), read_contacts(f, k))  # fmt: skip
+            if progress is not None:
+                progress(Path(trajectory).name, k + 1, len(steps))
 
 
-def export_lammps_dump(trajectory: str | Path, path: str | Path) -> Path:
+def export_lammps_dump(
+    trajectory: str | Path, path: str | Path, progress: FrameProgress | None = None
+) -> Path:
     """Every frame as a LAMMPS `dump custom` text file: ITEM: TIMESTEP, NUMBER OF ATOMS, BOX
     BOUNDS (pp on periodic axes, ff on open ones) and ATOMS id type radius x y z vx vy vz,
     in SI units, 17 significant digits (positions exactly as stored)."""
@@ -66,7 +79,7 @@ def export_lammps_dump(trajectory: str | Path, path: str | Path) -> Path:
 
     path = Path(path)
     lines = []
-    for frame in frames(trajectory):
+    for frame in frames(trajectory, progress=progress):
         bounds = "pp pp pp" if frame.periodic else "ff ff ff"
         lines += ["ITEM: TIMESTEP", str(frame.step), "ITEM: NUMBER OF ATOMS", str(len(frame.id))]
         lines += [f"ITEM: BOX BOUNDS {bounds}"]
@@ -100,7 +113,9 @@ GSD_IDS = "particles/Particle Identifier"
 """The GSD log chunk of the spheres' ids (under `log/`)."""
 
 
-def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
+def export_gsd(
+    trajectory: str | Path, path: str | Path, progress: FrameProgress | None = None
+) -> Path:
     """Every frame as a GSD file (the `gsd` package, HOOMD schema): positions relative to
     the box's centre (HOOMD's boxes are centred on the origin), diameters, velocities, the
     box edges, the step, and each sphere's id, which the schema lacks, as the logged
@@ -119,7 +134,7 @@ def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
     tmp = path.with_name(path.name + ".tmp")
     try:
         with gsd.hoomd.open(tmp, "w") as out:
-            for frame in frames(trajectory):
+            for frame in frames(trajectory, progress=progress):
                 snapshot = gsd.hoomd.Frame()
                 snapshot.configuration.step = frame.step
                 edges = frame.upper - frame.lower
@@ -142,7 +157,9 @@ def export_gsd(trajectory: str | Path, path: str | Path) -> Path:
     return path
 
 
-def export_lammps_data(trajectory: str | Path, path: str | Path) -> Path:
+def export_lammps_data(
+    trajectory: str | Path, path: str | Path, progress: FrameProgress | None = None
+) -> Path:
     """The last frame as a LAMMPS data file (atom_style sphere, units si, `read_data`):
     id, radius, density, position (in a periodic box wrapped into it, with image flags),
     velocity and angular velocity of every sphere, 17 significant digits, so that
@@ -150,7 +167,7 @@ def export_lammps_data(trajectory: str | Path, path: str | Path) -> Path:
     from revdem_cli.io import write_text
     from revdem_cli.io.lammps_data import lammps_data_text, wrapped
 
-    *_, last = frames(trajectory)
+    (last,) = frames(trajectory, last_only=True, progress=progress)
     position, image = last.position, np.zeros(last.position.shape, dtype=np.int64)
     if last.periodic:  # inside the box, with the crossings as image flags, as LAMMPS has them
         position, image = wrapped(last.position, last.upper)

@@ -25,6 +25,7 @@ from revdem_cli.io.h5md import (
     read_contacts,
     read_frame,
 )
+from revdem_cli.io.particles import FrameProgress
 
 
 def _data_array(parent: ET.Element, name: str, values: np.ndarray, kind: str) -> None:
@@ -94,10 +95,13 @@ def _series(frames: list[tuple[float, Path]], path: Path) -> None:
     ET.ElementTree(root).write(path, xml_declaration=True)
 
 
-def export_vtk(trajectory: str | Path, out_dir: str | Path) -> list[Path]:
+def export_vtk(
+    trajectory: str | Path, out_dir: str | Path, progress: FrameProgress | None = None
+) -> list[Path]:
     """Write every frame of `trajectory` as out_dir/STEM.NNNNN.vtp and the series
     out_dir/STEM.pvd (STEM: the trajectory's name without .h5), and with contacts the force
-    chains STEM.contacts.NNNNN.vtp and STEM.contacts.pvd; returns the .pvd first."""
+    chains STEM.contacts.NNNNN.vtp and STEM.contacts.pvd, telling `progress` of each frame;
+    returns the .pvd first."""
     trajectory, out_dir = Path(trajectory), Path(out_dir)
     stem = trajectory.stem
     spheres, chains = [], []
@@ -120,6 +124,8 @@ def export_vtk(trajectory: str | Path, out_dir: str | Path) -> list[Path]:
                 path = out_dir / f"{stem}.contacts.{frame:0{width}d}.vtp"
                 _force_chains(position, box, contacts).write(path, xml_declaration=True)
                 chains.append((float(times[frame]), path))
+            if progress is not None:
+                progress(trajectory.name, frame + 1, len(times))
     series = out_dir / f"{stem}.pvd"
     _series(spheres, series)
     written = [series, *(path for _, path in spheres)]

@@ -68,3 +68,28 @@ def test_a_run_says_it_compiles_its_kernels_only_when_it_will(tmp_path, monkeypa
         assert result.exit_code == 0, result.output
         said[compiled] = progress.COMPILING in result.output
     assert said == {True: False, False: True}
+
+
+def test_an_export_reports_each_frame_it_writes(smoke_run, tmp_path):
+    """Every format: the frames written so far, each once, to the last (lammps-data: the
+    last frame alone, the only one it reads)."""
+    from revdem_cli.io import particles
+    from revdem_cli.io.vtk import export_vtk
+
+    trajectory = smoke_run / "collision_smoke.forward.h5"
+    exporters = {
+        "vtk": (export_vtk, tmp_path / "vtk"),
+        "gsd": (particles.export_gsd, tmp_path / "x.gsd"),
+        "lammps-dump": (particles.export_lammps_dump, tmp_path / "x.dump"),
+        "lammps-data": (particles.export_lammps_data, tmp_path / "x.data"),
+    }
+    for name, (exporter, target) in exporters.items():
+        calls = []
+        exporter(trajectory, target, lambda *call, calls=calls: calls.append(call))
+        done = [d for _, d, _ in calls]
+        totals = {total for *_, total in calls}
+        assert totals == {21}, (name, totals)  # the smoke run's frames
+        assert done == (list(range(1, 22)) if name != "lammps-data" else [21]), (name, done)
+    shown = CliRunner().invoke(app, ["export", str(trajectory), "--format", "gsd",
+                                     "--out", str(tmp_path / "y.gsd")])  # fmt: skip
+    assert shown.exit_code == 0 and "21/21 frames" in shown.output, shown.output
