@@ -455,9 +455,12 @@ def dt(
             raise InputError(
                 f"--restart takes the particles from the file; leave out {', '.join(given)}"
             )
+        from rich.console import Console
+
         from revdem_cli.timestep.packing import assess_restart
 
-        report = assess_restart(restart, verify)
+        with Console(stderr=True).status(f"reading {restart}") as shown:
+            report = assess_restart(restart, verify, shown.update)
         if as_json:
             import json
 

@@ -29,6 +29,7 @@ geometric stiffness of the contact forces as the normals turn (f_n/d beside k_n,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -177,9 +178,20 @@ def _mass_scale(state: State) -> np.ndarray:
     return np.sqrt(inverse)
 
 
-def packing_limit(state: State, model: Model, tolerance: float = 1e-9) -> PackingLimit:
+Status = Callable[[str], None]
+"""status(what is being done now), for a display of work that takes a while."""
+
+
+def _quiet(what: str) -> None:
+    """A `Status` that shows nothing."""
+
+
+def packing_limit(
+    state: State, model: Model, tolerance: float = 1e-9, status: Status = _quiet
+) -> PackingLimit:
     """The critical time step of `state` from the largest eigenvalue of M⁻¹K (scipy's
-    Lanczos, `eigsh`, on the symmetric M^-½ K M^-½, matrix-free)."""
+    Lanczos, `eigsh`, on the symmetric M^-½ K M^-½, matrix-free), telling `status` how many
+    products it has taken."""
     import time
 
     from scipy.sparse.linalg import LinearOperator, eigsh
@@ -193,7 +205,13 @@ def packing_limit(state: State, model: Model, tolerance: float = 1e-9) -> Packin
         return PackingLimit(contacts, 0.0, math.inf, math.inf, 0.0, mode, np.zeros((n, 6)), 0.0)
     stiffness = StiffnessOperator(contacts, n, contacts.kn, contacts.ks, contacts.kr)
 
+    products = 0
+
     def matvec(y):
+        nonlocal products
+        products += 1
+        if products % 10 == 0:
+            status(f"the fastest mode of {n:,} spheres (Lanczos): {products} products M⁻½KM⁻½ y")
         return (scale * stiffness(scale * y.reshape(n, 6))).ravel()
 
     operator = LinearOperator((6 * n, 6 * n), matvec=matvec, dtype=np.float64)
@@ -366,13 +384,15 @@ def engine_bracket(
     limit: PackingLimit,
     steps: int = 400,
     width: float = 1e-4,
+    status: Status = _quiet,
 ) -> EngineCheck:
     """Bisect the engine's stability limit from `state`: a copy at rest and one kicked along
     the top mode, each stepped `steps` steps at a trial Δt by the real stepping loop (viscous
     contact damping as the model's law has it; local damping and drag off, walls and cell
     held);
     Δt is unstable where their difference grows GROWTH times. The bracket starts at 3 % either
-    side of the damped assembly limit and narrows to a relative `width`."""
+    side of the damped assembly limit and narrows to a relative `width`; `status` is told of
+    each trial."""
     model = float_model(model)
     dyn = Dynamics(np.array(model.scenario.gravity, dtype=float), 0.0, 1.0)
     scale = _mass_scale(state)
@@ -381,7 +401,15 @@ def engine_bracket(
     kick = size * shape
     weight = 1.0 / scale**2  # M, so that the difference is measured in kinetic energy's norm
 
+    trials = 0
+
     def grows(dt: float) -> bool:
+        nonlocal trials
+        trials += 1
+        status(
+            f"the engine's limit: trial {trials} at Δt = {dt:.6g} s, {2 * steps} steps of "
+            f"{len(state.particles.x):,} spheres"
+        )
         base, kicked = _at_rest_copy(state, model), _at_rest_copy(state, model)
         kicked.particles.v[:] += kick[:, :3]
         kicked.particles.omega[:] += kick[:, 3:]
@@ -393,10 +421,8 @@ def engine_bracket(
         grown = math.sqrt((weight * dv * dv).sum() / (weight * kick * kick).sum())
         return not math.isfinite(grown) or grown > GROWTH
 
-    trials = 0
     stable, unstable = 0.97 * limit.damped_dt, 1.03 * limit.damped_dt
     while True:
-        trials += 2
         low, high = grows(stable), grows(unstable)
         if high and not low:
             break
@@ -410,7 +436,6 @@ def engine_bracket(
             )
     while unstable - stable > width * stable:
         middle = 0.5 * (stable + unstable)
-        trials += 1
         if grows(middle):
             unstable = middle
         else:
@@ -421,10 +446,11 @@ def engine_bracket(
 # ---------------------------------------------------------------- `revdem dt --restart`
 
 
-def assess_restart(path, verify: bool) -> dict:
+def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
     """The critical time step of the state a restart or checkpoint holds: the assembly's
     limit, every single-contact estimate revdem has beside it with its ratio to it, the time
-    step the stage ran at, and with `verify` the engine's own bracket."""
+    step the stage ran at, and with `verify` the engine's own bracket; `status` told of the
+    work as it goes."""
     from pathlib import Path
 
     from revdem_cli.config import Scenario
@@ -435,7 +461,7 @@ def assess_restart(path, verify: bool) -> dict:
     scenario = Scenario.model_validate_json(restart.scenario_json)
     stage = next(s for s in scenario.stages if s.name == restart.stage)
     model, state = Model.of(scenario).during(stage), restart.state  # its damping, its mu
-    limit = packing_limit(state, model)
+    limit = packing_limit(state, model, status=status)
     single = single_contact_limits(limit.contacts, state)
     guard, why = critical_time_step(scenario)
     estimates = {
@@ -475,7 +501,7 @@ def assess_restart(path, verify: bool) -> dict:
         },
     }
     if verify and math.isfinite(reference):
-        check = engine_bracket(state, model, limit)
+        check = engine_bracket(state, model, limit, status=status)
         report["engine_integrated"] = {
             "stable": check.stable,
             "unstable": check.unstable,

@@ -200,6 +200,21 @@ def test_dt_restart_reports_the_assembly_beside_the_single_contact_estimates(fcc
     assert engine["ratio"] == pytest.approx(1.0, abs=1e-2)
 
 
+def test_dt_restart_tells_what_it_is_doing_as_it_goes(fcc_restart):
+    """Minutes on a large packing: the Lanczos products so far, then each trial of the
+    engine's bracket, in order."""
+    said = []
+    report = packing.assess_restart(fcc_restart, True, said.append)
+    lanczos = [s for s in said if "(Lanczos)" in s]
+    trials = [s for s in said if s.startswith("the engine's limit: trial")]
+    assert lanczos and said[: len(lanczos)] == lanczos and said[len(lanczos) :] == trials
+    counts = [int(s.split(": ")[1].split()[0]) for s in lanczos]
+    assert counts == list(range(10, 10 * len(counts) + 1, 10))
+    assert [int(s.split()[4]) for s in trials] == list(range(1, len(trials) + 1))
+    assert len(trials) == report["engine_integrated"]["trials"]
+    assert all("800 steps of 108 spheres" in s for s in trials)
+
+
 def test_dt_restart_prints_a_table(fcc_restart):
     result = invoke("dt", "--restart", fcc_restart)
     assert result.exit_code == 0, result.output
