@@ -4,10 +4,10 @@ what force, read from the arrays the last step left (nothing is computed again).
 A contact of spheres i < j has the unit normal n from i to j (across a periodic face, to
 j's nearest image), the overlap δ = r_i + r_j - |x_j - x_i| > 0, both as the pair loop
 finds them (`kernels.pairs.contact_normals`, to the bit), and the contact point
-x_i + (r_i - δ/2) n, the engine's lever arm (Hanley 2020 Eq 9). The force on i from j is
-split into its normal part (f·n) n and the rest, the tangential force. A sphere on a wall
-takes n from the sphere towards the wall. A contact slides when the Coulomb cap (Hanley
-2020 §5.1) cut its shear force in the last step.
+x_i + (r_i - δ/2) n, the engine's lever arm (Hanley 2020 Eq 5, 22; `contact.lever_arm`).
+The force on i from j is split into its normal part (f·n) n and the rest, the tangential
+force. A sphere on a wall takes n from the sphere towards the wall. A contact slides when
+the Coulomb cap (Hanley 2020 §5.1) cut its shear force in the last step.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from revdem_cli.kernels.cell import images
+from revdem_cli.kernels.contact import lever_arm
 from revdem_cli.kernels.pairs import contact_normals
 from revdem_cli.kernels.wall_contacts import wall_normals
 
@@ -96,7 +97,9 @@ def contact_list(state) -> ContactList:
     wall_overlap = walls.overlap[q, w]
     pair_normal, pair_tangential = _split(pairs.force[t.slot], n)
     wall_normal_force, wall_tangential = _split(walls.force[q, w], n_wall)
-    arm = np.concatenate([p.radius[t.i] - 0.5 * t.overlap, p.radius[q] - 0.5 * wall_overlap])
+    arm = np.concatenate(
+        [lever_arm(p.radius[t.i], t.overlap), lever_arm(p.radius[q], wall_overlap)]
+    )
     particle = np.concatenate([t.i, q])
     normal = np.concatenate([n, n_wall])
     return ContactList(

@@ -47,7 +47,8 @@ def effective_modulus(a: Material, b: Material) -> float:
 
 def effective_shear_modulus(a: Material, b: Material) -> float:
     """1/G* = (2 - nu_a)/G_a + (2 - nu_b)/G_b (Mindlin; for equal materials 8 G* sqrt(R* d)
-    equals Hanley 2020's H^s = H^n sqrt(d) 3(1 - nu)/(2 - nu) in Eq 10)."""
+    equals H^s = H^n sqrt(d) 3(1 - nu)/(2 - nu), Hanley 2020 Eq 10 with its factor outside the
+    root, as `laws.mindlin` says)."""
     return 1.0 / (
         (2.0 - a.poisson_ratio) / a.shear_modulus + (2.0 - b.poisson_ratio) / b.shear_modulus
     )
@@ -109,14 +110,22 @@ def cell_deforms(scenario: Scenario) -> bool:
     return any(stage.cell is not None and stage.cell.moving() for stage in scenario.stages)
 
 
+def sphere_masses(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """Each sphere's mass 4/3 pi r^3 rho and moment of inertia I = 2/5 m r^2 (a solid
+    sphere, Hanley 2020 §2), kg and kg m^2."""
+    spheres = scenario.spheres
+    radius = np.asarray(spheres.radius, dtype=np.float64)
+    densities = np.array([m.density for m in scenario.materials.values()])
+    mass = 4.0 / 3.0 * np.pi * radius**3 * densities[spheres.material]
+    return mass, 0.4 * mass * radius**2
+
+
 def particles(scenario: Scenario) -> Particles:
     spheres = scenario.spheres
     n = len(spheres)
     # the constants are the scenario's own arrays (never written), not copies of them
     radius = np.ascontiguousarray(spheres.radius, dtype=np.float64)
-    densities = np.array([m.density for m in scenario.materials.values()])
-    mass = 4.0 / 3.0 * np.pi * radius**3 * densities[spheres.material]
-    inertia = 0.4 * mass * radius**2  # solid sphere, I = 2/5 m r^2 (Hanley 2020 §2)
+    mass, inertia = sphere_masses(scenario)
     x = spheres.position.copy()
     in_cell = scenario.cell is not None and cell_deforms(scenario)
     v = spheres.velocity.copy()
@@ -412,8 +421,7 @@ def fixed_grid(scenario: Scenario) -> np.ndarray:
         extent / duration,
     )
     spin = max(float(np.linalg.norm(spheres.angular_velocity, axis=1).max()), speed / r_min)
-    densities = np.array([m.density for m in scenario.materials.values()])
-    masses = densities[spheres.material] * 4.0 / 3.0 * math.pi * spheres.radius**3
+    masses = sphere_masses(scenario)[0]
     estar = float(moduli(scenario).estar.max())
     overlap = 0.01 * r_max
     contact = laws.evaluate(scenario.contact, "normal", "force", overlap, r_max, estar)[0]

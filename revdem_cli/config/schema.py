@@ -105,6 +105,17 @@ def _choice(family: str) -> object:
     return (kind, Field(description=f"{family} law: {described}"))
 
 
+NORMAL_DAMPING = (
+    "c_n = 2 beta_n sqrt(m* k_n), the fraction of critical of the pair's normal motion (Peng "
+    "2020 Eq 29, 37)"
+)
+SHEAR_DAMPING = (
+    "c_s = 2 beta_t sqrt(m* k_s), the fraction of critical of the spheres sliding without "
+    "turning (free to turn, a pair's shear motion is critical at 2 sqrt(m* k_s / 3.5), Peng "
+    "2020 Eq 26, 37)"
+)
+
+
 class _Contact(_Model):
     """The parts of a contact that belong to no one law: Coulomb friction, viscous damping
     and how a wall's moduli combine."""
@@ -115,10 +126,10 @@ class _Contact(_Model):
         description="Coulomb friction coefficient mu, -; inf for no sliding",
     )
     normal_damping: Float = Field(
-        default=0.0, ge=0, description="viscous normal damping, fraction of critical, -"
+        default=0.0, ge=0, description=f"viscous normal damping beta_n: {NORMAL_DAMPING}, -"
     )
     tangential_damping: Float = Field(
-        default=0.0, ge=0, description="viscous tangential damping, fraction of critical, -"
+        default=0.0, ge=0, description=f"viscous tangential damping beta_t: {SHEAR_DAMPING}, -"
     )
     wall_moduli: Literal["combined", "wall"] = Field(
         default="combined",
@@ -550,12 +561,12 @@ class StageContact(_Model):
     normal_damping: Float | None = Field(
         default=None,
         ge=0,
-        description="viscous normal damping during this stage, fraction of critical, -",
+        description=f"viscous normal damping beta_n during this stage: {NORMAL_DAMPING}, -",
     )
     tangential_damping: Float | None = Field(
         default=None,
         ge=0,
-        description="viscous tangential damping during this stage, fraction of critical, -",
+        description=f"viscous tangential damping beta_t during this stage: {SHEAR_DAMPING}, -",
     )
 
 

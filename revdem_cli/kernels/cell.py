@@ -13,8 +13,10 @@ Servos, for an axis a holding the stress target s*_a:
   run follows the forward one only as closely as the servo tracks its target, closer the
   larger the gain (the paper's observation).
 - INERTIAL: the edge is a degree of freedom of mass M driven by (sigma_aa - s*_a) A_a, A_a the
-  area of the face normal to a, integrated with the particles' velocity-Verlet half steps;
-  its reversed step is the exact inverse of its forward step.
+  area of the face normal to a (Andersen's barostat, J. Chem. Phys. 72, 2384 (1980), per
+  axis, as Parrinello and Rahman's; the stress of Hanley 2020 Eq 23), integrated with the
+  particles' velocity-Verlet half steps; its reversed step is the exact inverse of its
+  forward step.
 """
 
 import numpy as np

@@ -12,6 +12,8 @@ moment on i.
 
 import math
 
+import numpy as np
+
 from revdem_cli.kernels import inline
 from revdem_cli.kernels.fixed import binade, snapped
 from revdem_cli.kernels.vectors import axpy, cross, dot, scaled
@@ -56,6 +58,22 @@ def reduced(a, b):
     """a b / (a + b): the effective radius R* of two radii (Hanley 2020 Eq 6) or the reduced
     mass m* of two masses (the viscous damping's), scalars or arrays alike."""
     return a * b / (a + b)
+
+
+@inline
+def lever_arm(radius, overlap):
+    """r - overlap / 2: the distance from a sphere's centre to the contact point, the length
+    of its branch vector (Hanley 2020 Eq 5, 22), by which n x f is the contact's moment on
+    it; scalars or arrays alike."""
+    return radius - 0.5 * overlap
+
+
+@inline
+def viscous_coefficient(beta, mstar, stiffness):
+    """c = 2 beta sqrt(m* k): the dashpot of a contact of stiffness k between bodies of
+    reduced mass m*, damped at beta, the fraction of the critical 2 sqrt(k / A) of two bodies
+    apart, A = 1/m* (Peng 2020 Eq 29, 37); scalars or arrays alike."""
+    return 2.0 * beta * np.sqrt(mstar * stiffness)
 
 
 SMALL_ANGLE = 1e-3
@@ -200,7 +218,7 @@ def normal_force(law, overlap, rstar, mstar, estar, vrel, n):
     elastic, stiffness, _ = normal_law(law, overlap, rstar, estar)
     normal = elastic
     if law.beta_n > 0.0:
-        normal -= 2.0 * law.beta_n * math.sqrt(mstar * stiffness) * dot(vrel, n)  # viscous
+        normal -= viscous_coefficient(law.beta_n, mstar, stiffness) * dot(vrel, n)
     return normal, elastic
 
 
@@ -251,7 +269,7 @@ def contact_force(
             shear = snapped(shear, history_step(law, elastic))
     if law.beta_t > 0.0:
         damped = tangential(vdamp, n)
-        shear_total = axpy(2.0 * law.beta_t * math.sqrt(mstar * ks), damped, shear)  # viscous
+        shear_total = axpy(viscous_coefficient(law.beta_t, mstar, ks), damped, shear)
         return axpy(1.0, shear_total, force), shear, slip, normal, elastic
     return axpy(1.0, shear, force), shear, slip, normal, elastic
 
@@ -283,8 +301,11 @@ def rolling_moment(
 
 @inline
 def contact_energy(law, overlap, rstar, estar, gstar, shear, rolling):
-    """Elastic energy stored in a contact in overlap > 0: normal, shear and rolling springs
-    (`rolling`, the rolling moment; ignored without a rolling law)."""
+    """Elastic energy stored in a contact in overlap > 0: normal (the law's, `normal_law`),
+    shear |f_s|^2 / 2 k_s and rolling |M_r|^2 / 2 k_r (`rolling`, the rolling moment; ignored
+    without a rolling law), the energy of a linear spring at its present stiffness (Hanley
+    2020 Eq 10 and §5.3's springs). Exact for a constant k_s; with Mindlin's, which stiffens
+    with the overlap, an estimate: the spring was loaded at other stiffnesses."""
     energy = normal_law(law, overlap, rstar, estar)[2]
     if law.tangential == NO_SHEAR:
         return energy

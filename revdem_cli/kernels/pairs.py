@@ -54,6 +54,7 @@ from revdem_cli.kernels.contact import (
     contact_force,
     contact_velocity,
     earlier_shear,
+    lever_arm,
     reduced,
     rolling_moment,
 )
@@ -79,7 +80,7 @@ def pair_velocity(d, n, overlap, r_i, r_j, v_ij, w_i, w_j, strain, deforming):
     r_i, r_j, separation d, normal n, centres' relative velocity v_ij = v_j - v_i and spins
     w_i, w_j; in a deforming cell the relative velocity includes the cell's affine motion
     (`strain` from `cell.strain_rates`)."""
-    vrel = contact_velocity(n, r_i - 0.5 * overlap, r_j - 0.5 * overlap, v_ij, w_i, w_j)
+    vrel = contact_velocity(n, lever_arm(r_i, overlap), lever_arm(r_j, overlap), v_ij, w_i, w_j)
     if deforming:
         vrel = axpy(1.0, affine_velocity(d, strain), vrel)
     return vrel, 0.5 * (dot(w_i, n) + dot(w_j, n))
@@ -594,8 +595,8 @@ def sum_in_order(
             if turned:
                 n_x_f = cross(n_x_f, f)
             overlap = entry(block, OVERLAP, k)
-            t_i = axpy(radius[i] - 0.5 * overlap, n_x_f, t_i)
-            t_j = axpy(radius[j] - 0.5 * overlap, n_x_f, row(t_sum, j)) if mine else ZERO
+            t_i = axpy(lever_arm(radius[i], overlap), n_x_f, t_i)
+            t_j = axpy(lever_arm(radius[j], overlap), n_x_f, row(t_sum, j)) if mine else ZERO
             if rolls:
                 t_i = axpy(1.0, entries(block, NEW_ROLLING, k), t_i)
                 t_j = axpy(-1.0, entries(block, NEW_ROLLING, k), t_j)
@@ -641,14 +642,14 @@ def sum_foreign(q, mass, gravity, radius, pi, first_pair, start, slots, force, m
         k = np.uint32(slots[s])
         f = axpy(-1.0, row(force, k), f)
         if torques:
-            t = axpy(radius[q] - 0.5 * overlaps[k], n_cross_f(moment, force, k, turned), t)
+            t = axpy(lever_arm(radius[q], overlaps[k]), n_cross_f(moment, force, k, turned), t)
             if rolls:
                 t = axpy(-1.0, row(rolling, k), t)
     for kk in range(first_pair[q], first_pair[q + 1]):
         k = np.uint64(kk)
         f = axpy(1.0, row(force, k), f)
         if torques:
-            t = axpy(radius[q] - 0.5 * overlaps[k], n_cross_f(moment, force, k, turned), t)
+            t = axpy(lever_arm(radius[q], overlaps[k]), n_cross_f(moment, force, k, turned), t)
             if rolls:
                 t = axpy(1.0, row(rolling, k), t)
     put(f_sum, q, f)

@@ -250,7 +250,8 @@ def _contact_force(bodies, law, moments, rotations, anchors, point, normal, over
     kn, ks, cn, cs = law[0], law[1], law[2], law[3]
     relative = np.zeros(3)
     for i in range(2):
-        spin = rotations[i] @ (momenta[i] / moments[i])  # ω_G = R ω_L (Peng 2020 Eq 15-16)
+        # ω_G = R ω_L (Peng 2020 Eq 15-16, R body to world as in `_half_kick`)
+        spin = rotations[i] @ (momenta[i] / moments[i])
         velocity = velocities[i] + np.cross(spin, point - positions[i])
         relative += velocity if i == 1 else -velocity
     normal_speed = relative @ normal
@@ -297,7 +298,9 @@ def compute_forces(bodies, loads, law, shapes, moments, anchors, solution):
 
 @jit
 def _half_kick(bodies, loads, masses, dt):
-    """v += Δt/2 F/m; π += Δt/2 Rᵀ M_G (M_L = Rᵀ M_G, Peng 2020 Eq 5-6 with R of Eq 7)."""
+    """v += Δt/2 F/m; π += Δt/2 Rᵀ M_G (M_L = Rᵀ M_G: Peng 2020 Eq 5-6, whose R of Eq 7 maps
+    the body's axes to the world's, so that the world-to-body map is its transpose, as
+    `timestep.contact_kinematics` says)."""
     for i in range(2):
         rotation = rotation_matrix(bodies[2][i])
         bodies[1][i] += 0.5 * dt * loads[0][i] / masses[i]

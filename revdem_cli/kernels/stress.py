@@ -7,6 +7,7 @@ import numba
 
 from revdem_cli.kernels import jit
 from revdem_cli.kernels.cell import images, volume
+from revdem_cli.kernels.contact import lever_arm
 from revdem_cli.kernels.pairs import pair_geometry, separation
 from revdem_cli.kernels.sums import blocks_of, by_blocks, span
 from revdem_cli.kernels.vectors import row
@@ -68,7 +69,7 @@ def particle_stress(p, pairs, walls, cell, out):
         i, j = pairs.i[k], pairs.j[k]
         overlap, n, _ = pair_geometry(separation(p.x, i, j, image), p.radius[i], p.radius[j])
         for q in (i, j):
-            arm = p.radius[q] - 0.5 * overlap
+            arm = lever_arm(p.radius[q], overlap)
             for a in range(3):
                 for b in range(3):
                     out[q, a, b] -= arm * n[a] * f[b]
@@ -76,7 +77,7 @@ def particle_stress(p, pairs, walls, cell, out):
         for b in range(walls.force.shape[1]):
             if walls.overlap[q, b] > 0.0:
                 n = wall_normal(p, walls, q, b)
-                arm = p.radius[q] - 0.5 * walls.overlap[q, b]
+                arm = lever_arm(p.radius[q], walls.overlap[q, b])
                 for a in range(3):
                     for c in range(3):
                         out[q, a, c] -= arm * n[a] * walls.force[q, b, c]

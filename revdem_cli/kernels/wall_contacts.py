@@ -9,6 +9,7 @@ from revdem_cli.kernels.contact import (
     NO_ROLLING,
     NO_SHEAR,
     contact_force,
+    lever_arm,
     relative_velocity,
     rolling_moment,
 )
@@ -34,7 +35,7 @@ def wall_kinematics(q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_
     overlap, n = wall_overlap(
         kind[b], row(point, b), row(axis, b), wall_radius[b], row(x, q), radius[q]
     )
-    arm = radius[q] - 0.5 * overlap
+    arm = lever_arm(radius[q], overlap)
     w_q = row(w, q)
     vrel = relative_velocity(n, arm, 0.0, row(v, q), w_q, row(wall_velocity, b), ZERO)
     return overlap, n, arm, vrel, 0.5 * dot(w_q, n)

@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from revdem_cli.kernels.contact import viscous_coefficient
 from revdem_cli.timestep.criteria import Contact
 from revdem_cli.timestep.shapes import Body
 
@@ -46,7 +47,7 @@ def _contact_law(contact: Contact, inverse_mass: float) -> dict:
     law = {
         "model": "linear",
         "kn": contact.kn,
-        "normal_damping": contact.cn / (2.0 * math.sqrt(contact.kn / inverse_mass)),
+        "normal_damping": contact.cn / viscous_coefficient(1.0, 1.0 / inverse_mass, contact.kn),
     }
     if contact.ks == 0.0:
         return law
@@ -54,7 +55,7 @@ def _contact_law(contact: Contact, inverse_mass: float) -> dict:
         "tangential": "linear",
         "ks": contact.ks,
         "friction": math.inf,
-        "tangential_damping": contact.cs / (2.0 * math.sqrt(contact.ks / inverse_mass)),
+        "tangential_damping": contact.cs / viscous_coefficient(1.0, 1.0 / inverse_mass, contact.ks),
     }
 
 

@@ -181,8 +181,8 @@ def _plot_figure3(columns, path: Path) -> None:
     ax.plot(
         beta, columns["velocity_verlet_integrated"], "ko", ms=4, label="velocity Verlet, integrated"
     )
-    ax.axvline(2.0 / math.sqrt(7.0), color="0.6", lw=0.8, ls=":")
-    ax.axvline(2.0 * math.sqrt(2.0), color="0.6", lw=0.8, ls=":")
+    ax.axvline(2.0 / math.sqrt(7.0), color="0.6", lw=0.8, ls=":")  # Eq 37, A m = 7 (Eq 26)
+    ax.axvline(2.0 * math.sqrt(2.0), color="0.6", lw=0.8, ls=":")  # Eq 36, 59: overdamped
     ax.set(xlabel="β = c / √(mk)", ylabel="Δt_cri √(k/m)", ylim=(0, 8), xlim=(beta[0], beta[-1]))
     ax.set_title("Two equal spheres (Peng 2020 Figure 3)")
     ax.legend(fontsize=8)

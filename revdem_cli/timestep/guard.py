@@ -29,7 +29,8 @@ import numpy as np
 
 from revdem_cli import laws
 from revdem_cli.config import Material, Scenario
-from revdem_cli.state import pair_moduli
+from revdem_cli.kernels.contact import reduced, viscous_coefficient
+from revdem_cli.state import pair_moduli, sphere_masses
 from revdem_cli.timestep.criteria import dt_velocity_predictor, dt_velocity_verlet
 
 SHEAR_LEVER = 3.5  # A_t / A_n of a sphere contact: 1 + r²/(2/5 r²) (Peng 2020 Eq 26)
@@ -123,10 +124,8 @@ def _largest_moduli(scenario: Scenario, pairs) -> tuple[float, float]:
 def contact_kinds(scenario: Scenario) -> list[Kind]:
     """The sphere pair (two or more particles) and the sphere on a wall (any wall)."""
     spheres = scenario.spheres
-    densities = np.array([m.density for m in scenario.materials.values()])
-    masses = densities[spheres.material] * 4.0 / 3.0 * math.pi * spheres.radius**3
-    mass = float(masses.min())
-    inertia = float((0.4 * masses * spheres.radius**2).min())  # I = 2/5 m r²
+    masses, inertias = sphere_masses(scenario)
+    mass, inertia = float(masses.min()), float(inertias.min())
     radius = float(spheres.radius.max())
     used = set(spheres.material_names())
     speeds = np.sort(particle_speeds(scenario))[::-1]
@@ -136,8 +135,8 @@ def contact_kinds(scenario: Scenario) -> list[Kind]:
         kinds.append(
             Kind(
                 "sphere pair",
-                2.0 / mass,
-                radius / 2.0,
+                2.0 / mass,  # A_n = 1/m + 1/m
+                reduced(radius, radius),
                 *moduli,
                 float(speeds[0] + speeds[1]),
                 2.0 / inertia,
@@ -179,7 +178,7 @@ def _limit(
     read from the half-step velocity or (order > 0) from the velocity predictor's."""
     if stiffness == 0.0:
         return math.inf
-    damping = 2.0 * beta * math.sqrt(reduced_mass * stiffness)
+    damping = viscous_coefficient(beta, reduced_mass, stiffness)
     if order and damping > 0.0:  # Peng 2020 Eq 30 with the predictor (Kolafa & Lisal 2011)
         return dt_velocity_predictor(stiffness, damping, inverse_mass, order)
     return dt_velocity_verlet(stiffness, damping, inverse_mass)  # Peng 2020 Eq 30, 47
@@ -203,12 +202,12 @@ def contact_dt(scenario: Scenario, kind: Kind) -> float:
     directions, at the largest viscous damping of any stage, and, with a rolling law, its
     rolling spring on the bodies' rotations."""
     kn, ks = impact_stiffness(scenario, kind)
-    law, reduced = scenario.contact, 1.0 / kind.inverse_mass
+    law, mstar = scenario.contact, 1.0 / kind.inverse_mass
     order = scenario.integrator.predictor_order
     normal_damping, tangential_damping = largest_damping(scenario)
     limits = [
-        _limit(kn, normal_damping, kind.inverse_mass, reduced, order),
-        _limit(ks, tangential_damping, SHEAR_LEVER * kind.inverse_mass, reduced, order),
+        _limit(kn, normal_damping, kind.inverse_mass, mstar, order),
+        _limit(ks, tangential_damping, SHEAR_LEVER * kind.inverse_mass, mstar, order),
     ]
     if laws.chosen(law, "rolling") is not None:
         kr = laws.evaluate(law, "rolling", "stiffness", 0.0, kind.rstar)

@@ -1,7 +1,8 @@
 """Critical time step of a packing as it is: the largest eigenvalue of M⁻¹K, with K the
 linearised stiffness of every contact of one state and M its masses and moments of inertia
-(Otsubo, O'Sullivan & Shire 2017, the analysis Peng 2020 §3 points to where a particle has
-several contacts), checked on the engine's own stepping loop.
+(Otsubo, O'Sullivan & Shire 2017, Peng 2020's ref 10: the eigenvalue analysis its §1 cites,
+and its §4's reason for a factor of safety where a particle has several contacts), checked
+on the engine's own stepping loop.
 
 Each sphere has 6 degrees of freedom, q = (u, θ): a small displacement and a small rotation.
 A contact of spheres a and b with normal n from a to b, lever arms l_a and l_b (r - δ/2, as
@@ -40,7 +41,7 @@ from revdem_cli.errors import InputError
 from revdem_cli.io.tape import no_tape
 from revdem_cli.kernels.arrays import Dynamics
 from revdem_cli.kernels.cell import FIXED
-from revdem_cli.kernels.contact import STATIC, reduced
+from revdem_cli.kernels.contact import STATIC, lever_arm, reduced, viscous_coefficient
 from revdem_cli.kernels.forces import compute_forces
 from revdem_cli.kernels.integrate import BLOWN_UP, OK, advance
 from revdem_cli.kernels.stiffness import apply_stiffness, contact_stiffnesses
@@ -83,7 +84,7 @@ def contacts_of(state: State, model: Model) -> Contacts:
     wall_overlap = state.walls.overlap[q, w]
     rstar = np.concatenate([reduced(r_i, r_j), p.radius[q]])  # on a wall R* = r
     mstar = np.concatenate([reduced(m_i, m_j), p.mass[q]])  # and m* = m
-    arm_b = np.concatenate([r_j - 0.5 * overlap, np.zeros(len(q))])
+    arm_b = np.concatenate([lever_arm(r_j, overlap), np.zeros(len(q))])
     overlap = np.concatenate([overlap, wall_overlap])
     mat_a = p.material[a]
     mat_b = np.concatenate([p.material[j], state.walls.material[w]])
@@ -95,14 +96,14 @@ def contacts_of(state: State, model: Model) -> Contacts:
         a=a,
         b=b,
         n=n,
-        arm_a=p.radius[a] - 0.5 * overlap,
+        arm_a=lever_arm(p.radius[a], overlap),
         arm_b=arm_b,
         overlap=overlap,
         kn=kn,
         ks=ks,
         kr=kr,
-        cn=2.0 * model.law.beta_n * np.sqrt(mstar * kn),
-        cs=2.0 * model.law.beta_t * np.sqrt(mstar * ks),
+        cn=viscous_coefficient(model.law.beta_n, mstar, kn),
+        cs=viscous_coefficient(model.law.beta_t, mstar, ks),
         walls=len(q),
     )
 
@@ -264,7 +265,7 @@ def single_contact_limits(contacts: Contacts, state: State) -> dict[str, float]:
     shear = normal + contacts.arm_a**2 * inv_i[a] + contacts.arm_b**2 * inv_i[b]
     rolling = inv_i[a] + inv_i[b]
 
-    def smallest(k, inverse_mass):
+    def smallest(k, inverse_mass):  # the least 2 / sqrt(k A) of them (Peng 2020 Eq 47)
         product = k * inverse_mass
         return float(2.0 / np.sqrt(product.max())) if product.any() else math.inf
 
