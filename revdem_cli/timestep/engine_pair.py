@@ -116,12 +116,6 @@ def resting_pair(body1: Body, body2: Body, contact: Contact, order: int = 0):
     )
 
 
-def _kinetic_energy(particles) -> float:
-    translation = particles.mass * (particles.v**2).sum(axis=1)
-    rotation = particles.inertia * (particles.omega**2).sum(axis=1)
-    return 0.5 * float((translation + rotation).sum())
-
-
 def engine_is_stable(scenario, dt: float) -> bool:
     """Whether the engine keeps the kinetic energy of `scenario` within GROWTH of its start."""
     from revdem_cli.io.tape import no_tape
@@ -131,7 +125,7 @@ def engine_is_stable(scenario, dt: float) -> bool:
 
     model = Model.of(scenario)
     state = initial_state(scenario)
-    start = _kinetic_energy(state.particles)
+    start = model.observe(state, model.dynamics)[model.layout.column("kinetic_energy")]
     obs, steps = model.buffers(STEPS)
     stepping = model.stepping(dt, 0, STEPS, 1)._replace(overlap_limit=np.inf)  # by energy alone
     bundles = stepping_bundles(state, model, model.dynamics, model.law)
