@@ -117,11 +117,18 @@ def parse_text(text: str, suffix: str, origin: str) -> dict:
 
 
 def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
-    """Apply ``key.sub=value`` overrides, each value as `read_value` reads it."""
+    """Apply ``key.sub=value`` overrides, each value as `read_value` reads it; a key given
+    twice is refused, as `revdem sweep` refuses it, not cut to its last value."""
+    given: dict[str, str] = {}
     for item in overrides:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise InputError(f"--set {item}: expected key=value")
+        if key.strip() in given:
+            raise InputError(
+                f"--set {item}: {key.strip()} is given twice (also --set {given[key.strip()]})"
+            )
+        given[key.strip()] = item
         set_field(data, key, read_value(raw, f"--set {item}"), "--set ")
     return data
 

@@ -251,3 +251,11 @@ def test_resuming_from_no_folder_or_a_file_is_one_line_with_progress_shown(tmp_p
     assert done.stderr == f"error: --resume {tmp_path / 'none'}: no such directory\n"
     result = invoke("run", "--resume", tmp_path / "afile")
     assert_one_line_error(result, "afile: a file, not the folder of a run")
+
+
+def test_a_field_set_twice_on_the_command_line_is_refused_not_cut_to_its_last_value():
+    first, second = "integrator.dt=1e-7", "integrator.dt=2e-7"
+    result = invoke("validate", COLLISION, "--set", first, "--set", second)
+    assert_one_line_error(
+        result, f"--set {second}: integrator.dt is given twice (also --set {first})"
+    )
