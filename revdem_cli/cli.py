@@ -504,8 +504,13 @@ def sweep(
 def report(
     directory: Annotated[Path, typer.Argument(help="Directory of runs, e.g. out.")],
     paper: Annotated[
-        Path, typer.Option("--paper", help="What the paper reports (paper_numbers.toml).")
-    ] = Path("scenarios/hanley2020/paper_numbers.toml"),
+        Path | None,
+        typer.Option(
+            "--paper",
+            help="What the paper reports (default: the project's "
+            "scenarios/hanley2020/paper_numbers.toml, wherever revdem is run from).",
+        ),
+    ] = None,
     out: Annotated[
         Path | None,
         typer.Option(
@@ -517,9 +522,10 @@ def report(
 
     Example: revdem report out
     """
-    from revdem_cli.report.paper import write_report
+    from revdem_cli.report.paper import HANLEY_2020, write_report
 
-    typer.echo(f"wrote {write_report(directory, paper, out or directory / 'report.md')}")
+    written = write_report(directory, paper or HANLEY_2020, out or directory / "report.md")
+    typer.echo(f"wrote {written}")
 
 
 app.command("dt")(_dt)

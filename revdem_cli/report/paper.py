@@ -22,6 +22,9 @@ from revdem_cli.compare import read_verdict
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import open_trajectory, read_observable
 
+HANLEY_2020 = Path(__file__).parents[2] / "scenarios" / "hanley2020" / "paper_numbers.toml"
+"""Hanley 2020's numbers, `revdem report`'s paper file unless given another."""
+
 ABOUT = {"config", "section", "claim", "relative_tolerance", "lower_wall", "upper_wall"}
 """Entries of a case that describe it rather than report a number."""
 

@@ -41,7 +41,7 @@ def test_report_judges_each_number_against_the_run(smoke_run, tmp_path):
 
 
 def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypatch):
-    monkeypatch.chdir(ROOT)
+    monkeypatch.chdir(tmp_path)  # the project's paper file, wherever revdem runs from
     runs = tmp_path / "runs"  # the smoke collision's verdict as the paper's collision's
     runs.mkdir()
     (runs / "collision.compare.json").symlink_to(smoke_run / "collision_smoke.compare.json")
