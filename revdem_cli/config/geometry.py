@@ -124,6 +124,18 @@ def spheres_from(source, path: str, scenario, materials: tuple[str, ...]) -> Sph
                 f"{edges.tolist()}",
             )
         position = data.position - data.lower  # inside the cell, as the file has them
+    else:  # an open box holds its atoms, as LAMMPS' read_data demands on a non-periodic axis
+        outside = np.flatnonzero(
+            ((data.position < data.lower) | (data.position > data.upper)).any(1)
+        )
+        if len(outside):
+            k = int(outside[0])
+            raise FieldError(
+                f"{path}.lammps_data",
+                f"atom {data.id[k]} of {data.path} lies at {data.position[k].tolist()}, outside "
+                f"its box {data.lower.tolist()} to {data.upper.tolist()} (periodic = false: no "
+                "axis wraps)",
+            )
     spheres = Spheres(
         data.radius, position, data.velocity, data.angular_velocity, material, materials, data.id
     )

@@ -253,3 +253,31 @@ def test_a_periodic_box_must_be_the_cell(tmp_path):
     scenario.write_text(text)
     result = CliRunner().invoke(app, ["validate", str(scenario)])
     assert_one_line_error(result, "cell.size", "periodic box")
+
+
+@pytest.mark.parametrize("x", [0.02, 0.05], ids=["inside", "outside"])
+def test_an_open_box_must_hold_its_atoms_as_lammps_read_data_demands(tmp_path, x):
+    """periodic = false: no axis wraps, so an atom past the file's box is an error in the
+    file, which LAMMPS' read_data refuses too; one inside is read."""
+    from revdem_cli.io.lammps_data import lammps_data_text
+
+    radius = np.array([0.005, 0.005])
+    mass = 1000.0 * 4.0 / 3.0 * math.pi * radius**3
+    position = np.array([[0.01, 0.01, 0.01], [x, 0.01, 0.01]])
+    zeros, box = np.zeros((2, 3)), (np.zeros(3), np.full(3, 0.04))
+    image = zeros.astype(np.int64)
+    text = lammps_data_text([1, 2], radius, mass, position, image, zeros, zeros, [1, 1], *box,
+                            0, "open box")  # fmt: skip
+    data = tmp_path / "open.data"
+    data.write_text(text)
+    scenario = _scenario(tmp_path, data)
+    text = scenario.read_text().replace("periodic = true\n", "")
+    scenario.write_text(text[: text.index("[cell]")] + text[text.index("[integrator]") :])
+    result = CliRunner().invoke(app, ["validate", str(scenario)])
+    if x < 0.04:
+        assert result.exit_code == 0, result.output
+        return
+    assert_one_line_error(
+        result, "particles_from[0].lammps_data", "atom 2 of", "lies at [0.05, 0.01, 0.01]",
+        "outside its box [0.0, 0.0, 0.0] to [0.04, 0.04, 0.04]",
+    )  # fmt: skip
