@@ -438,11 +438,13 @@ def dt(
     Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
     """
     if figures is not None:
+        from itertools import chain
+
         from revdem_cli.timestep.figures import PAPER_STEMS, write_appendix_figures, write_figures
         from revdem_cli.timestep.study import PAPER
 
-        written = write_figures(figures, PAPER, PAPER_STEMS) + write_appendix_figures(figures)
-        for path in written:
+        written = chain(write_figures(figures, PAPER, PAPER_STEMS), write_appendix_figures(figures))
+        for path in written:  # each as it is written: the figures take seconds each
             typer.echo(f"wrote {path}")
         return
     if restart is not None:

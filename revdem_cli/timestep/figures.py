@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import itertools
 import math
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -288,9 +289,9 @@ def _plot_appendix(columns, position: str, title: str, path: Path) -> None:
     plt.close(fig)
 
 
-def write_appendix_figures(directory: Path) -> list[Path]:
+def write_appendix_figures(directory: Path) -> Iterator[Path]:
     """Figure 2's mobilities (CSV) and Appendix A's Figures A2 and A4 (CSV and PNG) for the
-    paper's ellipsoids at unit density, contact force (1, 1, 1) N; the paths written."""
+    paper's ellipsoids at unit density, contact force (1, 1, 1) N; each path once written."""
     import matplotlib
 
     from revdem_cli.timestep import contact_kinematics as kinematics
@@ -299,7 +300,7 @@ def write_appendix_figures(directory: Path) -> list[Path]:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     body = shapes.ellipsoid(3.0, 2.0, 1.0, 1.0)
-    written = [_write_csv(directory / f"{APPENDIX_STEMS['figure2']}.csv", figure2_data(body))]
+    yield _write_csv(directory / f"{APPENDIX_STEMS['figure2']}.csv", figure2_data(body))
     figures = (
         ("A2", kinematics.scan_contact_points, "", "ellipsoid 2 moved to touch each point"),
         ("A4", kinematics.scan_orientations, "centre2_", "ellipsoid 2 turned about the tip"),
@@ -307,37 +308,37 @@ def write_appendix_figures(directory: Path) -> list[Path]:
     for key, scan, position, words in figures:
         stem = directory / APPENDIX_STEMS[key]
         columns = appendix_data(body, scan)
-        written.append(_write_csv(stem.with_suffix(".csv"), columns))
+        yield _write_csv(stem.with_suffix(".csv"), columns)
         title = f"Peng 2020 Figure {key}: |ẍ_c| for F = (1, 1, 1) N, unit density; {words}"
         _plot_appendix(columns, position, title, stem.with_suffix(".png"))
-        written.append(stem.with_suffix(".png"))
-    return written
+        yield stem.with_suffix(".png")
 
 
-def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) -> list[Path]:
+def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) -> Iterator[Path]:
     """Write the study's figures as PNG and CSV into `directory`, figure n as `stems[n]`.*;
-    the paths written."""
+    each path once written (a figure's points take seconds: its caller says so as they come)."""
     import matplotlib
 
     matplotlib.use("Agg")
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    written = []
 
     def save(number, columns, plot, *args):
         stem = stems[number]
-        written.append(_write_csv(directory / f"{stem}.csv", columns))
+        yield _write_csv(directory / f"{stem}.csv", columns)
         plot(columns, *args, directory / f"{stem}.png")
-        written.append(directory / f"{stem}.png")
+        yield directory / f"{stem}.png"
 
     particle, kn = study.particle, study.contact.kn
     for number in study.figures:
         if number == 3:
             figure = study.figure3
-            save(3, figure3_data(figure.beta.values(), figure.integrate_every), _plot_figure3)
+            yield from save(
+                3, figure3_data(figure.beta.values(), figure.integrate_every), _plot_figure3
+            )
         elif number == 4:
             figure = study.figure4
-            save(
+            yield from save(
                 4,
                 damping_sweep_data(
                     study,
@@ -354,7 +355,7 @@ def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) 
             )
         elif number == 5:
             figure = study.figure5
-            save(
+            yield from save(
                 5,
                 damping_sweep_data(
                     study,
@@ -371,5 +372,4 @@ def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) 
             )
         else:
             ratios = study.figure6.aspect_ratios.values()
-            save(6, figure6_data(study, ratios), _plot_figure6, study)
-    return written
+            yield from save(6, figure6_data(study, ratios), _plot_figure6, study)

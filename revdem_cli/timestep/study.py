@@ -10,6 +10,7 @@ Loading turns every problem into an `InputError` naming the file and the field p
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -264,9 +265,10 @@ def read_study(path: str | Path, overrides: list[str] = ()) -> TimestepStudy | N
     return _validated(data, str(path), overrides)
 
 
-def run_study(study: TimestepStudy, out_dir: Path) -> list[Path]:
-    """Write the study's figures into `out_dir` as <name>.figure<n>.png and .csv."""
+def run_study(study: TimestepStudy, out_dir: Path) -> Iterator[Path]:
+    """Write the study's figures into `out_dir` as <name>.figure<n>.png and .csv; each path
+    once written."""
     from revdem_cli.timestep.figures import write_figures
 
     stems = {number: f"{study.name}.figure{number}" for number in study.figures}
-    return write_figures(Path(out_dir), study, stems)
+    yield from write_figures(Path(out_dir), study, stems)

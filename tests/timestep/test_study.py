@@ -225,3 +225,16 @@ def test_a_file_of_another_kind_is_no_study_and_no_scenario(tmp_path):
     assert_one_line_error(result, "other.toml: kind: unknown kind 'something_else' (known: ")
     with pytest.raises(InputError, match=r"^s\.toml: kind: missing required field"):
         study_from_text("name = 's'", ".toml", "s.toml")
+
+
+def test_a_study_hands_over_each_figure_as_soon_as_it_is_written(tmp_path):
+    """Seconds a figure: `revdem run` says `wrote` for each as it comes, not all at the end."""
+    from revdem_cli.timestep.study import run_study
+
+    study = study_from_text(cheap_text(), ".toml", "cheap.toml")
+    written = run_study(study, tmp_path)
+    first = next(written)
+    assert first == tmp_path / f"{study.name}.figure3.csv" and first.exists()
+    assert not (tmp_path / f"{study.name}.figure4.csv").exists()  # not computed yet
+    rest = list(written)
+    assert len(rest) == 2 * len(study.figures) - 1 and all(path.exists() for path in rest)
