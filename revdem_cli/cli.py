@@ -18,8 +18,8 @@ class _Commands(TyperGroup):
     """Turns bad input anywhere in a command into one line on stderr and exit status 2 (a
     path given that cannot be used too: `errors.path_problem`), and a run that cannot go on
     (RunFailed) or a failure of the machine or the file system (RuntimeError, OSError,
-    MemoryError) into one line and exit status 1. Any other
-    exception is a bug and keeps its traceback."""
+    MemoryError) into one line and exit status 1. Any other exception is a bug and keeps its
+    traceback."""
 
     def main(self, *args, standalone_mode: bool = True, **kwargs):
         """As click's, but a usage error (an unknown option, a missing argument) is one line
