@@ -2,7 +2,6 @@
 observables row kept, the thread count that steps fastest on the machine as it is, and
 trajectories that do not depend on where the count changes."""
 
-import time
 from types import SimpleNamespace
 
 import h5py
@@ -23,24 +22,30 @@ pytestmark = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="need
 EVERY = 10
 
 
-def _busy(seconds: float) -> None:
-    deadline = time.perf_counter() + seconds
-    while time.perf_counter() < deadline:
-        pass
+class Clock:
+    """The stepper's clock (`threads.time.perf_counter`), moved on by the fake stage loops'
+    work alone: a stretch takes exactly what its steps cost, whatever else the machine runs
+    (the stepper's choices are tested, not this machine's timing)."""
+
+    def __init__(self):
+        self.now = 0.0
+
+    def perf_counter(self) -> float:
+        return self.now
 
 
-def fake_loop(cost: dict[int, float], first_call: dict[int, float] | None = None):
-    """A stage loop whose step costs cost[thread count] seconds (busy, as a loop is), and
-    whose first call on a count first_call[count] more, with an observables row every EVERY
-    steps, stopping at `until`."""
+def fake_loop(clock: Clock, cost: dict[int, float], first_call: dict[int, float] | None = None):
+    """A stage loop whose step costs cost[thread count] seconds of `clock`, and whose first
+    call on a count first_call[count] more, with an observables row every EVERY steps,
+    stopping at `until`."""
     warming = dict(first_call or {})
 
     def loop(particles, stepping, step, stop, until, obs, obs_steps):
         seconds = cost[numba.get_num_threads()]
-        _busy(warming.pop(numba.get_num_threads(), 0.0))
+        clock.now += warming.pop(numba.get_num_threads(), 0.0)
         rows = 0
         while step != until:
-            _busy(seconds)
+            clock.now += seconds
             step += 1 if until > step else -1
             if step % EVERY == 0:
                 obs_steps[rows] = step
@@ -56,32 +61,34 @@ PARTICLES = 256
 
 
 @pytest.fixture
-def quick(monkeypatch):
-    """Stretches and trials short enough for a test, and a stage large enough to time two
-    threads on any threading layer."""
+def quick(monkeypatch) -> Clock:
+    """Stretches and trials short enough for a test, a stage large enough to time two
+    threads on any threading layer, and the stepper's clock (`Clock`)."""
     monkeypatch.setattr(threads, "PAUSE", 0.005)
     monkeypatch.setattr(threads, "PROBE_EVERY", 0.05)
     monkeypatch.setattr(threads, "PROBE", 0.01)
     monkeypatch.setattr(threads, "_count", 2)
+    clock = Clock()
+    monkeypatch.setattr(threads, "time", clock)
     with crossovers(PARTICLES, PARTICLES):
-        yield
+        yield clock
 
 
 def step_with(
-    cost: dict[int, float], stop: int, start: int = 0, first_call=None, stepper=None
+    clock: Clock, cost: dict[int, float], stop: int, start=0, first_call=None, stepper=None
 ) -> tuple[Stepper, tuple, np.ndarray]:
     stepper = stepper or Stepper()
     particles = SimpleNamespace(x=np.zeros((PARTICLES, 3)))
     rows = abs(stop - start) // EVERY + 2
     obs, obs_steps = np.zeros((rows, 1)), np.zeros(rows, dtype=np.int64)
-    loop = fake_loop(cost, first_call)
+    loop = fake_loop(clock, cost, first_call)
     done = stepper.advance(loop, (particles,), None, start, stop, obs, obs_steps)
     return stepper, done, obs_steps[: done[2]]
 
 
 @pytest.mark.parametrize(("start", "stop"), [(0, 3000), (3000, 0)])
 def test_a_stage_is_stepped_to_its_stop_in_stretches_keeping_every_row(quick, start, stop):
-    stepper, (status, reached, rows, _), steps = step_with({1: 2e-5, 2: 2e-5}, stop, start)
+    stepper, (status, reached, rows, _), steps = step_with(quick, {1: 2e-5, 2: 2e-5}, stop, start)
     assert status == 0 and reached == stop
     direction = 1 if stop > start else -1
     assert np.array_equal(
@@ -95,7 +102,7 @@ def test_a_stage_is_stepped_to_its_stop_in_stretches_keeping_every_row(quick, st
 def test_the_stepper_computes_on_the_thread_count_that_steps_faster(quick, slow, fast):
     """Two threads five times slower (busy cores: a barrier waits for a descheduled
     thread), or five times faster: most steps go to the faster count, a few to trials."""
-    stepper, (_, reached, _, _), _ = step_with({slow: 1e-4, fast: 2e-5}, 40000)
+    stepper, (_, reached, _, _), _ = step_with(quick, {slow: 1e-4, fast: 2e-5}, 40000)
     assert reached == 40000
     assert stepper.steps_with[fast] > 0.9 * 40000, stepper.steps_with
 
@@ -104,10 +111,12 @@ def test_a_new_stage_times_its_thread_counts_afresh(quick):
     """A stage after one where two threads lost every trial: its first call on one thread
     is slowed by a warm-up (its code loaded), which is not taken for one thread's rate, so
     its steps go to one thread, five times faster."""
-    stepper, _, _ = step_with({1: 2e-5, 2: 1e-4}, 100000)  # its trials further and further apart
+    stepper, _, _ = step_with(
+        quick, {1: 2e-5, 2: 1e-4}, 100000
+    )  # its trials further and further apart
     before = dict(stepper.steps_with)
     stepper.new_stage()
-    step_with({1: 2e-5, 2: 1e-4}, 20000, first_call={1: 0.05}, stepper=stepper)
+    step_with(quick, {1: 2e-5, 2: 1e-4}, 20000, first_call={1: 0.05}, stepper=stepper)
     assert stepper.steps_with[1] - before[1] > 0.9 * 20000, stepper.steps_with
 
 
@@ -126,7 +135,7 @@ def test_a_count_chosen_on_a_rate_older_than_the_other_s_is_timed_again_first(qu
         count = numba.get_num_threads()
         stretches.append((count, step, until - step, dict(stepper._rate)))
         while step != until:
-            _busy((2e-5 if count == 1 else 4e-5) * (5 if step >= costlier_from else 1))
+            quick.now += (2e-5 if count == 1 else 4e-5) * (5 if step >= costlier_from else 1)
             step += 1
         return 0, step, 0, None
 
