@@ -398,7 +398,7 @@ def export(
 
     ParaView: open the .pvd and glyph the points with spheres scaled by `radius`. OVITO
     reads the radii and the box of a .gsd or a .dump as they are. A scenario reads a data
-    file back with [[particles_from]] lammps_data.
+    file back in its particles_from table (lammps_data = FILE).
 
     Example: revdem export out/collision.forward.h5 --format gsd
     """

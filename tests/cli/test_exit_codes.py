@@ -56,6 +56,7 @@ def test_every_command_shows_an_example(command):
     result = runner.invoke(app, [command, "--help"], terminal_width=200)
     assert result.exit_code == 0
     assert f"Example: revdem {command}" in result.output
+    assert "[]" not in result.output  # no [bracketed] word taken for rich markup and dropped
 
 
 def test_shell_completion_is_offered():
