@@ -162,11 +162,10 @@ class Result:
             return read_contacts(f, frame)
 
 
-def output_paths_of(experiment: Experiment, out: Path, reverse: bool) -> list[Path]:
-    """Every file a run of `experiment` into `out` writes."""
+def output_paths_of(spec: Scenario, out: Path, reverse: bool) -> list[Path]:
+    """Every file a run of the scenario `spec` into `out` writes."""
     from revdem_cli.engine import output_paths
 
-    spec = experiment.scenario
     paths = output_paths(out, spec.name)
     written = [paths["forward"], paths["restart"]]
     if spec.reversal.tape:
@@ -186,7 +185,7 @@ def figure_paths(out: Path, spec: Scenario) -> list[Path]:
     return [out / f"{spec.name}.{kind}.png" for kind in spec.output.figures]
 
 
-def keep_outputs(paths: list[Path], force: bool) -> None:
+def keep_outputs(paths: list[Path], force: bool, of: str = "run") -> None:
     """Refuse to overwrite outputs of an earlier run unless forced, naming the first one;
     forced, remove them all before the run starts, so that a run that fails leaves none of
     the earlier run's files beside its own (a verdict, a restart of another run). A symbolic
@@ -195,7 +194,7 @@ def keep_outputs(paths: list[Path], force: bool) -> None:
     existing = [path for path in paths if path.exists() or path.is_symlink()]
     if existing and not force:
         more = len(existing) - 1
-        others = f" (and {more} more output{'s' * (more > 1)} of this run)" if more else ""
+        others = f" (and {more} more output{'s' * (more > 1)} of this {of})" if more else ""
         link = " (a symbolic link)" if existing[0].is_symlink() else ""
         raise InputError(f"{existing[0]}: exists{link}{others}; use --force to overwrite")
     for path in existing:
@@ -252,7 +251,7 @@ def run(
     keep_checkpoint(out, experiment.name, force)
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
         check_time_step(experiment.scenario, experiment.origin)
-    keep_outputs(output_paths_of(experiment, out, reverse), force)
+    keep_outputs(output_paths_of(experiment.scenario, out, reverse), force)
     with _progress(progress) as shown:
         outputs = run_scenario(experiment.scenario, experiment.text, experiment.suffix, out,
                                reverse, shown, allow_unstable_dt)  # fmt: skip

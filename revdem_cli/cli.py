@@ -472,6 +472,10 @@ def sweep(
         ),
     ] = None,
     allow_unstable_dt: AllowUnstableDt = False,
+    force: Annotated[
+        bool,
+        typer.Option("--force", help="Overwrite an earlier sweep's tables and runs in --out."),
+    ] = False,
 ) -> None:
     """Run every combination of --set values, forward and reversed, in parallel (dask).
 
@@ -489,7 +493,9 @@ def sweep(
     compiling = scheduler is None and not kernels_compiled()  # a local cluster's workers
     # compile into this machine's cache; a remote one's workers keep caches of their own
     with nullcontext() if quiet else _progress_of("variants", compiling) as shown:
-        rows, tables = run_sweep(plan, out, scheduler, workers, shown, threads, allow_unstable_dt)
+        rows, tables = run_sweep(
+            plan, out, scheduler, workers, shown, threads, allow_unstable_dt, force
+        )
     failed = [row for row in rows if row["error"]]
     for path in tables:
         typer.echo(f"wrote {path}")

@@ -240,9 +240,12 @@ def run_sweep(
     progress: Callable[[str, int, int], None] | None = None,
     threads: int | None = None,
     allow_unstable_dt: bool = False,
+    force: bool = False,
 ) -> tuple[list[dict], list[Path]]:
     """Run every variant (`allow_unstable_dt`: those whose time step is above the critical
-    estimate too); returns the table's rows and the table files written."""
+    estimate too); returns the table's rows and the table files written. An earlier sweep's
+    tables or a variant's earlier outputs in `out_dir` are refused unless `force`, as
+    `revdem run` refuses a run's (`api.keep_outputs`)."""
     from distributed import as_completed
 
     out_dir = Path(out_dir)
@@ -254,6 +257,12 @@ def run_sweep(
         folder_name(index, {key: variant[key] for key in varying})
         for index, variant in enumerate(variants)
     ]
+    from revdem_cli.api import keep_outputs, output_paths_of
+
+    earlier = [out_dir / "sweep.csv", out_dir / "sweep.h5"]
+    for (scenario, _), folder in zip(loaded, folders, strict=True):
+        earlier += output_paths_of(scenario, out_dir / folder, reverse=True)
+    keep_outputs(earlier, force, "sweep")
     suffix = sweep.scenario.suffix.lower()
     results: dict[int, dict] = {}
     with _client(scheduler, workers, threads) as client:

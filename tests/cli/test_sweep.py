@@ -179,3 +179,18 @@ def test_a_variant_runs_at_an_unstable_time_step_only_where_allowed(tmp_path, al
     row = run_variant(scenario.model_dump_json(), text, ".yaml", tmp_path, allowed)
     assert row["error"].startswith(error), row["error"]
     assert "times the critical time step" in row["error"]
+
+
+def test_an_earlier_sweep_in_the_folder_is_kept_unless_forced(tmp_path):
+    """As `revdem run` keeps a run's outputs: its tables and every variant's files."""
+    args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--set", "stages.0.steps=10,20"]
+    args += ["--out", str(tmp_path), "--workers", "1", "-q"]
+    assert runner.invoke(app, args).exit_code == 0
+    table = (tmp_path / "sweep.csv").read_bytes()
+    refused = runner.invoke(app, args)
+    assert_one_line_error(
+        refused, f"{tmp_path / 'sweep.csv'}: exists (and 9 more outputs of this sweep); use --force"
+    )
+    assert (tmp_path / "sweep.csv").read_bytes() == table
+    forced = runner.invoke(app, [*args, "--force"])
+    assert forced.exit_code == 0 and "2 variants, 0 failed" in forced.output, forced.output
