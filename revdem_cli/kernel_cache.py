@@ -26,8 +26,9 @@ _PACKAGE = Path(__file__).resolve().parent
 
 CACHES_KEPT = 4
 """Kernel caches of other sources (other revdem versions, or installs beside this one) kept
-when a fresh one starts: the most recently used. Each holds 20 to 30 MB of compiled code;
-one removed too soon costs its install a compile (3 to 4 min on 2 cores) when next used."""
+when a fresh one starts: the most recently used. Each holds tens of MB of compiled code (up
+to about 200 MB once the test suite has compiled its variants); one removed too soon costs
+its install a compile (3 to 4 min on 2 cores) when next used."""
 
 CACHE_NAME = re.compile(r"\d+\.\d+\S*-[0-9a-f]{16}")
 """How `cache_dir` names a kernel cache: numba's version and the sources' hash. Nothing

@@ -124,11 +124,10 @@ def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise InputError(f"--set {item}: expected key=value")
-        if key.strip() in given:
-            raise InputError(
-                f"--set {item}: {key.strip()} is given twice (also --set {given[key.strip()]})"
-            )
-        given[key.strip()] = item
+        name = key.strip()
+        if name in given:
+            raise InputError(f"--set {item}: {name} is given twice (also --set {given[name]})")
+        given[name] = item
         set_field(data, key, read_value(raw, f"--set {item}"), "--set ")
     return data
 

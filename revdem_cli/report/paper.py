@@ -138,8 +138,11 @@ class _Run:
     def __init__(self, directory: Path, name: str, case: dict):
         self.directory, self.name, self.case = Path(directory), name, case
 
+    def _path(self, kind: str) -> Path:
+        return self.directory / f"{self.name}.{kind}"
+
     def _file(self, kind: str) -> Path:
-        path = self.directory / f"{self.name}.{kind}"
+        path = self._path(kind)
         if not path.exists():
             raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), str(path))
         return path
@@ -158,8 +161,7 @@ class _Run:
     @property
     def ran(self) -> bool:
         """Whether the case has a run in the directory (its trajectory or its verdict)."""
-        return any((self.directory / f"{self.name}.{kind}").exists()
-                   for kind in ("forward.h5", "compare.json"))  # fmt: skip
+        return self._path("forward.h5").exists() or self._path("compare.json").exists()
 
 
 def _judge(how: str, paper, ours, tolerance: float | None) -> bool:
