@@ -232,6 +232,16 @@ def read_paper(paper_path: Path) -> dict[str, dict]:
     return cases
 
 
+def from_here(path: Path) -> Path:
+    """`path` as the page names it: relative to the working folder where it lies below it
+    (the project's own paper file, `HANLEY_2020`, found wherever revdem runs from), else as
+    it was given."""
+    try:
+        return Path(path).resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        return Path(path)
+
+
 def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
     """Write the Markdown page to `out`; InputError for a paper file that cannot be read, a
     directory that holds no run of its cases, or a run's file that is damaged."""
@@ -240,11 +250,11 @@ def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
         raise InputError(f"{directory}: no such folder of runs")
     if not any(_Run(directory, name, case).ran for name, case in paper.items()):
         raise InputError(
-            f"{directory}: no run of a case of {paper_path} (NAME.forward.h5 or "
+            f"{directory}: no run of a case of {from_here(paper_path)} (NAME.forward.h5 or "
             f"NAME.compare.json, NAME one of {', '.join(paper)})"
         )
     lines = [
-        f"# {paper_path} against the runs in {directory}",
+        f"# {from_here(paper_path)} against the runs in {directory}",
         "",
         "Run a case with `revdem run CONFIG --out DIR`; its files are NAME.forward.h5 and "
         "NAME.compare.json.",
