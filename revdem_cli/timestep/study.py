@@ -109,6 +109,28 @@ class Contact(_Model):
     )
 
 
+def integrate_every(default: int, point: str):
+    """The field of a figure that checks its criterion by integration at every n-th point of
+    its sweep (`point`: what it sweeps)."""
+    return Field(
+        default=default,
+        ge=0,
+        description=f"find the velocity-Verlet limit by integration at every n-th {point}, "
+        "the first included; 0 for none, -",
+    )
+
+
+def integrate_rigid_every(point: str):
+    """The field of a figure that integrates the two rigid bodies at every n-th point of its
+    sweep (`point`: what it sweeps); none by default."""
+    return Field(
+        default=0,
+        ge=0,
+        description="integrate the two rigid bodies (Figure 2 and 8 random configurations, "
+        f"about 7 s a point and N) at every n-th {point}, the first included; 0 for none, -",
+    )
+
+
 class Figure3(_Model):
     """Two equal spheres, Δt √(k/m) against β = c/√(mk) (Peng 2020 Section 6.1, Eq 58-60)."""
 
@@ -116,12 +138,7 @@ class Figure3(_Model):
         default=DampingSpan(start=0.0, stop=3.0, count=301),
         description="damping β = c / sqrt(m k) of the two spheres, -",
     )
-    integrate_every: int = Field(
-        default=25,
-        ge=0,
-        description="find the velocity-Verlet limit by integration at every n-th β, the "
-        "first included; 0 for none, -",
-    )
+    integrate_every: int = integrate_every(25, "β")
 
 
 class Figure4(_Model):
@@ -131,18 +148,8 @@ class Figure4(_Model):
         default=Span(start=1e10, stop=1e11, count=37),
         description="contact stiffness k_n = k_s swept, N/m",
     )
-    integrate_every: int = Field(
-        default=12,
-        ge=0,
-        description="find the velocity-Verlet limit by integration at every n-th k_n, the "
-        "first included; 0 for none, -",
-    )
-    integrate_rigid_every: int = Field(
-        default=0,
-        ge=0,
-        description="integrate the two rigid bodies (Figure 2 and 8 random configurations, "
-        "about 7 s a point and N) at every n-th k_n, the first included; 0 for none, -",
-    )
+    integrate_every: int = integrate_every(12, "k_n")
+    integrate_rigid_every: int = integrate_rigid_every("k_n")
 
 
 class Figure5(_Model):
@@ -152,18 +159,8 @@ class Figure5(_Model):
         default=Span(start=500.0, stop=5000.0, count=37),
         description="particle density swept, kg/m^3",
     )
-    integrate_every: int = Field(
-        default=12,
-        ge=0,
-        description="find the velocity-Verlet limit by integration at every n-th density, "
-        "the first included; 0 for none, -",
-    )
-    integrate_rigid_every: int = Field(
-        default=0,
-        ge=0,
-        description="integrate the two rigid bodies (Figure 2 and 8 random configurations, "
-        "about 7 s a point and N) at every n-th density, the first included; 0 for none, -",
-    )
+    integrate_every: int = integrate_every(12, "density")
+    integrate_rigid_every: int = integrate_rigid_every("density")
 
 
 class Figure6(_Model):
