@@ -12,9 +12,20 @@ def modules(package: str, path) -> list:
     return [importlib.import_module(f"{package}.{info.name}") for info in found]
 
 
-def check(module, what: str, names) -> None:
-    """ImportError naming what a record module lacks of `names`: a half-added record never
-    loads, so it never runs as something else."""
+def enter(found: dict, module, what: str, names) -> None:
+    """found[module.NAME] = module, once it holds all of `names`, each of its REQUIRED fields
+    is one of its FIELDS and no module entered before took its NAME; else ImportError naming
+    what is wrong: a half-added record never loads, so it never runs as something else."""
     missing = [name for name in names if not hasattr(module, name)]
     if missing:
-        raise ImportError(f"{module.__name__}: {what} defines {', '.join(missing)}")
+        raise ImportError(f"{module.__name__}: {what} must define {', '.join(missing)}")
+    unknown = [name for name in module.REQUIRED if name not in module.FIELDS]
+    if unknown:
+        raise ImportError(
+            f"{module.__name__}: REQUIRED names {', '.join(unknown)}, which its FIELDS lack"
+        )
+    if module.NAME in found:
+        raise ImportError(
+            f"{module.__name__}: {what} named '{module.NAME}', as {found[module.NAME].__name__} is"
+        )
+    found[module.NAME] = module

@@ -57,8 +57,8 @@ def _discover() -> dict[str, dict[str, object]]:
         if family is None:
             raise ImportError(f"{module.__name__}: FAMILY must be one of {', '.join(FAMILIES)}")
         names = ("NAME", "EQUATION", "SUMMARY", "FIELDS", "REQUIRED")
-        registry.check(module, f"a {module.FAMILY} law", names + family.functions + family.python)
-        found[module.FAMILY][module.NAME] = module
+        what = f"a {module.FAMILY} law"
+        registry.enter(found[module.FAMILY], module, what, names + family.functions + family.python)
     return found
 
 

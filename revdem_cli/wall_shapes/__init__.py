@@ -17,14 +17,29 @@ from __future__ import annotations
 
 from revdem_cli import registry
 
+CARRIED = ("radius",)
+"""The fields of its own a shape's compiled `overlap` is given (`Walls.radius`): a shape with
+another needs a column of `Walls` for it (`kernels/arrays.py`, `state.wall_arrays`)."""
+
 
 def _discover() -> dict[str, object]:
     found = {}
     for module in registry.modules(__name__, __path__):
         names = ("NAME", "SUMMARY", "SIDE", "FIELDS", "REQUIRED", "overlap", "reach_past")
-        registry.check(module, "a wall shape", names)
-        found[module.NAME] = module
+        registry.enter(found, module, "a wall shape", names)
+        check_carried(module)
     return found
+
+
+def check_carried(module) -> None:
+    """ImportError where a shape has a field its compiled `overlap` is never given (CARRIED),
+    which it would read as 0 without a word."""
+    lost = [name for name in module.FIELDS if name not in CARRIED]
+    if lost:
+        raise ImportError(
+            f"{module.__name__}: the field {', '.join(lost)} never reaches the compiled "
+            f"overlap, which is given {', '.join(CARRIED)} alone (wall_shapes.CARRIED)"
+        )
 
 
 SHAPES = _discover()
