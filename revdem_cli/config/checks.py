@@ -73,6 +73,26 @@ def check_consistency(scenario) -> None:
     check_automatic_dt(scenario)
     check_scheme(scenario)
     check_tape(scenario)
+    check_figures(scenario)
+
+
+def check_figures(scenario) -> None:
+    """Each figure of [output] finds what it draws, where a scenario may lack it (the contact
+    figures' `contacts = true` is checked by `Output` itself)."""
+    needs = {
+        "wall_forces": (
+            any(wall.type == "plane" for wall in scenario.walls),
+            "a plane wall (it draws the z force on each)",
+        ),
+        "stress_ratios": (
+            scenario.cell is not None,
+            "a periodic [cell] (it draws them against the cell's compression)",
+        ),
+        "information": (scenario.reversal.tape, "reversal.tape = true"),
+    }
+    for kind in scenario.output.figures:
+        if kind in needs and not needs[kind][0]:
+            raise FieldError("output.figures", f"'{kind}' needs {needs[kind][1]}")
 
 
 def check_scheme(scenario) -> None:
@@ -96,11 +116,8 @@ def check_scheme(scenario) -> None:
 
 def check_tape(scenario) -> None:
     """The information tape records integers: it needs fixed-point arithmetic, and the
-    velocity predictor's history, which it does not record, left out; the figure of what it
-    recorded needs it."""
+    velocity predictor's history, which it does not record, left out."""
     if not scenario.reversal.tape:
-        if "information" in scenario.output.figures:
-            raise FieldError("output.figures", "'information' needs reversal.tape = true")
         if scenario.reversal.all_stages:
             raise FieldError("reversal.all_stages", "needs reversal.tape = true")
         return

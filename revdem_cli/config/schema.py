@@ -190,10 +190,8 @@ class _Wall(_Model):
 
     name: str = Field(pattern=r"^[A-Za-z0-9_-]+$", description="wall name, used for its force")
     material: str = Field(description="name of a material in [materials]")
-    point: Vector3 = Field(description="a point on the plane, or on the cylinder axis, m")
-    normal: Vector3 = Field(
-        description="plane: normal pointing into the domain; cylinder: axis direction (-)"
-    )
+    point: Vector3 = Field(description="a point of the wall, as its type says, m")
+    normal: Vector3 = Field(description="the wall's direction, as its type says, -")
     velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="wall velocity, m/s")
 
     @model_validator(mode="after")

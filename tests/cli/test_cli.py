@@ -75,6 +75,24 @@ def test_a_set_value_toml_cannot_read_is_named_not_taken_for_text(scenario, item
     assert_one_line_error(result, f"--set {item}: cannot read {value} as a TOML value")
 
 
+@pytest.mark.parametrize(
+    ("figure", "has", "needs"),
+    [
+        ("wall_forces", "oedometer", "a plane wall"),
+        ("stress_ratios", "fcc_triaxial", "a periodic [cell]"),
+        ("information", "tape/oedometer_pour", "reversal.tape = true"),
+    ],
+)
+def test_a_figure_without_what_it_draws_is_refused_before_the_run(figure, has, needs):
+    """The collision has no wall, no cell and no tape: each figure drawn from one of those
+    was an empty plot or a traceback after the runs."""
+    collision = CONFIGS / "collision.toml"
+    result = invoke("validate", collision, "--set", f"output.figures=['{figure}']")
+    assert_one_line_error(result, f"{collision}: output.figures: '{figure}' needs {needs}")
+    result = invoke("validate", CONFIGS / f"{has}.toml", "--set", f"output.figures=['{figure}']")
+    assert result.exit_code == 0, result.output
+
+
 @pytest.mark.parametrize("field", ["contact.friction", "contact.normal_damping"])
 def test_nan_in_a_number_is_refused_as_not_finite_where_inf_is_allowed_too(field):
     shear = CONFIGS / "collision_shear.toml"
