@@ -264,6 +264,7 @@ def _print_table(assessment) -> None:
         ("mass", [f"{b.mass:.6g}" for b in bodies], "kg"),
         ("principal moments", [" ".join(f"{i:.4g}" for i in b.moments) for b in bodies], "kg m²"),
         ("half-lengths a b c", [" ".join(f"{h:.4g}" for h in b.half_lengths) for b in bodies], "m"),
+        ("farthest point (Eq 26's a)", [f"{b.reach:.4g}" for b in bodies], "m"),
         ("B_max (Eq 54)", [f"{b_max(b):.4g}" for b in bodies], ""),
     ]
     for quantity, values, unit in rows:

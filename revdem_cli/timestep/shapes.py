@@ -25,7 +25,9 @@ class Body:
 
     `moments` are the principal moments of inertia in ascending order (kg m²);
     `half_lengths` are the half-lengths of the bounding box in the principal frame in
-    descending order, the paper's a ≥ b ≥ c (m). A superquadric (an ellipsoid or sphere
+    descending order, the paper's a ≥ b ≥ c (m); `reach` is the distance from the centre to
+    the farthest point of the surface (m), the lever arm Eq 26 takes (`criteria.a_max`): a
+    for an ellipsoid, a corner of a box-like superquadric or of a polyhedron. A superquadric (an ellipsoid or sphere
     included) also keeps its `surface`, (a, b, c, ε1, ε2) on its body axes x, y, z as given,
     and its principal moments on those axes, `axis_moments` (kg m²); a polyhedron has None.
     """
@@ -35,11 +37,12 @@ class Body:
     mass: float
     moments: tuple[float, float, float]
     half_lengths: tuple[float, float, float]
+    reach: float
     surface: tuple[float, float, float, float, float] | None = None
     axis_moments: tuple[float, float, float] | None = None
 
 
-def _body(shape, volume, density, second_moments, half_lengths, exponents=None) -> Body:
+def _body(shape, volume, density, second_moments, half_lengths, reach, exponents=None) -> Body:
     """A Body from its volume and the principal second moments of volume ∫x², ∫y², ∫z²;
     with `exponents` (ε1, ε2), a superquadric that keeps its surface and axis moments."""
     jx, jy, jz = second_moments
@@ -53,6 +56,7 @@ def _body(shape, volume, density, second_moments, half_lengths, exponents=None) 
         mass=float(density * volume),
         moments=tuple(sorted(moments)),
         half_lengths=tuple(sorted((float(h) for h in half_lengths), reverse=True)),
+        reach=float(reach),
         surface=surface,
         axis_moments=None if exponents is None else moments,
     )
@@ -62,7 +66,8 @@ def ellipsoid(a: float, b: float, c: float, density: float) -> Body:
     """Solid ellipsoid with semi-axes a, b, c."""
     volume = 4.0 / 3.0 * math.pi * a * b * c
     second_moments = (volume * a**2 / 5.0, volume * b**2 / 5.0, volume * c**2 / 5.0)
-    return _body("ellipsoid", volume, density, second_moments, (a, b, c), (1.0, 1.0))
+    reach = superquadric_reach(a, b, c, 1.0, 1.0)
+    return _body("ellipsoid", volume, density, second_moments, (a, b, c), reach, (1.0, 1.0))
 
 
 def sphere(radius: float, density: float) -> Body:
@@ -95,7 +100,28 @@ def superquadric(a: float, b: float, c: float, eps1: float, eps2: float, density
         octant * b**2 * _superquadric_octant_integral(1, 3, 1, eps1, eps2),
         octant * c**2 * _superquadric_octant_integral(1, 1, 3, eps1, eps2),
     )
-    return _body("superquadric", volume, density, second_moments, (a, b, c), (eps1, eps2))
+    reach = superquadric_reach(a, b, c, eps1, eps2)
+    return _body("superquadric", volume, density, second_moments, (a, b, c), reach, (eps1, eps2))
+
+
+def _farthest(big: float, small: float, eps: float) -> float:
+    """max of A u^ε + B (1 - u)^ε over 0 ≤ u ≤ 1, A, B ≥ 0: the squared distance to the
+    farthest point of the superellipse (|x|/√A)^(2/ε) + (|y|/√B)^(2/ε) = 1, in the direction
+    u = cos² of its angle. For ε ≥ 1 (convex in u) an end, the larger; else (concave) the
+    inner maximum (A^(1/(1-ε)) + B^(1/(1-ε)))^(1-ε) (Hölder's inequality, attained), written
+    over the larger term so that no power overflows."""
+    larger, smaller = max(big, small), min(big, small)
+    if eps >= 1.0 or smaller == 0.0:
+        return larger
+    return larger * (1.0 + (smaller / larger) ** (1.0 / (1.0 - eps))) ** (1.0 - eps)
+
+
+def superquadric_reach(a: float, b: float, c: float, eps1: float, eps2: float) -> float:
+    """The distance from the centre to the farthest point of Barr's surface x = a cos^ε1 η
+    cos^ε2 ω, y = b cos^ε1 η sin^ε2 ω, z = c sin^ε1 η: |x|² = cos^2ε1 η (a² cos^2ε2 ω +
+    b² sin^2ε2 ω) + c² sin^2ε1 η, greatest over ω first, then over η (`_farthest` twice):
+    a for an ellipsoid or an octahedron (ε ≥ 1), the corner √(a² + b² + c²) as ε → 0."""
+    return math.sqrt(_farthest(_farthest(a * a, b * b, eps2), c * c, eps1))
 
 
 def _tetrahedra_moments(tetrahedra: np.ndarray) -> tuple[float, np.ndarray]:
@@ -151,7 +177,8 @@ def polyhedron(vertices: np.ndarray, density: float, source: str) -> Body:
     volume, second_moment = _tetrahedra_moments(points[hull.simplices] - centre)
     principal, axes = np.linalg.eigh(second_moment)
     half_lengths = np.abs((corners - centre) @ axes).max(axis=0)
-    return _body("polyhedron", volume, density, principal, half_lengths)
+    reach = np.sqrt(((corners - centre) ** 2).sum(axis=1)).max()  # its farthest vertex
+    return _body("polyhedron", volume, density, principal, half_lengths, reach)
 
 
 def _vertex_rows(text: str, path: Path) -> list[tuple[str, object]]:

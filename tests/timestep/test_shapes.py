@@ -131,6 +131,43 @@ def test_box_half_lengths_come_back_after_rotation():
     assert body.half_lengths == pytest.approx((3.0, 2.0, 0.5), rel=1e-9)
 
 
+def test_a_rotated_cube_has_the_same_critical_time_step():
+    """A cube's inertia is the same about every axis, so its principal frame is any frame and
+    its box there any box around it: A_max takes its farthest vertex, √3 half-edges away,
+    with which a corner contact moves (1/m + 3 h²/I a body), in every orientation."""
+    from revdem_cli.timestep.criteria import a_max
+
+    plain = shapes.polyhedron(cube_vertices(1.0), DENSITY, "cube")
+    expected = 2.0 * (1.0 / plain.mass + 3.0 / plain.moments[0])
+    for seed in range(5):
+        turned = Rotation.random(random_state=seed).apply(cube_vertices(1.0))
+        cube = shapes.polyhedron(turned, DENSITY, "cube")
+        assert cube.reach == pytest.approx(math.sqrt(3.0), rel=1e-12)
+        assert a_max(cube, cube) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("exponents", "corner"),
+    [((1.0, 1.0), False), ((2.0, 2.0), False), ((0.5, 0.5), False), ((0.3, 1.4), False),
+     ((1e-4, 1e-4), True)],
+)  # fmt: skip
+def test_the_farthest_point_of_a_superquadric_is_found(exponents, corner):
+    """`Body.reach` against the surface sampled on a fine grid of Barr's angles: the
+    semi-axis a for an ellipsoid or an octahedron, the corner of a box."""
+    eps1, eps2 = exponents
+    body = shapes.superquadric(3.0, 2.0, 1.0, eps1, eps2, DENSITY)
+    eta, omega = np.meshgrid(*(np.linspace(0.0, math.pi / 2, 2001),) * 2)
+    ce, se, co, so = np.cos(eta), np.sin(eta), np.cos(omega), np.sin(omega)
+    squared = ce ** (2 * eps1) * (9.0 * co ** (2 * eps2) + 4.0 * so ** (2 * eps2))
+    sampled = np.sqrt((squared + se ** (2 * eps1)).max())
+    assert sampled <= body.reach * (1.0 + 1e-12)
+    assert body.reach == pytest.approx(sampled, rel=1e-5)
+    if exponents[0] >= 1.0 and exponents[1] >= 1.0:
+        assert body.reach == 3.0
+    if corner:
+        assert body.reach == pytest.approx(math.sqrt(14.0), rel=1e-3)
+
+
 def test_non_convex_vertex_set_is_refused():
     dented = np.vstack([cube_vertices(), [[0.2, 0.0, 0.0], [-0.2, 0.0, 0.0]]])
     with pytest.raises(InputError, match=r"dented: vertex 9 lies inside .* not convex"):
