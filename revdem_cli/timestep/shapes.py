@@ -27,9 +27,10 @@ class Body:
     `half_lengths` are the half-lengths of the bounding box in the principal frame in
     descending order, the paper's a ≥ b ≥ c (m); `reach` is the distance from the centre to
     the farthest point of the surface (m), the lever arm Eq 26 takes (`criteria.a_max`): a
-    for an ellipsoid, a corner of a box-like superquadric or of a polyhedron. A superquadric (an ellipsoid or sphere
-    included) also keeps its `surface`, (a, b, c, ε1, ε2) on its body axes x, y, z as given,
-    and its principal moments on those axes, `axis_moments` (kg m²); a polyhedron has None.
+    for an ellipsoid, a corner of a box-like superquadric or of a polyhedron. A superquadric
+    (an ellipsoid or sphere included) also keeps its `surface`, (a, b, c, ε1, ε2) on its body
+    axes x, y, z as given, and its principal moments on those axes, `axis_moments` (kg m²);
+    a polyhedron has None.
     """
 
     shape: str
