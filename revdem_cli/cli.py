@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -56,6 +57,11 @@ class _Commands(TyperGroup):
             raise typer.Exit(130) from None
         except RunFailed as exc:
             typer.echo(f"failed: {exc}", err=True)
+            raise typer.Exit(1) from None
+        except BrokenPipeError:  # the reader of stdout went away (`revdem ... | head`):
+            # nothing is left to say; stdout is pointed at /dev/null so that the last flush
+            # does not fail again, and the status is 1, as click gives a --help cut short
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             raise typer.Exit(1) from None
         except OSError as exc:
             problem = path_problem(exc)  # a path given that cannot be used: bad input
@@ -142,6 +148,7 @@ def _progress_of(unit: str, compiling: bool):
 
 @app.command()
 def run(
+    ctx: typer.Context,
     scenario: Annotated[
         Path | None, typer.Argument(help="Scenario file (.toml, .yaml or .yml).")
     ] = None,
@@ -185,6 +192,16 @@ def run(
     if resume is not None:
         if scenario is not None or overrides:
             raise InputError("--resume DIR continues a run as it was: give no scenario or --set")
+        given = [
+            f"--{name.replace('_', '-')}"
+            for name in ("out", "no_reverse", "force", "allow_unstable_dt")
+            if ctx.get_parameter_source(name).name != "DEFAULT"
+        ]
+        if given:
+            raise InputError(
+                f"--resume DIR continues a run as it was, into DIR: {', '.join(given)} "
+                "cannot change it (--quiet and --threads can)"
+            )
         _use_threads(threads)
         print_summary(_interruptible(api.resume, resume, not quiet).outputs)
         return

@@ -413,3 +413,6 @@ def test_resume_needs_a_checkpoint_and_nothing_else(tmp_path):
     result = CliRunner().invoke(app, ["run", scenario, "--resume", str(tmp_path)])
     assert_one_line_error(result, "give no scenario")
     assert_one_line_error(CliRunner().invoke(app, ["run"]), "give a scenario file")
+    for option in (["--out", "out"], ["--no-reverse"], ["--force"], ["--allow-unstable-dt"]):
+        result = CliRunner().invoke(app, ["run", "--resume", str(tmp_path), *option])
+        assert_one_line_error(result, f"into DIR: {option[0]} cannot change it")
