@@ -213,6 +213,8 @@ def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
             writer = csv.DictWriter(opened, fieldnames=list(rows[0]))
             writer.writeheader()
             writer.writerows(rows)
+    except BrokenPipeError:  # standard output's reader went away: the command line ends it
+        raise
     except OSError as exc:
         if out:
             out.unlink(missing_ok=True)

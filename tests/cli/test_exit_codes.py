@@ -61,3 +61,18 @@ def test_every_command_shows_an_example(command):
 
 def test_shell_completion_is_offered():
     assert "--install-completion" in runner.invoke(app, ["--help"]).output
+
+
+def test_output_cut_short_by_its_reader_ends_without_a_word():
+    """`revdem dt --sweep ... | head`: the reader closes the pipe after a few lines; the
+    command stops with status 1 (as click's --help does) and nothing on stderr, where it
+    printed "failed: BrokenPipeError"."""
+    import subprocess
+    import sys
+
+    sweep = ["dt", "--shape", "sphere", "--radius", "1", "--density", "1000", "--kn", "1e6"]
+    command = [sys.executable, "-m", "revdem_cli.cli", *sweep, "--sweep", "kn=1e6:1e9:5000"]
+    child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert child.stdout.readline().startswith(b"kn")  # the CSV's header
+    child.stdout.close()
+    assert child.stderr.read() == b"" and child.wait(timeout=120) == 1
