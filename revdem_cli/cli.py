@@ -409,6 +409,9 @@ def export(
             ".gsd, .dump or .data).",
         ),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Write over a file that --out names and exists.")
+    ] = False,
 ) -> None:
     """Export a trajectory: VTK for ParaView, GSD or a LAMMPS dump for OVITO, a LAMMPS data
     file of its last frame for LAMMPS and LIGGGHTS.
@@ -427,7 +430,7 @@ def export(
         given = "give one" if format is None else f"got {format!r}"
         raise InputError(f"export: --format must be one of {', '.join(formats)}; {given}")
     target = out or trajectory.with_suffix(formats[format])
-    _refuse_overwriting_hdf5(target, trajectory)
+    _refuse_overwriting(target, trajectory, out is not None and not force)
     from contextlib import nullcontext
 
     from revdem_cli.io import particles
@@ -447,14 +450,21 @@ def export(
         typer.echo(f"wrote {written}")
 
 
-def _refuse_overwriting_hdf5(target: Path, trajectory: Path) -> None:
+def _refuse_overwriting(target: Path, trajectory: Path, keep: bool) -> None:
     """InputError where an export would write over the trajectory it reads or another HDF5
-    file (a run's trajectory, restart or tape): an export's formats are never HDF5."""
+    file (a run's trajectory, restart or tape: an export's formats are never HDF5), or, where
+    `keep` (an --out given without --force), over any file: a run's verdict or figure, say.
+    Its default target, the trajectory's name with the format's suffix, is its own to
+    write again."""
     import h5py
 
-    if target.is_file() and (target.resolve() == trajectory.resolve() or h5py.is_hdf5(target)):
+    if not target.is_file():
+        return
+    if target.resolve() == trajectory.resolve() or h5py.is_hdf5(target):
         what = "the trajectory exported" if target.resolve() == trajectory.resolve() else "HDF5"
         raise InputError(f"export: --out {target}: {what}, which an export would overwrite")
+    if keep:
+        raise InputError(f"export: --out {target}: exists; use --force to overwrite")
 
 
 @app.command()

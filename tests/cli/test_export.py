@@ -78,6 +78,30 @@ def test_an_export_never_writes_over_the_trajectory_or_another_runs_file(smoke_r
     assert all(path.read_bytes() == data for path, data in kept.items())
 
 
+def test_an_export_writes_over_a_file_it_names_only_with_force(smoke_run, tmp_path):
+    """A verdict or a figure of a run, named by --out, is kept (it was overwritten without a
+    word); --force writes over it, and the default target is the export's own to rewrite."""
+    forward, verdict = (
+        smoke_run / "collision_smoke.forward.h5",
+        smoke_run / "collision_smoke.compare.json",
+    )
+    kept = verdict.read_bytes()
+    args = ["export", str(forward), "--format", "lammps-dump", "--out", str(verdict)]
+    assert_one_line_error(runner.invoke(app, args), f"--out {verdict}: exists; use --force")
+    assert verdict.read_bytes() == kept
+    mine = tmp_path / "verdict.json"
+    mine.write_bytes(kept)
+    args = ["export", str(forward), "--format", "lammps-dump", "--out", str(mine), "--force"]
+    assert runner.invoke(app, args).exit_code == 0
+    assert mine.read_text().startswith("ITEM: TIMESTEP")
+    local = tmp_path / "forward.h5"
+    local.symlink_to(forward)
+    for _ in range(2):  # its default target, local.dump, again
+        result = runner.invoke(app, ["export", str(local), "--format", "lammps-dump", "-q"])
+        assert result.exit_code == 0, result.output
+    assert (tmp_path / "forward.dump").read_text().startswith("ITEM: TIMESTEP")
+
+
 @pytest.fixture(scope="module")
 def packings(tmp_path_factory) -> dict[str, Path]:
     """Runs of the smoke oedometer (walls, open boundaries; its compression short) and of
