@@ -50,7 +50,7 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
     )
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for ax, (series, ylabel) in zip(axes[:, 0], panels, strict=True):
-        span = []
+        spans = {"forward": [], "reversed": []}
         for run, path, style in (
             ("forward", forward, {"lw": 2.5, "alpha": 0.5}),
             ("reversed", reverse, {"lw": 1.2, "ls": "--"}),
@@ -61,16 +61,29 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
                 colour = colours[k % len(colours)]
                 ax.plot(x, values, color=colour, label=f"{label} {run}", **style)
                 finite = values[np.isfinite(values)]
-                if run == "forward" and len(finite):
-                    span += [finite.min(), finite.max()]
-        span = span or [0.0, 1.0]
-        margin = 0.15 * (max(span) - min(span)) or 1.0
-        ax.set_ylim(min(span) - margin, max(span) + margin)  # a runaway reversal goes off scale
+                if len(finite):
+                    spans[run] += [finite.min(), finite.max()]
+        ax.set_ylim(*_limits(*spans.values()))
         ax.set_ylabel(ylabel)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel(xlabel)
     return _save(fig, png)
+
+
+def _limits(forward: list[float], reversed: list[float]) -> tuple[float, float]:
+    """y limits that show the forward run and the reversed run where it strays up to the
+    forward run's range beyond it (a reversal that parts from the forward run), with a margin
+    of 15 %: a runaway reversal goes off scale, not the forward run into a line."""
+    low, high = (min(forward), max(forward)) if forward else (0.0, 1.0)
+    reach = high - low
+    if reversed:
+        low, high = (
+            min(low, max(min(reversed), low - reach)),
+            max(high, min(max(reversed), high + reach)),
+        )
+    margin = 0.15 * (high - low) or 1.0
+    return low - margin, high + margin
 
 
 def _save(fig, png: Path) -> Path:

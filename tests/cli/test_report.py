@@ -1,5 +1,6 @@
 """`revdem report`: the paper's numbers beside a directory's runs, as a Markdown page."""
 
+import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
@@ -100,3 +101,16 @@ def test_a_folder_without_runs_and_a_file_that_is_no_papers_are_refused(smoke_ru
     wrong.write_text(PAPER.replace("reversible = false", "reversible = 0"))
     assert_one_line_error(report(smoke_run, wrong), "reversible = 0: give true or false")
     assert not page.exists()
+
+
+def test_a_figure_shows_a_reversal_that_parts_but_not_one_that_runs_away():
+    """The y limits: the forward run's range, and the reversed run's up to that range again
+    beyond it. A reversal whose speeds parted from the forward run's by 17 % was cut at
+    the forward run's limits; one that blew up must not flatten the forward curves."""
+    from revdem_cli.report.figures import _limits
+
+    low, high = _limits([0.0, 0.0186], [0.0, 0.0217])
+    assert low < 0.0 and high > 0.0217
+    low, high = _limits([0.0, 1.0], [-1e10, 1e10])
+    assert (low, high) == pytest.approx((-1.45, 2.45))  # -1 to 2, and 15 % of 3
+    assert _limits([2.0, 2.0], [2.0, 2.0]) == (1.0, 3.0)  # a constant: a unit either side
