@@ -276,12 +276,16 @@ def reverse(
     read_restart(restart)  # every dataset checked before earlier outputs are replaced
     folder = Path(out) if out is not None else restart.parent
     paths = output_paths(folder, spec.name)
-    written = [paths["reverse"]]
+    written, figures = [paths["reverse"]], []
     if forward.is_file():  # compared with, and drawn beside, the reversed run
         open_trajectory(forward).close()  # checked before the reversal, not after it
-        written += [paths["compare"], *figure_paths(folder, spec)]
+        written.append(paths["compare"])
+        figures = figure_paths(folder, spec)
     keep_checkpoint(folder, spec.name, force)
-    keep_outputs(written, force)
+    keep_outputs(written, force)  # an earlier reversal's
+    # with none, the figures are the forward run's (`run --no-reverse`), drawn again with
+    # the reversed run beside it
+    keep_outputs(figures, True)
     with _progress(progress) as shown:
         return Result(reverse_run(restart, out, steps, shown))
 

@@ -126,3 +126,17 @@ def test_a_reversal_into_another_folder_needs_no_force(out, tmp_path):
     result = invoke("reverse", out / f"{NAME}.restart.h5", "--out", tmp_path / "again", "-q")
     assert result.exit_code == 0, result.output
     assert (tmp_path / "again" / f"{NAME}.compare.json").exists()
+
+
+def test_a_run_forward_only_is_reversed_without_force(tmp_path):
+    """`run --no-reverse`, then `reverse`: the forward run's figures are drawn again with the
+    reversed run beside them (the reversal refused to start over them)."""
+    scenario = tmp_path / "speed.yaml"
+    scenario.write_text(SMOKE.read_text() + "output: {figures: [speed]}\n")
+    out = tmp_path / "out"
+    assert invoke("run", scenario, "--out", out, *SHORT, "--no-reverse").exit_code == 0
+    figure = out / f"{NAME}.speed.png"
+    drawn = figure.stat().st_mtime_ns
+    result = invoke("reverse", out / f"{NAME}.restart.h5", "-q")
+    assert result.exit_code == 0, result.output
+    assert (out / f"{NAME}.compare.json").exists() and figure.stat().st_mtime_ns > drawn
