@@ -204,10 +204,11 @@ def _drag_amplification(drag: float, restart_step: int, step: int) -> dict:
     return {
         "mechanism": "drag_amplifies_round_off",
         "step": step,
-        "particle": -1,
-        "partner": -1,
-        "particle_id": -1,
-        "partner_id": -1,
+        "particle": None,
+        "partner": None,
+        "particle_id": None,
+        "partner_id": None,
+        "partner_wall": None,
         "amount": exponent,
         "occurrences": restart_step - step,
         "message": f"no mechanism destroyed information here, but the reversed run divides "
@@ -216,10 +217,18 @@ def _drag_amplification(drag: float, restart_step: int, step: int) -> dict:
     }
 
 
+CONTACTS = frozenset(
+    {"contact_lost_with_shear_force", "coulomb_slip", "rolling_limit",
+     "contact_lost_with_rolling_moment"}
+)  # fmt: skip
+"""The mechanisms that act at a contact: theirs is the only cause with a partner."""
+
+
 def _cause(kind: int, entry, walls: list[str], ids: np.ndarray) -> dict:
     """One mechanism of the event log `entry` as compare.json gives it: its last step, the
-    particle and partner (a sphere's index in the arrays, -1 - w for wall w, -1 for none)
-    with their ids (-1 for none), the amount, the count and one line that names them."""
+    particle and, at a contact (CONTACTS), the partner (a sphere's index in the arrays, -1 - w
+    for wall w) with their ids (a wall's partner_wall its name), null where there is none,
+    the amount, the count and one line that names them."""
     step, q, partner, amount = (
         int(entry[LAST]),
         int(entry[PARTICLE]),
@@ -248,13 +257,15 @@ def _cause(kind: int, entry, walls: list[str], ids: np.ndarray) -> dict:
         "too little to change its position in floating point: the motion is lost (the "
         "particle is at rest to round-off)",
     }
+    paired = KINDS[kind] in CONTACTS
     return {
         "mechanism": KINDS[kind],
         "step": step,
-        "particle": q,
-        "partner": partner,
-        "particle_id": int(ids[q]) if q >= 0 else -1,
-        "partner_id": int(ids[partner]) if partner >= 0 else -1,
+        "particle": q if q >= 0 else None,
+        "partner": partner if paired else None,
+        "particle_id": int(ids[q]) if q >= 0 else None,
+        "partner_id": int(ids[partner]) if paired and partner >= 0 else None,
+        "partner_wall": walls[-1 - partner] if paired and partner < 0 else None,
         "amount": amount,
         "occurrences": int(entry[COUNT]),
         "message": messages[KINDS[kind]],

@@ -134,4 +134,6 @@ def test_local_damping_stops_a_bouncing_sphere_and_is_named_when_reversal_fails(
     assert kinetic[-1] < 1e-6 * kinetic.max()  # undamped, it would keep bouncing at the peak
     verdict = outputs.verdict
     assert not verdict["reversible"]
-    assert "local_damping" in [cause["mechanism"] for cause in verdict["divergence_causes"]]
+    causes = {cause["mechanism"]: cause for cause in verdict["divergence_causes"]}
+    damping = causes["local_damping"]  # no contact: no partner, where -1 named wall 0
+    assert damping["partner"] is damping["partner_id"] is damping["partner_wall"] is None

@@ -63,7 +63,11 @@ def test_the_moment_limit_destroys_information_and_compare_names_it(tmp_path):
     _, outputs = run(tmp_path)
     verdict = json.loads(outputs.comparison.read_text())
     assert not verdict["reversible"]
-    assert "rolling_limit" in [cause["mechanism"] for cause in verdict["divergence_causes"]]
+    causes = {cause["mechanism"]: cause for cause in verdict["divergence_causes"]}
+    limit = causes["rolling_limit"]  # at the sphere's contact with the plane, wall 0
+    assert (limit["particle"], limit["particle_id"]) == (0, 1)
+    assert (limit["partner"], limit["partner_id"], limit["partner_wall"]) == (-1, None, "plane")
+    assert "the contact of particle 0 (id 1) and wall plane rolled" in limit["message"]
 
 
 def test_an_elastic_rolling_spring_conserves_energy_and_reverses_to_round_off(tmp_path):
