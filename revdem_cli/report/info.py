@@ -41,12 +41,23 @@ def _scenario(text: str) -> dict:
                 "dt": s.dt or scenario.integrator.dt,
                 "output_every": s.output_every,
                 "reverse": s.reverse,
+                "stop_when": s.stop_when.model_dump(exclude_none=True) if s.stop_when else None,
             }
             for s in scenario.stages
         ],
         "arithmetic": scenario.integrator.arithmetic,
         "cell": list(scenario.cell.size) if scenario.cell else None,
     }
+
+
+def _stopping(condition: dict | None) -> str:
+    """A stage's stop condition as `info` prints it: ', until kinetic_energy_below 1e-07'."""
+    if not condition:
+        return ""
+    (name, value), *_ = condition.items()
+    if isinstance(value, dict):
+        value = " ".join(f"{key} {item}" for key, item in value.items())
+    return f", until {name} {value}"
 
 
 def _trajectory(path: Path, f: h5py.File) -> dict:
@@ -148,8 +159,8 @@ def info_lines(info: dict) -> list[str]:
             *tape_lines(info["tape"]),
         ]
     stages = ", ".join(
-        f"{s['name']} ({s['steps']} steps of {_time_step(s['dt'])}"
-        f"{', reversed' if s['reverse'] else ''})"
+        f"{s['name']} ({'at most ' if s['stop_when'] else ''}{s['steps']} steps of "
+        f"{_time_step(s['dt'])}{_stopping(s['stop_when'])}{', reversed' if s['reverse'] else ''})"
         for s in info["stages"]
     )
     lines = [

@@ -31,7 +31,14 @@ def test_json_summary_of_a_reversed_trajectory(smoke_run):
     assert (summary["first_step"], summary["last_step"], summary["frames"]) == (1000, 0, 21)
     assert summary["particles"] == 2
     assert summary["stages"] == [
-        {"name": "collide", "steps": 1000, "dt": 1e-7, "output_every": 50, "reverse": True}
+        {
+            "name": "collide",
+            "steps": 1000,
+            "dt": 1e-7,
+            "output_every": 50,
+            "reverse": True,
+            "stop_when": None,
+        }
     ]
     assert summary["comparison"]["reversible"] is True
 
@@ -79,7 +86,9 @@ def test_each_stage_shows_its_own_time_step():
         summary | {"file": "x.h5", "kind": "restart", "particles": 300, "step": 1, "stage": "pour",
                    "stage_dt": 1e-5, "trajectory": "x.forward.h5", "direction": "forward"}
     )  # fmt: skip
-    assert "pour (200000 steps of 1e-05 s)" in "\n".join(lines)
+    shown = "\n".join(lines)  # a stage with a stop condition may end early: says so
+    assert "pour (at most 200000 steps of 1e-05 s, until kinetic_energy_below 1e-06)" in shown
+    assert "close (at most 60000 steps of 1e-05 s, until solid_fraction_above 0.606)" in shown
     assert "step:       1 (end of stage pour, dt 1e-05 s)" in lines
 
 
