@@ -48,27 +48,43 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
     fig, axes = plt.subplots(
         len(panels), 1, figsize=(6, 1.5 + 2.5 * len(panels)), dpi=120, sharex=True, squeeze=False
     )
+    from matplotlib.lines import Line2D
+
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    runs = [("forward", forward, {"lw": 2.5, "alpha": 0.5}), ("reversed", reverse,
+            {"lw": 1.2, "ls": "--"})]  # fmt: skip
     for ax, (series, ylabel) in zip(axes[:, 0], panels, strict=True):
         spans = {"forward": [], "reversed": []}
-        for run, path, style in (
-            ("forward", forward, {"lw": 2.5, "alpha": 0.5}),
-            ("reversed", reverse, {"lw": 1.2, "ls": "--"}),
-        ):
+        named = {}  # each series by its colour, once for both runs
+        for run, path, style in runs:
             if path is None:
                 continue
             for k, (label, x, values) in enumerate(series(path)):
                 colour = colours[k % len(colours)]
-                ax.plot(x, values, color=colour, label=f"{label} {run}", **style)
+                ax.plot(x, values, color=colour, **style)
+                named[label] = Line2D([], [], color=colour, lw=2.0)
                 finite = values[np.isfinite(values)]
                 if len(finite):
                     spans[run] += [finite.min(), finite.max()]
+        for run, path, style in runs:  # then which line is which run
+            if path is not None:
+                named[run] = Line2D([], [], color="0.3", **style)
         ax.set_ylim(*_limits(*spans.values()))
         ax.set_ylabel(ylabel)
-        ax.legend(fontsize=8)
+        _legend(ax, named)
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel(xlabel)
     return _save(fig, png)
+
+
+def _legend(ax, named: dict) -> None:
+    """The legend of `named` (label: line) inside the axes where it is short, beside them
+    where its entries would cover the curves (more than 4: eight spheres, six walls)."""
+    if len(named) <= 4:
+        ax.legend(named.values(), named.keys(), fontsize=8)
+    else:
+        ax.legend(named.values(), named.keys(), fontsize=7, loc="upper left",
+                  bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # fmt: skip
 
 
 def _limits(forward: list[float], reversed: list[float]) -> tuple[float, float]:
@@ -101,25 +117,37 @@ def _save(fig, png: Path) -> Path:
     return png
 
 
-def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
-    """|v| of each particle against time (Hanley 2020 Figure 1)."""
+PLOTTED_SPHERES = 8
+"""The spheres a figure of each sphere's velocity draws at most: the first, by index."""
+
+
+def _each_sphere(component):
+    """series(path) of `component(velocities [F, N, 3])` [F, N] for each of the first
+    PLOTTED_SPHERES spheres, named as messages name them (`state.particle_named`)."""
+    from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.state import particle_named
 
     def series(path):
         time, v = _frames(path, "velocity")
-        speed = np.linalg.norm(v, axis=2)
-        return [(f"particle {q}", time * 1e3, speed[:, q]) for q in range(min(speed.shape[1], 8))]
+        with open_trajectory(path) as f:
+            ids = f["particles/all/id"][:]
+        values = component(v)
+        count = min(values.shape[1], PLOTTED_SPHERES)
+        return [(particle_named(q, ids), time * 1e3, values[:, q]) for q in range(count)]
 
-    return _figure(forward, reverse, png, series, "|v| (m/s)")
+    return series
+
+
+def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
+    """|v| of each particle against time (Hanley 2020 Figure 1)."""
+    speed = _each_sphere(lambda v: np.linalg.norm(v, axis=2))
+    return _figure(forward, reverse, png, speed, "|v| (m/s)")
 
 
 def velocity_z_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     """Vertical velocity of each particle against time (Hanley 2020 Figure 6)."""
-
-    def series(path):
-        time, v = _frames(path, "velocity")
-        return [(f"particle {q}", time * 1e3, v[:, q, 2]) for q in range(min(v.shape[1], 8))]
-
-    return _figure(forward, reverse, png, series, "v_z (m/s)")
+    vertical = _each_sphere(lambda v: v[:, :, 2])
+    return _figure(forward, reverse, png, vertical, "v_z (m/s)")
 
 
 def forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
@@ -132,7 +160,7 @@ def forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
             for time, values in [_observable(path, name)]
         ]
 
-    return _figure(forward, reverse, png, series, "force (N)")
+    return _figure(forward, reverse, png, series, "largest contact force (N)")
 
 
 def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:

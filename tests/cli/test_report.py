@@ -114,3 +114,13 @@ def test_a_figure_shows_a_reversal_that_parts_but_not_one_that_runs_away():
     low, high = _limits([0.0, 1.0], [-1e10, 1e10])
     assert (low, high) == pytest.approx((-1.45, 2.45))  # -1 to 2, and 15 % of 3
     assert _limits([2.0, 2.0], [2.0, 2.0]) == (1.0, 3.0)  # a constant: a unit either side
+
+
+def test_a_sphere_is_named_in_a_figure_as_in_messages(smoke_run):
+    """By index and id (`state.particle_named`): a LAMMPS data file's spheres carry their
+    atom ids, which the legends lacked."""
+    from revdem_cli.report.figures import _each_sphere
+
+    series = _each_sphere(lambda v: v[:, :, 2])(smoke_run / "collision_smoke.forward.h5")
+    assert [label for label, _, _ in series] == ["particle 0 (id 1)", "particle 1 (id 2)"]
+    assert all(len(time) == len(values) > 1 for _, time, values in series)
