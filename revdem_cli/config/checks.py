@@ -81,8 +81,8 @@ def check_figures(scenario) -> None:
     figures' `contacts = true` is checked by `Output` itself)."""
     needs = {
         "wall_forces": (
-            any(wall.type == "plane" for wall in scenario.walls),
-            "a plane wall (it draws the z force on each)",
+            any(wall.across_z for wall in scenario.walls),
+            "a plane wall across z (it draws the z force on each, its load)",
         ),
         "stress_ratios": (
             scenario.cell is not None,

@@ -194,6 +194,12 @@ class _Wall(_Model):
     normal: Vector3 = Field(description="the wall's direction, as its type says, -")
     velocity: Vector3 = Field(default=(0.0, 0.0, 0.0), description="wall velocity, m/s")
 
+    @property
+    def across_z(self) -> bool:
+        """A plane whose normal lies nearest z: a platen, whose z force is its load (the
+        `wall_forces` figure's); a side wall's z force is friction."""
+        return self.type == "plane" and abs(self.normal[2]) == max(map(abs, self.normal))
+
     @model_validator(mode="after")
     def _shape(self) -> _Wall:
         if math.hypot(*self.normal) == 0:
@@ -659,7 +665,8 @@ class Output(_Model):
         description="figures written beside the trajectories, forward and reversed overlaid: "
         "'speed' = |v| of each particle, 'forces' = largest normal and shear contact force, "
         "'velocity_z' = vertical velocity of each particle, all against time; 'wall_forces' "
-        "= z force on each plane wall against the solid fraction (or against time); "
+        "= z force on each plane wall across z (a platen) against the solid fraction (or "
+        "against time); "
         "'stress_ratios' = principal stress ratios and coordination number against the "
         "compression of a periodic cell; with contacts = true, at the end of the run: "
         "'contact_forces' = distribution of normal contact forces over their mean, semi-log; "

@@ -164,17 +164,16 @@ def forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
 
 
 def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
-    """z component of the force on each plane wall against the solid fraction (Hanley 2020
-    Figure 3), or against time if none is recorded; the forward run over the steps that the
-    reversed run covers."""
-    import json
-
+    """z component of the force on each plane wall across z (`Wall.across_z`, a platen)
+    against the solid fraction (Hanley 2020 Figure 3), or against time if none is recorded;
+    the forward run over the steps that the reversed run covers, which the axis says."""
+    from revdem_cli.config import Scenario
     from revdem_cli.io.h5md import open_trajectory
 
     with open_trajectory(forward) as f:
-        scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])
-    planes = [wall["name"] for wall in scenario["walls"] if wall["type"] == "plane"]
-    by_fraction = scenario.get("solid_fraction") is not None
+        scenario = Scenario.model_validate_json(f["parameters/revdem"].attrs["scenario_json"])
+    planes = [wall.name for wall in scenario.walls if wall.across_z]
+    by_fraction = scenario.solid_fraction is not None
     window = _reversed_window(reverse)
 
     def series(path):
@@ -189,7 +188,9 @@ def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
                 (name, x, f[f"observables/wall_force/{name}/value"][:, 2][keep]) for name in planes
             ]
 
-    xlabel = "solid fraction" if by_fraction else "time (ms)"
+    xlabel = ("solid fraction" if by_fraction else "time (ms)") + (
+        ", over the reversed stage" if window else ""
+    )
     return _figure(forward, reverse, png, series, "force on the wall, z (N)", xlabel)
 
 

@@ -78,7 +78,7 @@ def test_a_set_value_toml_cannot_read_is_named_not_taken_for_text(scenario, item
 @pytest.mark.parametrize(
     ("figure", "has", "needs"),
     [
-        ("wall_forces", "oedometer", "a plane wall"),
+        ("wall_forces", "oedometer", "a plane wall across z"),
         ("stress_ratios", "fcc_triaxial", "a periodic [cell]"),
         ("information", "tape/oedometer_pour", "reversal.tape = true"),
     ],

@@ -74,3 +74,13 @@ def test_only_the_last_stage_can_be_reversed():
     )
     with pytest.raises(InputError, match=r"stages\[0\]\.reverse: the reversed stage must be"):
         scenario_from_text(text, ".yaml", "pair.yaml")
+
+
+def test_the_platens_are_the_planes_across_z():
+    """The oedometer's bottom and top, not its cylinder: the walls whose z force is a load
+    (`wall_forces`); a plane whose normal lies nearest x or y is a side wall."""
+    scenario, _ = load_scenario(CONFIGS / "oedometer.toml")
+    assert [wall.name for wall in scenario.walls if wall.across_z] == ["bottom", "top"]
+    side = scenario.walls[1].model_copy(update={"normal": (1.0, 0.0, 0.5)})
+    tilted = scenario.walls[1].model_copy(update={"normal": (0.3, -0.4, 0.6)})
+    assert (side.across_z, tilted.across_z) == (False, True)
