@@ -3,6 +3,7 @@ and to go; before a run whose kernels numba has yet to compile, a line that says
 
 from __future__ import annotations
 
+import os
 import time
 
 from rich.console import Console
@@ -16,6 +17,10 @@ from rich.progress import (
 
 COMPILING = "compiling the kernels: once after an install or upgrade, 3 to 4 min on 2 cores"
 
+LOG_WIDTH = 132
+"""Columns of the display written to a file or a pipe (a batch job's log), where rich would
+take 80 and cut the times and rates to '0…'; a terminal's own width, or COLUMNS, rules."""
+
 
 class RunProgress:
     """Context manager; call it as progress(label, done, total, particles) once per output
@@ -24,6 +29,8 @@ class RunProgress:
 
     def __init__(self, unit: str = "steps", compiling: bool = False):
         self.console = Console(stderr=True)
+        if not self.console.is_terminal and "COLUMNS" not in os.environ:
+            self.console = Console(stderr=True, width=LOG_WIDTH)
         self.compiling = compiling
         self.bar = Progress(
             TextColumn("{task.description}"),

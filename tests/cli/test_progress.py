@@ -93,3 +93,21 @@ def test_an_export_reports_each_frame_it_writes(smoke_run, tmp_path):
     shown = CliRunner().invoke(app, ["export", str(trajectory), "--format", "gsd",
                                      "--out", str(tmp_path / "y.gsd")])  # fmt: skip
     assert shown.exit_code == 0 and "21/21 frames" in shown.output, shown.output
+
+
+def test_a_display_written_to_a_log_is_wide_enough_for_its_columns(tmp_path):
+    """A batch job's log is not a terminal: rich took 80 columns and cut the times and rates
+    to '0…'. Written to a file, the bar's line keeps its rate and both times whole."""
+    script = (
+        "from revdem_cli.report.progress import RunProgress\n"
+        "with RunProgress() as shown:\n"
+        "    shown('oedometer_smoke settle (forward)', 1000, 60000, 300)\n"
+        "    shown('oedometer_smoke settle (forward)', 30000, 60000, 300)\n"
+    )
+    log = tmp_path / "job.log"
+    environment = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    with log.open("w") as stderr:
+        subprocess.run([sys.executable, "-c", script], stderr=stderr, env=environment, check=True)
+    line = log.read_text().splitlines()[-1]
+    assert "…" not in line and "particle-steps/s" in line, line
+    assert len(line) <= progress.LOG_WIDTH
