@@ -243,10 +243,10 @@ def check_walls(scenario) -> None:
 
 def located(scenario, index: int) -> tuple[str, str]:
     """(field path, name) of sphere `index` of `spheres`: particles[i].position and
-    'sphere i', packings[k] and 'sphere m of packings[k]', or particles_from[k] and 'atom
-    a of FILE', the atom's id in its data file (named without its folder)."""
+    'sphere i of particles', packings[k] and 'sphere m of packings[k]', or particles_from[k]
+    and 'atom a of FILE', the atom's id in its data file (named without its folder)."""
     if index < len(scenario.particles):
-        return f"particles[{index}].position", f"sphere {index}"
+        return f"particles[{index}].position", f"sphere {index} of particles"
     sources = [("packings", k, p) for k, p in enumerate(scenario.packings)]
     sources += [("lattices", k, g) for k, g in enumerate(scenario.lattices)]
     sources += [("particles_from", k, g) for k, g in enumerate(scenario.particles_from)]

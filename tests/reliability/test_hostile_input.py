@@ -38,12 +38,12 @@ def test_a_position_float64_cannot_resolve_is_refused():
     result = invoke("validate", COLLISION, "--set", "particles.0.position=[1e17,0,0]")
     assert_one_line_error(
         result,
-        "particles[0].position: sphere 0 starts 1e+17 m from the origin, where float64 "
-        "resolves a position only to 16 m",
+        "particles[0].position: sphere 0 of particles starts 1e+17 m from the origin, where "
+        "float64 resolves a position only to 16 m",
     )
     assert_one_line_error(
         invoke("validate", COLLISION, "--set", "particles.1.position=[0,0,-1e300]"),
-        "particles[1].position: sphere 1 starts 1e+300 m from the origin",
+        "particles[1].position: sphere 1 of particles starts 1e+300 m from the origin",
     )
 
 

@@ -51,7 +51,10 @@ def test_overrides_reach_nested_fields_and_list_items():
         ("contact.kn=nan", "contact.kn"),
         ("integrator.dt='fast'", "integrator.dt: Input should be a valid number"),
         ("stages.0.colour='red'", "stages[0].colour: unknown field"),
-        ("particles.1.position=[0.005, 0, 0]", "particles[1].position: sphere 1 overlaps"),
+        (
+            "particles.1.position=[0.005, 0, 0]",
+            "particles[1].position: sphere 1 of particles overlaps sphere 0 of",
+        ),
     ],
 )
 def test_bad_fields_are_named_by_path(change, message):
