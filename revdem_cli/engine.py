@@ -22,7 +22,6 @@ from revdem_cli.io.restart import Restart, Resumption, read_restart, write_resta
 from revdem_cli.io.tape import Recorder, Replayer, combined, recorded
 from revdem_cli.io.tape import summary as tape_summary
 from revdem_cli.kernels.events import COLUMNS, KINDS
-from revdem_cli.kernels.observables import unit_of
 from revdem_cli.kernels.tape import MECHANISMS
 from revdem_cli.stage import (
     Model,
@@ -84,7 +83,7 @@ def _writer(
         scenario.output.particle_stress,
         scenario.integrator.arithmetic == "fixed",
         scenario.output.contacts,
-        [(name, shape, unit_of(name)) for name, shape in model.layout.series()],
+        model.layout.series(),
         (len(KINDS), len(COLUMNS)),
         {
             "direction": direction,

@@ -17,14 +17,6 @@ the velocity predictor's history, particles/v_past, omega_past, v_pred, omega_pr
 FRAME_FIELDS = ("position", "velocity", "angular_velocity", "force")
 """Per-particle time series of a trajectory, under /particles/all."""
 
-PARTICLE_UNITS = {
-    "position": "m", "velocity": "m s-1", "angular_velocity": "rad s-1", "force": "N",
-    "stress": "Pa", "radius": "m", "mass": "kg", "edges": "m", "point": "m",
-    "normal_force": "N", "tangential_force": "N", "overlap": "m",
-}  # fmt: skip
-"""The units of a trajectory's particle data, its box and its contacts (H5MD's units module,
-SI); the observables' are `kernels.observables.UNITS`."""
-
 GRID_FIELDS = ("position_grid", "velocity_grid", "angular_velocity_grid")
 """The integer state of fixed-point arithmetic at each frame, under /particles/all."""
 

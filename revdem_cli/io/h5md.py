@@ -43,46 +43,21 @@ import numpy as np
 
 from revdem_cli import __version__
 from revdem_cli.errors import InputError, WriteFailed
-from revdem_cli.io import (
-    DAMAGE,
-    FRAME_FIELDS,
-    GRID_FIELDS,
-    PARTICLE_UNITS,
-    SCHEMA_VERSION,
-    one_line,
-    open_hdf5,
-)
-
-
-def _unit(dataset: h5py.Dataset, unit: str | None) -> h5py.Dataset:
-    """H5MD's `unit` attribute (a fixed-length ASCII string, units module), where there is one."""
-    if unit is not None:
-        dataset.attrs.create("unit", np.bytes_(unit))
-    return dataset
+from revdem_cli.io import DAMAGE, FRAME_FIELDS, GRID_FIELDS, SCHEMA_VERSION, one_line, open_hdf5
 
 
 def _series(
-    group: h5py.Group,
-    name: str,
-    shape: tuple,
-    clock: h5py.Group | None,
-    dtype=np.float64,
-    unit: str | None = None,
+    group: h5py.Group, name: str, shape: tuple, clock: h5py.Group | None, dtype=np.float64
 ) -> h5py.Group:
-    """A time series `name` with value [F, *shape] in `unit`; step and time shared with
-    `clock`."""
+    """A time series `name` with value [F, *shape]; step and time shared with `clock`."""
     g = group.create_group(name)
     rows = max(1, 4096 // max(1, int(np.prod(shape))))
-    value = g.create_dataset(
+    g.create_dataset(
         "value", shape=(0, *shape), maxshape=(None, *shape), dtype=dtype, chunks=(rows, *shape)
     )
-    _unit(value, unit)
     if clock is None:
         g.create_dataset("step", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
-        time = g.create_dataset(
-            "time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(1024,)
-        )
-        _unit(time, "s")
+        g.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(1024,))
     else:
         g["step"] = clock["step"]
         g["time"] = clock["time"]
@@ -120,7 +95,7 @@ def _contact_rows(f: h5py.File, particles: h5py.Group, clock: h5py.Group) -> dic
         dataset = group.create_dataset(
             name, shape=(0, *shape), maxshape=(None, *shape), dtype=dtype, chunks=(4096, *shape)
         )
-        rows[name] = _Appender(_unit(dataset, PARTICLE_UNITS.get(name)))
+        rows[name] = _Appender(dataset)
     return rows
 
 
@@ -158,8 +133,7 @@ class _Appender:
 class TrajectoryWriter:
     """Appends frames and observables to a new H5MD file.
 
-    `observables` lists (name, shape, unit): () for a scalar, (3,) a vector, (3, 3) a tensor;
-    the unit as H5MD's units module writes it, None for a pure number. Rows
+    `observables` lists (name, shape): () for a scalar, (3,) a vector, (3, 3) a tensor. Rows
     are gathered in memory and written in blocks, at least every FLUSH_SECONDS and whenever
     FLUSH_BYTES are waiting, so an interrupted run keeps all but its last moments.
     """
@@ -178,7 +152,7 @@ class TrajectoryWriter:
         particle_stress: bool,
         fixed_point: bool,
         contacts: bool,
-        observables: list[tuple[str, tuple[int, ...], str | None]],
+        observables: list[tuple[str, tuple[int, ...]]],
         events_shape: tuple[int, int],
         parameters: dict,
     ):
@@ -203,9 +177,6 @@ class TrajectoryWriter:
         creator = h5md.create_group("creator")
         creator.attrs["name"] = "revdem"
         creator.attrs["version"] = __version__
-        units = h5md.create_group("modules/units")
-        units.attrs["version"] = np.array([1, 0])
-        units.attrs.create("system", np.bytes_("SI"))
         n = len(radius)
         everything = f.create_group("particles/all")
         box = everything.create_group("box")
@@ -214,20 +185,19 @@ class TrajectoryWriter:
         clock = None
         frame_groups = []
         for name in FRAME_FIELDS:
-            clock = _series(everything, name, (n, 3), clock, unit=PARTICLE_UNITS[name])
+            clock = _series(everything, name, (n, 3), clock)
             frame_groups.append(clock)
-        _unit(everything.create_dataset("radius", data=radius), PARTICLE_UNITS["radius"])
-        _unit(everything.create_dataset("mass", data=mass), PARTICLE_UNITS["mass"])
+        everything.create_dataset("radius", data=radius)
+        everything.create_dataset("mass", data=mass)
         everything.create_dataset("id", data=np.asarray(ids, dtype=np.int64))
         everything.create_dataset("species", data=np.asarray(species, dtype=np.int64))
         events = _series(f, "observables/events", events_shape, clock)
-        edges = _series(box, "edges", (3,), clock, unit=PARTICLE_UNITS["edges"])
+        edges = _series(box, "edges", (3,), clock)
         self.frame_rows = [_Appender(clock["step"]), _Appender(clock["time"])]
         self.frame_rows += [_Appender(g["value"]) for g in frame_groups + [events, edges]]
         self.stress_rows = None
         if particle_stress:
-            stress = _series(everything, "stress", (n, 3, 3), clock, unit=PARTICLE_UNITS["stress"])
-            self.stress_rows = _Appender(stress["value"])
+            self.stress_rows = _Appender(_series(everything, "stress", (n, 3, 3), clock)["value"])
             self.frame_rows.append(self.stress_rows)
         self.grid_rows = []
         if fixed_point:
@@ -238,8 +208,8 @@ class TrajectoryWriter:
         self.contact_rows = _contact_rows(f, everything, clock) if contacts else None
         clock = None
         widths = []
-        for name, shape, unit in observables:
-            clock = _series(f, f"observables/{name}", shape, clock, unit=unit)
+        for name, shape in observables:
+            clock = _series(f, f"observables/{name}", shape, clock)
             widths.append((_Appender(clock["value"]), shape))
         self.observable_clock = [_Appender(clock["step"]), _Appender(clock["time"])]
         self.observable_rows = widths

@@ -45,27 +45,6 @@ CELL_STATE = (
 )
 """Columns the engine derives in a periodic cell (`stage.Model.complete`)."""
 
-UNITS = {
-    "kinetic_energy": "J", "elastic_energy": "J", "potential_energy": "J", "total_energy": "J",
-    "max_normal_force": "N", "max_shear_force": "N", "wall_force": "N", "wall_position": "m",
-    "stress": "Pa", "cell_length": "m", "principal_stress": "Pa", "mean_stress": "Pa",
-    "deviator_stress": "Pa",
-}  # fmt: skip
-"""Each dimensionful observable's unit, as the trajectory's `unit` attributes give it (H5MD's
-units module, SI); a wall's by its series' first part (`wall_force/top`)."""
-
-DIMENSIONLESS = frozenset(
-    {"coordination_number", "fabric", "mechanical_coordination_number", "sliding_fraction",
-     "solid_fraction", "void_ratio", "fabric_deviator", "bits_destroyed"}
-)  # fmt: skip
-"""The observables without a unit: every observable is in UNITS or here."""
-
-
-def unit_of(name: str) -> str | None:
-    """The unit of observable `name` (None: a pure number)."""
-    return UNITS.get(name.split("/")[0])
-
-
 WALL_FORCES = len(SCALARS)
 """Column of an observables row where the first wall's force begins; the wall positions
 follow the forces of all walls."""

@@ -37,14 +37,3 @@ def test_observe_writes_every_column_it_owns(config):
     assert at == model.layout.width
     assert {"kinetic_energy", "coordination_number", "fabric"} <= set(owned)
     assert any(name.startswith("wall_force/") for name in owned) or "stress" in owned
-
-
-def test_every_observable_has_a_unit_or_is_a_pure_number():
-    """A new observable must say which: the trajectory's `unit` attributes come from here."""
-    from revdem_cli.kernels.observables import DIMENSIONLESS, UNITS, Layout, unit_of
-
-    every = Layout(("top",), periodic=True, container=True, taped=True).series()
-    for name, _ in every:
-        base = name.split("/")[0]
-        assert (base in UNITS) != (base in DIMENSIONLESS), name
-    assert unit_of("wall_force/top") == "N" and unit_of("fabric") is None
