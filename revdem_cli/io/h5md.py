@@ -177,6 +177,12 @@ class TrajectoryWriter:
         creator = h5md.create_group("creator")
         creator.attrs["name"] = "revdem"
         creator.attrs["version"] = __version__
+        # H5MD's units module: every value is SI. No dataset carries a `unit` attribute:
+        # MDAnalysis' H5MD reader refuses a file whose positions say "m" (not one of its
+        # lengths), even when told not to convert units
+        units = h5md.create_group("modules/units")
+        units.attrs["version"] = np.array([1, 0])
+        units.attrs.create("system", np.bytes_("SI"))
         n = len(radius)
         everything = f.create_group("particles/all")
         box = everything.create_group("box")

@@ -26,3 +26,13 @@ def test_mdanalysis_reads_positions_velocities_time_and_the_box(smoke_run):
         extent = (position[frame] + 0.005).max(axis=0) - (position[frame] - 0.005).min(axis=0)
         np.testing.assert_allclose(ts.dimensions, [*extent, 90, 90, 90], rtol=1e-6)
     assert not np.allclose(position[20], position[0])
+
+
+def test_the_units_are_declared_si_and_left_off_what_mdanalysis_would_refuse(smoke_run):
+    """H5MD's units module says SI; a `unit` attribute "m" on the positions would make
+    MDAnalysis' reader refuse the file (its lengths are Angstrom, nm, pm and fm)."""
+    with h5py.File(smoke_run / "collision_smoke.forward.h5", "r") as f:
+        assert f["h5md/modules/units"].attrs["system"] == b"SI"
+        assert "unit" not in f["particles/all/position/value"].attrs
+    attributes = MDAnalysis.coordinates.H5MD.H5MDReader._unit_translation
+    assert "m" not in attributes["length"]  # were it added, positions could say "m"

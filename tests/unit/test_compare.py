@@ -22,5 +22,5 @@ def test_a_cause_names_each_sphere_by_index_and_id_and_a_wall_by_name():
     )
     entry[PARTNER] = -2  # wall 1
     cause = _cause(KINDS.index("coulomb_slip"), entry, ["bottom", "lid"], ids)
-    assert cause["partner_id"] == -1
+    assert (cause["partner"], cause["partner_id"], cause["partner_wall"]) == (-2, None, "lid")
     assert cause["message"].startswith("the contact of particle 2 (id 13) and wall lid slid")
