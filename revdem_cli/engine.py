@@ -44,6 +44,8 @@ class Outputs:
     figures: tuple[Path, ...] = ()
     verdict: dict | None = None
     chosen_dt: dict[str, float] = field(default_factory=dict)  # stages of dt = 'auto', s
+    # stages a stop condition ended: (steps run, steps at most, steps between its checks)
+    stopped: dict[str, tuple[int, int, int]] = field(default_factory=dict)
 
 
 def output_paths(out_dir: Path, name: str) -> dict[str, Path]:
@@ -220,7 +222,7 @@ def _forward(
     scenario, paths = run.scenario, run.paths
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
-    chosen = {}
+    chosen, stopped = {}, {}
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
             stage = scenario.stages[index]
@@ -256,6 +258,9 @@ def _forward(
                 state, run.model, clock, +1, writer, progress, None, checkpoint, events,
                 run.checkpoints.stepper, tape,
             )  # fmt: skip
+            if state.step != clock.last_step:  # its stop condition ended it
+                ran = state.step - clock.first_step
+                stopped[stage.name] = (ran, stage.steps, stage.observable_interval)
             time = float(clock.time(state.step))
             if index < len(scenario.stages) - 1 and scenario.reversal.all_stages:
                 stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
@@ -270,9 +275,9 @@ def _forward(
         source = str(paths["restart"].resolve())
         reversed_outputs = _reverse(run, restart, source, None, progress)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
-        reversed_outputs.chosen_dt = chosen
+        reversed_outputs.chosen_dt, reversed_outputs.stopped = chosen, stopped
         return reversed_outputs
-    outputs.chosen_dt = chosen
+    outputs.chosen_dt, outputs.stopped = chosen, stopped
     run.checkpoints.discard()
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
     return outputs

@@ -62,8 +62,8 @@ def print_comparison(verdict: dict) -> None:
     console.print(verdict_line(verdict))
 
 
-def print_summary(outputs) -> None:
-    console = Console()
+def print_summary(outputs, console: Console | None = None) -> None:
+    console = console or Console()
     if outputs.verdict is not None:
         console.print(comparison_table(outputs.verdict))
     written = [
@@ -78,6 +78,10 @@ def print_summary(outputs) -> None:
             console.print(f"  {label:<20} {path}")
     for stage, dt in outputs.chosen_dt.items():
         console.print(f"  {'time step':<20} {dt:.6g} s in stage {stage} (dt = 'auto')")
+    for stage, (ran, most, every) in outputs.stopped.items():
+        first = ", at its first check: its condition held from its start" if ran <= every else ""
+        line = f"  {'stopped':<20} stage {stage} after {ran} of {most} steps{first}"
+        console.print(line, soft_wrap=True)
     if outputs.verdict is not None:
         console.print(verdict_line(outputs.verdict))
     elif outputs.reverse is not None:

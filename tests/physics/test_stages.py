@@ -116,6 +116,8 @@ def test_a_stage_ends_at_the_first_frame_where_its_stop_condition_holds(tmp_path
     assert push_start < 40000 and push_start % 500 == 0  # ended early, at a frame
     assert kinetic[kinetic_steps == push_start][0] < 1e-12
     assert kinetic[kinetic_steps == push_start - 500][0] >= 1e-12  # not a frame earlier
+    stage = Scenario.model_validate(data).stages[0]  # the run says where its condition ended it
+    assert outputs.stopped == {stage.name: (push_start, 40000, stage.observable_interval)}
     assert time[-1] == pytest.approx(push_start * 1e-5 + 6000 * 5e-6, rel=1e-12)
     verdict = outputs.verdict
     assert verdict["reversible"] and verdict["frames_compared"] == 13
@@ -147,3 +149,19 @@ def test_a_wall_pushing_down_stops_when_its_force_exceeds_the_target(tmp_path):
         steps = f["observables/wall_force/lid/step"][:]
     assert steps[-1] < 4000 + 20000  # stopped early
     assert lid[-1] > 0.02 and (lid[steps <= steps[-1] - 100] <= 0.02).all()
+
+
+def test_the_summary_says_where_a_stop_condition_ended_a_stage_and_when_at_once():
+    """A pour from rest meets kinetic_energy_below at its first check: said, not silent."""
+    from rich.console import Console
+
+    from revdem_cli.engine import Outputs
+    from revdem_cli.report import summary
+
+    console = Console(record=True, width=200)
+    outputs = Outputs(stopped={"settle": (28000, 60000, 500), "pour": (500, 200000, 500)})
+    summary.print_summary(outputs, console)
+    lines = console.export_text().splitlines()
+    assert lines[0].split() == "stopped stage settle after 28000 of 60000 steps".split()
+    assert lines[1].endswith("pour after 500 of 200000 steps, at its first check: its "
+                             "condition held from its start")  # fmt: skip
