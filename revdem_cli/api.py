@@ -234,7 +234,7 @@ def _progress(progress):
 
 
 def run(
-    experiment: Experiment,
+    experiment: Experiment | str | Path,
     out: str | Path = "out",
     reverse: bool = True,
     force: bool = False,
@@ -244,9 +244,14 @@ def run(
     """Run every stage forward, and the reversed stage backwards with the comparison unless
     `reverse` is False, into the folder `out`, as `revdem run` does: earlier outputs are
     kept unless `force`, and a time step above the critical estimate is refused unless
-    `allow_unstable_dt`."""
+    `allow_unstable_dt`. A scenario file's path is loaded as it is (`load`); an empty `out`
+    is refused, not taken for the working folder, as `revdem run --out ''` is."""
     from revdem_cli.engine import check_time_step, run_scenario
 
+    if isinstance(experiment, str | Path):
+        experiment = load(experiment)
+    if not str(out).strip():
+        raise InputError("out: an empty path; give a folder ('.' for this one)")
     out = Path(out)
     keep_checkpoint(out, experiment.name, force)
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from numbers import Integral
 from pathlib import Path
 
 import numpy as np
@@ -365,8 +366,12 @@ def _reverse(
     if resumption is None:
         clock = _reverse_clock(scenario, start, start.state.step)
         length = clock.last_step - clock.first_step
-        if steps is not None and not 0 < steps <= length:
-            raise InputError(f"--steps {steps}: must be between 1 and the stage's {length} steps")
+        whole = isinstance(steps, Integral) and not isinstance(steps, bool)
+        if steps is not None and not (whole and 0 < steps <= length):
+            raise InputError(
+                f"--steps {steps!r}: must be a whole number between 1 and the stage's {length} "
+                "steps"
+            )
         stop = clock.first_step if steps is None else start.state.step - steps
         events = None
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)

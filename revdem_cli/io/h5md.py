@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import getpass
 import time
+from numbers import Integral
 from pathlib import Path
 
 import h5py
@@ -427,7 +428,12 @@ def read_contacts(f: h5py.File, index: int) -> dict[str, np.ndarray] | None:
     None if the trajectory has none."""
     if CONTACTS not in f:
         return None
-    index %= len(frame_steps(f))  # -1: the last frame
+    frames = len(frame_steps(f))
+    if isinstance(index, bool) or not isinstance(index, Integral) or not -frames <= index < frames:
+        raise InputError(
+            f"frame {index!r}: the trajectory has {frames} frames, 0 to {frames - 1} (-1: the last)"
+        )
+    index %= frames  # -1: the last frame
     counts = _read(f, CONTACT_COUNT, slice(index + 1))
     rows = slice(int(counts[:-1].sum()), int(counts.sum()))
     return {name: _read(f, f"{CONTACTS}/{name}", rows) for name in CONTACT_FIELDS}

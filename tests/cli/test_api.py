@@ -62,3 +62,24 @@ def test_results_name_what_they_do_not_have(tmp_path):
     with pytest.raises(InputError, match="no observable 'entropy'.*kinetic_energy"):
         result.observable("entropy")
     assert set(result.observables()) >= {"kinetic_energy", "total_energy"}
+
+
+def test_what_a_script_gives_wrongly_is_refused_before_anything_runs(tmp_path):
+    """The checks the command line's options have, for the API's arguments: a reversal of
+    2.5 steps crashed or hung the compiled loop, a frame out of range wrapped round, an
+    empty folder was the working one."""
+    collision = CONFIGS / "collision.toml"
+    with pytest.raises(InputError, match="^out: an empty path"):
+        revdem.run(collision, "")
+    short = revdem.load(collision, overrides=["stages.0.steps=200", "output.contacts=true"])
+    result = revdem.run(short, tmp_path / "run", reverse=False)
+    for steps in (2.5, "100", True, 0, 201):
+        with pytest.raises(InputError, match=f"^--steps {steps!r}: must be a whole number"):
+            revdem.reverse(result.outputs.restart, tmp_path / "back", steps=steps)
+    assert not list(tmp_path.glob("back/*"))  # nothing written before the refusal
+    frames = len(result.frames("position")[0])
+    assert result.contacts(frames - 1) is not None and result.contacts(-frames) is not None
+    for frame in (frames, -frames - 1, 1.5):
+        with pytest.raises(InputError, match=f"^frame {frame!r}: the trajectory has {frames}"):
+            result.contacts(frame)
+    assert revdem.run(collision, tmp_path / "path", reverse=False, force=True).comparison is None
