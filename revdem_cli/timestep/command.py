@@ -440,6 +440,10 @@ def dt(
 
     Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
     """
+    if figures is not None and restart is not None:
+        raise InputError(
+            "--figures writes Peng 2020's figures, not a packing's: leave out --restart"
+        )
     if figures is not None:
         from itertools import chain
 

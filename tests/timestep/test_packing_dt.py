@@ -269,3 +269,24 @@ def test_auto_dt_takes_the_viscous_damping_of_its_own_stage(tmp_path):
     assert chosen["damped"] / chosen["plain"] == pytest.approx(
         math.sqrt(1 + zeta**2) - zeta, rel=1e-9
     )
+
+
+def test_a_state_without_contacts_and_figures_beside_a_restart_are_refused(tmp_path):
+    """Two spheres apart after their collision: no contact, so no stiffness to bound the
+    step (the table showed ∞, ratios of nan and 0, and --json wrote Infinity and NaN, which
+    JSON lacks); --figures beside --restart drew the paper's figures, ignoring the file."""
+    from tests.conftest import CONFIGS, assert_one_line_error
+
+    apart = CliRunner().invoke(
+        app, ["run", str(CONFIGS / "collision.toml"), "--out", str(tmp_path), "-q", "--no-reverse"]
+    )
+    assert apart.exit_code == 0, apart.output
+    restart = tmp_path / "collision.restart.h5"
+    for extra in ([], ["--json"], ["--verify"]):
+        result = CliRunner().invoke(app, ["dt", "--restart", str(restart), *extra])
+        assert_one_line_error(result, f"{restart}: no sphere touches another or a wall at step")
+    result = CliRunner().invoke(
+        app, ["dt", "--restart", str(restart), "--figures", str(tmp_path / "figures")]
+    )
+    assert_one_line_error(result, "--figures writes Peng 2020's figures, not a packing's")
+    assert not (tmp_path / "figures").exists()
