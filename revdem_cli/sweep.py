@@ -222,13 +222,16 @@ def load_variants(sweep: Sweep, host: bool = False, allow_unstable_dt: bool = Fa
     from revdem_cli.config import load_scenario
     from revdem_cli.engine import check_time_step
 
-    loaded = [
-        load_scenario(sweep.scenario, [f"{key}={value}" for key, value in variant.items()], host)
-        for variant in sweep.variants()
-    ]
-    for scenario, _ in loaded:
-        if not allow_unstable_dt:
-            check_time_step(scenario, str(sweep.scenario))
+    loaded = []
+    for variant in sweep.variants():
+        sets = [f"{key}={value}" for key, value in variant.items()]
+        try:  # a variant's error names its values: which of a list is at fault
+            scenario, text = load_scenario(sweep.scenario, sets, host)
+            if not allow_unstable_dt:
+                check_time_step(scenario, str(sweep.scenario))
+        except InputError as exc:
+            raise InputError(f"variant {', '.join(sets)}: {exc}") from None
+        loaded.append((scenario, text))
     return loaded
 
 

@@ -194,3 +194,12 @@ def test_an_earlier_sweep_in_the_folder_is_kept_unless_forced(tmp_path):
     assert (tmp_path / "sweep.csv").read_bytes() == table
     forced = runner.invoke(app, [*args, "--force"])
     assert forced.exit_code == 0 and "2 variants, 0 failed" in forced.output, forced.output
+
+
+def test_a_bad_value_of_a_list_is_named_by_its_variant(tmp_path):
+    """`--set contact.friction=0.1,-0.3`: the error said the friction must be ≥ 0, not
+    which of the values was not."""
+    args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--out", str(tmp_path)]
+    result = CliRunner().invoke(app, [*args, "--set", "contact.friction=0.1,-0.3"])
+    assert_one_line_error(result, "error: variant contact.friction=-0.3: ", "greater than or equal")
+    assert not list(tmp_path.iterdir())  # refused before any variant ran
