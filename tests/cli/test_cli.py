@@ -159,10 +159,11 @@ def test_a_time_step_above_the_critical_estimate_is_refused_unless_allowed(scena
     passed = invoke("validate", path, "--set", "integrator.dt=1e-3", "--allow-unstable-dt")
     assert passed.exit_code == 0 and passed.output.startswith(f"{path}: valid"), passed.output
     swept = invoke("sweep", path, "--set", "integrator.dt=1e-3", "--out", tmp_path / "s", "-q")
-    assert_one_line_error(swept, message, "--allow-unstable-dt to run anyway")
+    variant = message.replace("error: ", "error: variant integrator.dt=1e-3: ")  # which one
+    assert_one_line_error(swept, variant, "--allow-unstable-dt to run anyway")
     plan = tmp_path / "plan.toml"
     plan.write_text(f'kind = "sweep"\nscenario = "{path}"\nset = ["integrator.dt=1e-3,1e-7"]\n')
-    assert_one_line_error(invoke("validate", plan), message)
+    assert_one_line_error(invoke("validate", plan), variant)
     passed = invoke("validate", plan, "--allow-unstable-dt")
     assert passed.exit_code == 0 and "valid sweep: 2 variants" in passed.output, passed.output
     allowed = invoke(
