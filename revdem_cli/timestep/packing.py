@@ -462,12 +462,12 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
     scenario = Scenario.model_validate_json(restart.scenario_json)
     stage = next(s for s in scenario.stages if s.name == restart.stage)
     model, state = Model.of(scenario).during(stage), restart.state  # its damping, its mu
-    if not len(contacts_of(state, model)):
+    limit = packing_limit(state, model, status=status)
+    if not len(limit.contacts):
         raise InputError(
             f"{path}: no sphere touches another or a wall at step {state.step}: a packing's "
             "critical time step is its contacts', and it has none"
         )
-    limit = packing_limit(state, model, status=status)
     single = single_contact_limits(limit.contacts, state)
     guard, why = critical_time_step(scenario)
     estimates = {
