@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from numbers import Integral
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +15,7 @@ import numpy as np
 from revdem_cli.checkpoint import Checkpoints, checkpoint_path, find_checkpoint
 from revdem_cli.compare import compare_trajectories
 from revdem_cli.config import Scenario
-from revdem_cli.errors import InputError, RunFailed
+from revdem_cli.errors import InputError, RunFailed, whole_number
 from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
@@ -366,8 +365,7 @@ def _reverse(
     if resumption is None:
         clock = _reverse_clock(scenario, start, start.state.step)
         length = clock.last_step - clock.first_step
-        whole = isinstance(steps, Integral) and not isinstance(steps, bool)
-        if steps is not None and not (whole and 0 < steps <= length):
+        if steps is not None and not (whole_number(steps) and 0 < steps <= length):
             raise InputError(
                 f"--steps {steps!r}: must be a whole number between 1 and the stage's {length} "
                 "steps"

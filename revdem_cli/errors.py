@@ -3,6 +3,7 @@ a run that cannot go on (exit status 1)."""
 
 import errno
 import os
+from numbers import Integral
 
 
 class InputError(Exception):
@@ -15,6 +16,12 @@ class InputError(Exception):
 class RunFailed(RuntimeError):
     """A run that cannot go on: its state blew up, or left what revdem can represent. The
     message names the step, the particles and what to change."""
+
+
+def whole_number(value) -> bool:
+    """Whether `value` is an integer a count or an index may be (a numpy integer too; not a
+    bool, not 2.5 or "5"), as a script may pass anything where an option takes an int."""
+    return isinstance(value, Integral) and not isinstance(value, bool)
 
 
 def check_regular(path, what: str) -> None:

@@ -36,14 +36,13 @@ from __future__ import annotations
 
 import getpass
 import time
-from numbers import Integral
 from pathlib import Path
 
 import h5py
 import numpy as np
 
 from revdem_cli import __version__
-from revdem_cli.errors import InputError, WriteFailed
+from revdem_cli.errors import InputError, WriteFailed, whole_number
 from revdem_cli.io import DAMAGE, FRAME_FIELDS, GRID_FIELDS, SCHEMA_VERSION, one_line, open_hdf5
 
 
@@ -429,7 +428,7 @@ def read_contacts(f: h5py.File, index: int) -> dict[str, np.ndarray] | None:
     if CONTACTS not in f:
         return None
     frames = len(frame_steps(f))
-    if isinstance(index, bool) or not isinstance(index, Integral) or not -frames <= index < frames:
+    if not (whole_number(index) and -frames <= index < frames):
         raise InputError(
             f"frame {index!r}: the trajectory has {frames} frames, 0 to {frames - 1} (-1: the last)"
         )
