@@ -507,17 +507,23 @@ def by_step(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
 
 
 def summary(path: Path) -> dict:
-    """What a tape holds: its size on disk against storing the compared state at every step,
-    and the bits it recorded, in all and by mechanism (with the contacts, particles or
-    edges that had entries, counted once a step)."""
+    """What a tape holds: the bytes its datasets take, compressed, against storing the
+    compared state at every step, and the bits it recorded, in all and by mechanism (with
+    the contacts, particles or edges that had entries, counted once a step). The file adds
+    HDF5's headers and, after a resumed run cut the tape back, the space the cut freed: a
+    resumed run's tape holds the same bytes in a larger file."""
     with _open(Path(path), "r") as f:
         bits = f["steps/bits"][:].astype(np.float64)
         contacts = f["steps/contacts"][:]
         steps = int(f["steps/count"].shape[0])
         entries = int(f["entries/what"].shape[0])
         full = int(f.attrs["state_bytes"]) * steps
+        size = sum(
+            f[group][name].id.get_storage_size()
+            for group in ("entries", "steps")
+            for name in f[group]
+        )
     total = bits.sum(axis=0)
-    size = Path(path).stat().st_size
     return {
         "file": Path(path).name,
         "steps": steps,

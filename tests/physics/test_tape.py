@@ -394,11 +394,16 @@ def test_the_tape_needs_fixed_point_arithmetic_and_velocity_verlet():
 
 
 @pytest.mark.parametrize("frames", [6, 40], ids=["forward", "reversed"])
-def test_a_taped_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path, frames):
+def test_a_taped_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(
+    tmp_path, frames, monkeypatch
+):
     """The tape is cut back to the checkpoint's step and recorded on, or replayed on from
     there: a run stopped part-way through either phase resumes to the same tape and the
-    same exact reversal."""
+    same exact reversal and verdict, the tape's size in it too (blocks of 256 steps, so
+    that the cut falls after blocks already written)."""
     from revdem_cli.engine import output_paths
+
+    monkeypatch.setattr("revdem_cli.io.tape.STEPS_PER_BLOCK", 256)
 
     experiment = _fixed(_resting({"contact": {"normal_damping": 0.3}}), True).changed(
         {"output.checkpoint_interval": 0.0}
@@ -413,7 +418,54 @@ def test_a_taped_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path
     for name in a:
         assert np.array_equal(a[name], b[name]), name
     assert whole.comparison["bitwise_identical"]
+    assert resumed.comparison == whole.comparison  # the tape's size among it
     _assert_reversed_rows_are_the_forward_ones(tmp_path / "cut", "resting")
+
+
+def _blocks(count: int, steps: int) -> list[tuple]:
+    """`count` blocks of `steps` steps of random entries, as `Recorder` hands the writer."""
+    rng = np.random.default_rng(7)
+    blocks = []
+    for _ in range(count):
+        counts = rng.integers(0, 40, steps)
+        entries = int(counts.sum())
+        blocks.append(
+            (
+                rng.integers(0, len(COMPARED), entries).astype(np.int8),
+                rng.integers(0, 10**6, entries),
+                rng.integers(-(10**9), 10**9, entries),
+                counts,
+                rng.random((steps, len(MECHANISMS))),
+                rng.integers(0, 5, (steps, len(MECHANISMS))).astype(np.int32),
+            )
+        )
+    return blocks
+
+
+def test_a_tape_cut_back_and_written_on_holds_the_bytes_of_one_written_straight(tmp_path):
+    """A resumed run cuts its tape back to the checkpoint's step and writes on: the size the
+    verdict gives (`summary`'s bytes) is that of the tape written straight through, though
+    the file, whose cut chunks leave space behind, is larger."""
+    from revdem_cli.state import initial_state
+
+    state = initial_state(_resting({}).scenario)
+    clock = (0, 0.0, 1e-6)
+    blocks = _blocks(6, 3000)
+    straight, cut = tmp_path / "straight.tape.h5", tmp_path / "cut.tape.h5"
+    tape_file.Recorder(straight, "settle", clock, state)
+    for block in blocks:
+        tape_file._append_block(straight, block)
+    tape_file.Recorder(cut, "settle", clock, state)
+    for block in blocks[:4]:
+        tape_file._append_block(cut, block)
+    tape_file.Recorder(cut, "settle", clock, state, step=2 * 3000)
+    for block in blocks[2:]:
+        tape_file._append_block(cut, block)
+    assert _entries(cut).keys() == _entries(straight).keys()
+    for name, values in _entries(straight).items():
+        assert np.array_equal(_entries(cut)[name], values), name
+    assert cut.stat().st_size > straight.stat().st_size
+    assert summary(cut) == summary(straight) | {"file": cut.name}
 
 
 def test_observing_a_state_leaves_the_stress_a_servo_reads():
