@@ -23,6 +23,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from revdem_cli.errors import InputError
+from revdem_cli.io import write_text
 from revdem_cli.io.restart import Restart, write_restart
 from revdem_cli.threads import Stepper
 
@@ -34,15 +35,12 @@ def checkpoint_path(out_dir: Path, name: str) -> Path:
 
 
 class Interrupted(Exception):
-    """The run stopped on a signal after writing a checkpoint."""
+    """The run stopped on a signal after writing a checkpoint at `step`, into `path`."""
 
     def __init__(self, signum: int, step: int, path: Path):
         self.exit_code = 128 + signum
-        name = signal.Signals(signum).name
-        super().__init__(
-            f"{name} at step {step}: checkpoint {path} written; continue with "
-            f"revdem run --resume {path.parent}"
-        )
+        self.step, self.path = step, Path(path)
+        super().__init__(f"{signal.Signals(signum).name} at step {step}: checkpoint {path} written")
 
 
 class Checkpoints:
@@ -75,13 +73,16 @@ class Checkpoints:
         self.stepper.halt[0] = 1
 
     @contextmanager
-    def on_signals(self) -> Iterator[None]:
+    def on_signals(self, stop_file: Path | None = None) -> Iterator[None]:
         """While inside: SIGINT and SIGTERM ask for a checkpoint at the next whole step and a
         stop (a second one stops at once). Only the main thread can take signals; it runs
         their Python handler between bytecodes, not while it steps in compiled code, so a
-        watcher thread takes each from the wakeup pipe as the signal arrives (`watching`)."""
+        watcher thread takes each from the wakeup pipe as the signal arrives (`watching`).
+        In another thread (a sweep's variant on a dask worker) `stop_file`, once it exists,
+        asks as the signal it names would (`polling`)."""
         if threading.current_thread() is not threading.main_thread():
-            yield
+            with polling(stop_file, self.ask):
+                yield
             return
         kinds = (signal.SIGINT, signal.SIGTERM)
         before = {kind: signal.getsignal(kind) for kind in kinds}
@@ -130,6 +131,48 @@ def watching(kinds: tuple[int, ...], ask) -> Iterator[None]:
         watcher.join()
         os.close(read)
         os.close(write)
+
+
+STOP_POLL = 0.05
+"""Seconds between two looks for a stop file: a variant stops within about this of it."""
+
+
+def ask_to_stop(path: Path, signum: int) -> None:
+    """Write the stop file at `path`: the runs polling it stop as on signal `signum`."""
+    write_text(path, f"{signum}\n")
+
+
+def stop_asked(path: Path | None) -> int:
+    """The signal the stop file at `path` names; 0 if there is none."""
+    try:
+        return int(Path(path).read_text()) if path is not None else 0
+    except FileNotFoundError:
+        return 0
+
+
+@contextmanager
+def polling(path: Path | None, ask) -> Iterator[None]:
+    """While inside: `ask(signum)` once the stop file at `path` appears (`ask_to_stop`),
+    from a thread of its own that looks for it every STOP_POLL seconds; nothing if `path`
+    is None."""
+    if path is None:
+        yield
+        return
+    done = threading.Event()
+
+    def poll():
+        while not done.wait(STOP_POLL):
+            if signum := stop_asked(path):
+                ask(signum)
+                return
+
+    poller = threading.Thread(target=poll, name="revdem-stop-file", daemon=True)
+    poller.start()
+    try:
+        yield
+    finally:
+        done.set()
+        poller.join()
 
 
 def find_checkpoints(out_dir: Path) -> list[Path]:

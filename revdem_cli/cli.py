@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -235,7 +236,7 @@ def _interruptible(command, *args):
     try:
         return command(*args)
     except Interrupted as exc:
-        typer.echo(f"stopped: {exc}", err=True)
+        typer.echo(f"stopped: {exc}; continue with revdem run --resume {exc.path.parent}", err=True)
         raise typer.Exit(exc.exit_code) from None
 
 
@@ -503,33 +504,59 @@ def sweep(
         bool,
         typer.Option("--force", help="Overwrite an earlier sweep's tables and runs in --out."),
     ] = False,
+    resume: Annotated[
+        bool,
+        typer.Option(
+            "--resume",
+            help="Go on with the sweep stopped in --out: keep the variants done, continue "
+            "the stopped ones from their checkpoints, run the rest.",
+        ),
+    ] = False,
 ) -> None:
     """Run every combination of --set values, forward and reversed, in parallel (dask).
 
     Each variant runs in its own folder under --out; sweep.csv and sweep.h5 there hold each
-    variant's values, reversal verdict and final energies. Exit status 1 if a variant failed.
+    variant's values, status, reversal verdict and final energies. Exit status 1 if a
+    variant failed. Ctrl-C or SIGTERM stops each running variant at a whole step with a
+    checkpoint and writes the table (exit status 130 or 143); --resume goes on.
 
     Example: revdem sweep configs/collision_shear.toml --set contact.friction=0.1,0.3,inf
     """
     from revdem_cli.report.progress import kernels_compiled
-    from revdem_cli.sweep import read_sweep, run_sweep
+    from revdem_cli.sweep import DONE, FAILED, NOT_STARTED, STOPPED, read_sweep, run_sweep
 
+    if resume and force:
+        raise InputError(
+            "--resume goes on with the sweep in --out, --force starts it over: give one"
+        )
     plan = read_sweep(scenario, sets or [])
     from contextlib import nullcontext
 
     compiling = scheduler is None and not kernels_compiled()  # a local cluster's workers
     # compile into this machine's cache; a remote one's workers keep caches of their own
     with nullcontext() if quiet else _progress_of("variants", compiling) as shown:
-        rows, tables = run_sweep(
-            plan, out, scheduler, workers, shown, threads, allow_unstable_dt, force
+        rows, tables, signum = run_sweep(
+            plan, out, scheduler, workers, shown, threads, allow_unstable_dt, force, resume
         )
-    failed = [row for row in rows if row["error"]]
+    count = {
+        status: sum(row["status"] == status for row in rows)
+        for status in (DONE, FAILED, STOPPED, NOT_STARTED)
+    }
     for path in tables:
         typer.echo(f"wrote {path}")
-    typer.echo(f"{len(rows)} variants, {len(failed)} failed")
-    for row in failed:
-        typer.echo(f"failed: {row['folder']}: {row['error']}", err=True)
-    if failed:
+    typer.echo(f"{len(rows)} variants, {count[FAILED]} failed")
+    for row in rows:
+        if row["status"] == FAILED:
+            typer.echo(f"failed: {row['folder']}: {row['error']}", err=True)
+    if signum:
+        typer.echo(
+            f"stopped: {signal.Signals(signum).name}: {count[DONE]} variants done, "
+            f"{count[STOPPED]} stopped with a checkpoint, {count[NOT_STARTED]} not started; "
+            "continue with the same command and --resume",
+            err=True,
+        )
+        raise typer.Exit(128 + signum)
+    if count[FAILED]:
         raise typer.Exit(1)
 
 

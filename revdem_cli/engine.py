@@ -194,17 +194,19 @@ def run_scenario(
     reverse: bool = True,
     progress: Progress | None = None,
     allow_unstable_dt: bool = False,
+    stop_file: Path | None = None,
 ) -> Outputs:
     """Run every stage forward, save the restart, then reverse the marked stage if asked.
 
-    A time step above the scenario's critical estimate is refused unless allowed.
+    A time step above the scenario's critical estimate is refused unless allowed. Off the
+    main thread, `stop_file` stops the run as a signal would (`Checkpoints.on_signals`).
     """
     if not allow_unstable_dt:
         check_time_step(scenario)
     run = Run.into(out_dir, scenario, text, suffix)
     state = initial_state(scenario)
     reverse = reverse and scenario.reversed_stage is not None
-    with run.checkpoints.on_signals():
+    with run.checkpoints.on_signals(stop_file):
         writer = _writer(run.paths["forward"], state, run.model, text, "forward")
         return _forward(run, state, writer, reverse, progress)
 
@@ -393,6 +395,7 @@ def _reverse(
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(start.trajectory)
     if forward.exists():
+        outputs.forward = forward
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
         summaries = [tape_summary(tape.path) for tape in tapes]
         if summaries:  # several: a reversal of every stage, the last stage's first
@@ -459,15 +462,18 @@ def _stage_before(after: Restart, source: str) -> tuple[Restart, str]:
     return before, str(path)
 
 
-def resume_run(out_dir: Path, progress: Progress | None = None) -> Outputs:
+def resume_run(
+    out_dir: Path, progress: Progress | None = None, stop_file: Path | None = None
+) -> Outputs:
     """Continue the run whose checkpoint is in `out_dir` to its end, as if it had never
-    stopped: the trajectory it writes is the one the whole run would have written."""
+    stopped: the trajectory it writes is the one the whole run would have written
+    (`stop_file`: as `run_scenario`'s)."""
     path = find_checkpoint(out_dir)
     resume = read_restart(path, checkpoint=True)
     scenario = Scenario.model_validate_json(resume.scenario_json)
     run = Run.into(Path(out_dir), scenario, resume.scenario_text, resume.scenario_suffix)
     place = resume.resumption
-    with run.checkpoints.on_signals():
+    with run.checkpoints.on_signals(stop_file):
         if place.phase == "forward":
             text = resume.scenario_text
             writer = _continued_writer(

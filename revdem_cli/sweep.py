@@ -17,6 +17,7 @@ to the file) and the same `set` strings as the command line (a field is set once
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import math
 import re
@@ -34,6 +35,7 @@ from revdem_cli.errors import InputError, check_regular
 
 KIND = "sweep"
 RESULTS = (
+    "status",
     "reversible",
     "max_position_error_rel",
     "first_divergence_step",
@@ -43,6 +45,14 @@ RESULTS = (
     "error",
 )
 """Result columns of the table, after the folder and the values set."""
+DONE, FAILED, STOPPED, NOT_STARTED = "done", "failed", "stopped", "not started"
+"""A variant's status: run to its end (or read as an earlier sweep left it, `--resume`),
+failed (its `error` says why), stopped by a signal with a checkpoint in its folder, or not
+begun before the sweep stopped."""
+TEXT = ("status", "error")
+"""The result columns of text."""
+STOP_FILE = ".stop"
+"""In the sweep's folder while it stops: the variants' runs poll it (`checkpoint.polling`)."""
 
 
 @dataclass(frozen=True)
@@ -160,24 +170,42 @@ def folder_name(index: int, variant: dict[str, str]) -> str:
 
 
 def run_variant(
-    scenario_json: str, text: str, suffix: str, out_dir: Path, allow_unstable_dt: bool = False
+    scenario_json: str,
+    text: str,
+    suffix: str,
+    out_dir: Path,
+    allow_unstable_dt: bool = False,
+    stop_file: Path | None = None,
 ) -> dict:
-    """Run one variant (its validated scenario as JSON) forward and reversed into `out_dir`
-    (`allow_unstable_dt`: at a time step above the critical estimate too); its results (a
-    row of RESULTS). Runs on a worker; a failure is recorded, not raised."""
+    """Run one variant (its validated scenario as JSON) forward and reversed into `out_dir`,
+    or on from the checkpoint there (`allow_unstable_dt`: at a time step above the critical
+    estimate too); its results (a row of RESULTS). Runs on a worker; a failure is recorded,
+    not raised. Once `stop_file` exists, the run stops at its next whole step with a
+    checkpoint, and a variant not yet begun is not begun."""
+    from revdem_cli.checkpoint import Interrupted, find_checkpoints, stop_asked
     from revdem_cli.config import Scenario
-    from revdem_cli.engine import run_scenario
+    from revdem_cli.engine import resume_run, run_scenario
     from revdem_cli.io.h5md import open_trajectory, read_observable
 
     started = time.perf_counter()
     row = dict.fromkeys(RESULTS)
+    if stop_asked(stop_file):
+        row["status"] = NOT_STARTED
+        return row
+    out_dir = Path(out_dir)
     try:
-        scenario = Scenario.model_validate_json(scenario_json)
-        outputs = run_scenario(
-            scenario, text, suffix, Path(out_dir), reverse=True, allow_unstable_dt=allow_unstable_dt
-        )
+        if find_checkpoints(out_dir):
+            outputs = resume_run(out_dir, stop_file=stop_file)
+        else:
+            scenario = Scenario.model_validate_json(scenario_json)
+            outputs = run_scenario(
+                scenario, text, suffix, out_dir, True, None, allow_unstable_dt, stop_file
+            )
+    except Interrupted as exc:
+        row["status"], row["error"] = STOPPED, f"stopped: {exc}"
+        return row
     except (InputError, RuntimeError, OSError, MemoryError) as exc:
-        row["error"] = f"{type(exc).__name__}: {exc}"
+        row["status"], row["error"] = FAILED, f"{type(exc).__name__}: {exc}"
         return row
     with open_trajectory(outputs.forward) as f:
         row["kinetic_energy"] = float(read_observable(f, "kinetic_energy")[1][-1])
@@ -185,7 +213,7 @@ def run_variant(
     if outputs.verdict is not None:
         for key in ("reversible", "max_position_error_rel", "first_divergence_step"):
             row[key] = outputs.verdict[key]
-    row["seconds"] = time.perf_counter() - started
+    row["status"], row["seconds"] = DONE, time.perf_counter() - started
     return row
 
 
@@ -212,7 +240,24 @@ def _client(scheduler: str | None, workers: int, threads: int | None):
         ) as cluster,
         Client(cluster) as client,
     ):
+        client.register_plugin(_deaf_to_ctrl_c())
         yield client
+
+
+def _deaf_to_ctrl_c():
+    """A plugin that has a local cluster's workers, and those that replace them, ignore
+    SIGINT: Ctrl-C reaches every process of the terminal's group, and would end each
+    worker's event loop with its variant unsaved; the sweep stops them through its stop
+    file (`_stopping`) instead. (Made here, where dask is imported; cloudpickle sends it.)"""
+    from distributed import WorkerPlugin
+
+    class DeafToCtrlC(WorkerPlugin):
+        def setup(self, worker):
+            import signal
+
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # on the worker's loop: main thread
+
+    return DeafToCtrlC()
 
 
 def load_variants(sweep: Sweep, host: bool = False, allow_unstable_dt: bool = False) -> list[tuple]:
@@ -244,12 +289,22 @@ def run_sweep(
     threads: int | None = None,
     allow_unstable_dt: bool = False,
     force: bool = False,
-) -> tuple[list[dict], list[Path]]:
+    resume: bool = False,
+) -> tuple[list[dict], list[Path], int]:
     """Run every variant (`allow_unstable_dt`: those whose time step is above the critical
-    estimate too); returns the table's rows and the table files written. An earlier sweep's
-    tables or a variant's earlier outputs in `out_dir` are refused unless `force`, as
-    `revdem run` refuses a run's (`api.keep_outputs`)."""
+    estimate too); returns the table's rows, the table files written and the signal that
+    stopped the sweep (0 if none). An earlier sweep's tables or a variant's earlier outputs
+    in `out_dir` are refused unless `force`, as `revdem run` refuses a run's
+    (`api.keep_outputs`), or `resume`, which goes on with the earlier sweep: a variant done
+    there is kept as its table has it, a stopped one goes on from its checkpoint, any other
+    runs.
+
+    SIGINT or SIGTERM stops the sweep: each running variant at its next whole step with a
+    checkpoint, none begins after, and the table says which are done, stopped or not
+    started; a second signal stops at once."""
     from distributed import as_completed
+
+    from revdem_cli.checkpoint import stop_asked
 
     out_dir = Path(out_dir)
     variants = sweep.variants()
@@ -260,53 +315,201 @@ def run_sweep(
         folder_name(index, {key: variant[key] for key in varying})
         for index, variant in enumerate(variants)
     ]
+    if resume:
+        results = _earlier_results(out_dir, loaded, folders)
+    else:
+        _keep_earlier(out_dir, loaded, folders, force)
+        results = {}
+    suffix = sweep.scenario.suffix.lower()
+    stop_file = out_dir / STOP_FILE
+    stop_file.unlink(missing_ok=True)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        with _client(scheduler, workers, threads) as client, _stopping(stop_file):
+            futures = {
+                client.submit(
+                    run_variant,
+                    scenario.model_dump_json(),
+                    text,
+                    suffix,
+                    out_dir / folder,
+                    allow_unstable_dt,
+                    stop_file,
+                    key=f"variant-{folder}",
+                ): index
+                for index, ((scenario, text), folder) in enumerate(
+                    zip(loaded, folders, strict=True)
+                )
+                if index not in results
+            }
+            if progress is not None:
+                progress("variants", len(results), len(variants))
+            for future in as_completed(futures):
+                results[futures[future]] = _result_of(future)
+                if progress is not None:
+                    progress("variants", len(results), len(variants))
+        stopped = stop_asked(stop_file)
+    finally:
+        stop_file.unlink(missing_ok=True)
+    rows = [{"folder": folders[i], **variants[i], **results[i]} for i in range(len(variants))]
+    return rows, write_table(rows, out_dir / "sweep"), stopped
+
+
+def _result_of(future) -> dict:
+    """A variant's row from its future; one that raised where `run_variant` records no
+    failure (a worker lost, a defect) is a failed row saying so, so that the table keeps
+    the other variants."""
+    try:
+        return future.result()
+    except Exception as exc:
+        row = dict.fromkeys(RESULTS)
+        row["status"], row["error"] = FAILED, f"{type(exc).__name__}: {exc}"
+        return row
+
+
+def _keep_earlier(out_dir: Path, loaded: list[tuple], folders: list[str], force: bool) -> None:
+    """Refuse an earlier sweep's tables and its variants' outputs and checkpoints in
+    `out_dir` unless `force`; forced, remove them."""
     from revdem_cli.api import keep_outputs, output_paths_of
+    from revdem_cli.checkpoint import checkpoint_path
 
     earlier = [out_dir / "sweep.csv", out_dir / "sweep.h5"]
     for (scenario, _), folder in zip(loaded, folders, strict=True):
         earlier += output_paths_of(scenario, out_dir / folder, reverse=True)
+        earlier.append(checkpoint_path(out_dir / folder, scenario.name))
     keep_outputs(earlier, force, "sweep")
-    suffix = sweep.scenario.suffix.lower()
-    results: dict[int, dict] = {}
-    with _client(scheduler, workers, threads) as client:
-        futures = {
-            client.submit(
-                run_variant,
-                scenario.model_dump_json(),
-                text,
-                suffix,
-                out_dir / folder,
-                allow_unstable_dt,
-                key=f"variant-{folder}",
-            ): index
-            for index, ((scenario, text), folder) in enumerate(zip(loaded, folders, strict=True))
-        }
-        for future in as_completed(futures):
-            results[futures[future]] = future.result()
-            if progress is not None:
-                progress("variants", len(results), len(variants))
-    rows = [{"folder": folders[i], **variants[i], **results[i]} for i in range(len(variants))]
-    return rows, write_table(rows, out_dir / "sweep")
+
+
+def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> dict[int, dict]:
+    """The rows of the earlier sweep in `out_dir` whose variants are done and whose outputs
+    are all there, by index; InputError if there is no earlier sweep, or if a variant's
+    checkpoint or outputs are of another scenario than this sweep's variant."""
+    from revdem_cli.api import output_paths_of
+    from revdem_cli.checkpoint import find_checkpoints
+    from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.io.restart import read_restart
+
+    table = out_dir / "sweep.h5"
+    if not table.exists() and not any((out_dir / folder).is_dir() for folder in folders):
+        raise InputError(f"--resume {out_dir}: no sweep there (no sweep.h5, no variant folder)")
+    rows = read_table(table) if table.exists() else {}
+    results = {}
+    for index, ((scenario, _), folder) in enumerate(zip(loaded, folders, strict=True)):
+        checkpoints = find_checkpoints(out_dir / folder)
+        outputs = output_paths_of(scenario, out_dir / folder, reverse=True)
+        if checkpoints:
+            stored, path = (
+                read_restart(checkpoints[0], checkpoint=True).scenario_json,
+                checkpoints[0],
+            )
+        elif all(path.exists() for path in outputs) and rows.get(folder, {}).get("status") == DONE:
+            path = outputs[0]
+            with open_trajectory(path) as f:
+                stored = f["parameters/revdem"].attrs["scenario_json"]
+            results[index] = {key: rows[folder][key] for key in RESULTS}
+        else:
+            continue
+        if stored != scenario.model_dump_json():
+            raise InputError(
+                f"--resume {out_dir}: {path} is of another scenario than this sweep's variant "
+                f"{folder}; give the sweep's own file and --set options, or start over with "
+                "--force"
+            )
+    return results
+
+
+@contextmanager
+def _stopping(stop_file: Path):
+    """While inside: the first SIGINT or SIGTERM writes `stop_file` (`ask_to_stop`), and the
+    variants stop; a second one stops this process at once, as it would have unhandled."""
+    import signal
+    import threading
+
+    from revdem_cli.checkpoint import ask_to_stop
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    kinds = (signal.SIGINT, signal.SIGTERM)
+    before = {kind: signal.getsignal(kind) for kind in kinds}
+
+    def handler(signum, frame):
+        for kind in kinds:
+            signal.signal(kind, before[kind])
+        ask_to_stop(stop_file, signum)
+
+    for kind in kinds:
+        signal.signal(kind, handler)
+    try:
+        yield
+    finally:
+        for kind in kinds:
+            signal.signal(kind, before[kind])
 
 
 def write_table(rows: list[dict], stem: Path) -> list[Path]:
-    """Write rows as STEM.csv and STEM.h5 (/sweep/<column>: text as strings; numbers as
-    float64 with NaN where missing; reversible as 1, 0 or NaN)."""
-    stem.parent.mkdir(parents=True, exist_ok=True)
+    """Write rows as STEM.csv and STEM.h5, each under a temporary name renamed over the old.
+    In STEM.h5, /sweep/<column>: a column of values set as float64 where every value is a
+    number (inf too), else as strings; results as float64 with NaN where missing
+    (reversible as 1, 0 or NaN), their text (TEXT) as strings."""
+    from revdem_cli.config import read_value
+    from revdem_cli.io import write_text
+
     columns = list(rows[0])
     csv_path, h5_path = stem.with_suffix(".csv"), stem.with_suffix(".h5")
-    with csv_path.open("w", newline="") as f:
-        writer = csv.DictWriter(f, columns)
-        writer.writeheader()
-        writer.writerows({k: "" if v is None else v for k, v in row.items()} for row in rows)
-    with h5py.File(h5_path, "w") as f:
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, columns)
+    writer.writeheader()
+    writer.writerows({k: "" if v is None else v for k, v in row.items()} for row in rows)
+    write_text(csv_path, text.getvalue())
+    tmp = h5_path.with_name(h5_path.name + ".tmp")
+    with h5py.File(tmp, "w") as f:
         group = f.create_group("sweep")
         group.attrs["columns"] = columns
         for column in columns:
             values = [row[column] for row in rows]
-            if column in RESULTS and column != "error":
+            if column in RESULTS and column not in TEXT:
                 group[column] = np.array([math.nan if v is None else float(v) for v in values])
+            elif column in RESULTS or column == "folder":
+                strings = ["" if v is None else str(v) for v in values]
+                group.create_dataset(column, data=strings, dtype=h5py.string_dtype())
             else:
-                text = ["" if v is None else str(v) for v in values]
-                group.create_dataset(column, data=text, dtype=h5py.string_dtype())
+                read = [read_value(v, column) for v in values]
+                number = all(isinstance(v, int | float) and not isinstance(v, bool) for v in read)
+                data = np.array(read, dtype=np.float64) if number else values
+                group.create_dataset(
+                    column, data=data, dtype=None if number else h5py.string_dtype()
+                )
+    tmp.replace(h5_path)
     return [csv_path, h5_path]
+
+
+def read_table(path: Path) -> dict[str, dict]:
+    """The results (RESULTS) of each variant of the table STEM.h5 at `path`, by folder, as
+    `run_variant` gave them."""
+    try:
+        with h5py.File(path, "r") as f:
+            table = f["sweep"]
+            columns = {name: table[name] for name in ("folder", *RESULTS)}
+            folders = list(columns["folder"].asstr()[:])
+            stored = {
+                name: column.asstr()[:] if name in TEXT else column[:]
+                for name, column in columns.items()
+            }
+    except (OSError, KeyError) as exc:
+        raise InputError(f"{path}: cannot read the sweep's table ({exc})") from None
+    return {
+        folder: {name: _result(name, stored[name][k]) for name in RESULTS}
+        for k, folder in enumerate(folders)
+    }
+
+
+def _result(name: str, value):
+    """A stored result as `run_variant` gives it: None where missing."""
+    if name in TEXT:
+        return value or None
+    if math.isnan(value):
+        return None
+    if name == "reversible":
+        return bool(value)
+    return int(value) if name == "first_divergence_step" else float(value)

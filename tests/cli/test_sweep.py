@@ -68,6 +68,10 @@ def test_six_variants_on_two_workers_give_one_table(tmp_path):
             table["kinetic_energy"][:], [float(row["kinetic_energy"]) for row in rows]
         )
         assert table["folder"].asstr()[0] == rows[0]["folder"]
+        # a column of numbers holds numbers, one of lists their text, as the CSV has them
+        np.testing.assert_array_equal(table["stages.0.steps"][:], [100.0] * 3 + [200.0] * 3)
+        assert list(table["particles.0.velocity"].asstr()[:3]) == list(VELOCITIES)
+        assert list(table["status"].asstr()[:]) == ["done"] * 6
 
 
 def test_values_split_at_commas_outside_brackets():

@@ -5,6 +5,7 @@ readable up to its last checkpoint."""
 
 from __future__ import annotations
 
+import os
 import random
 import signal
 import subprocess
@@ -416,3 +417,78 @@ def test_resume_needs_a_checkpoint_and_nothing_else(tmp_path):
     for option in (["--out", "out"], ["--no-reverse"], ["--force"], ["--allow-unstable-dt"]):
         result = CliRunner().invoke(app, ["run", "--resume", str(tmp_path), *option])
         assert_one_line_error(result, f"into DIR: {option[0]} cannot change it")
+
+
+SWEEP = [
+    "sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--workers", "1", "-q",
+    "--set", "stages.0.steps=2000,400000", "--set", "particles.0.velocity=[0.9,0.1,0.0],[0.5,0,0]",
+    "--set", "stages.0.output_every=1000",
+]  # fmt: skip
+"""Two short variants, then two long ones, one at a time: Ctrl-C lands in the third."""
+
+
+def _sweep_rows(out: Path) -> list[dict]:
+    import csv
+
+    with (out / "sweep.csv").open() as f:
+        return [row | {"seconds": ""} for row in csv.DictReader(f)]
+
+
+def test_ctrl_c_stops_a_sweep_with_its_table_and_resume_ends_it_as_an_uninterrupted_one(
+    tmp_path,
+):
+    """Ctrl-C reaches every process of the terminal's group, the sweep's workers too: the
+    running variant stops at a whole step with a checkpoint, none begins after, the table
+    says so and the sweep exits 130; `--resume` keeps the variants done, continues the
+    stopped one and runs the last, to the rows and files of a sweep never stopped."""
+    cut = tmp_path / "cut"
+    command = [sys.executable, "-m", "revdem_cli.cli", *SWEEP, "--out", str(cut)]
+    process = subprocess.Popen(command, start_new_session=True, stderr=subprocess.PIPE, text=True)
+    third = cut / "002_steps=400000_velocity=0.9+0.1+0.0" / "collision_smoke.forward.h5"
+    while not third.exists():
+        assert process.poll() is None, process.communicate()[1]
+        time.sleep(0.01)
+    os.killpg(process.pid, signal.SIGINT)
+    started = time.monotonic()
+    try:
+        _, err = process.communicate(timeout=60)
+    finally:  # the workers too, should the sweep not end
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 130, err
+    assert time.monotonic() - started < 10, err
+    assert err.strip().splitlines()[-1] == (
+        "stopped: SIGINT: 2 variants done, 1 stopped with a checkpoint, 1 not started; "
+        "continue with the same command and --resume"
+    ), err
+    rows = _sweep_rows(cut)
+    assert [row["status"] for row in rows] == ["done", "done", "stopped", "not started"]
+    assert rows[2]["error"].startswith("stopped: SIGINT at step ")
+    assert list(third.parent.glob("*.checkpoint.h5"))
+    resumed = CliRunner().invoke(app, [*SWEEP, "--out", str(cut), "--resume"])
+    assert resumed.exit_code == 0, resumed.output
+    whole = tmp_path / "whole"
+    assert CliRunner().invoke(app, [*SWEEP, "--out", str(whole)]).exit_code == 0
+    assert _sweep_rows(cut) == _sweep_rows(whole)
+    assert [row["status"] for row in _sweep_rows(cut)] == ["done"] * 4
+    for row in _sweep_rows(whole):
+        assert_same_files(whole / row["folder"], cut / row["folder"])
+    assert sorted(p.name for p in cut.iterdir()) == sorted(p.name for p in whole.iterdir())
+
+
+def test_resume_refuses_a_sweep_of_other_values_than_the_one_stopped(tmp_path):
+    """A checkpoint of a variant is that variant's: a sweep given other values (here
+    another velocity in the folder of the same name) is refused before any variant runs."""
+    args = [
+        "sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--workers", "1", "-q",
+        "--out", str(tmp_path), "--set", "stages.0.steps=200,300",
+    ]  # fmt: skip
+    assert CliRunner().invoke(app, args).exit_code == 0
+    table = (tmp_path / "sweep.csv").read_text()
+    other = [*args, "--set", "particles.0.velocity=[0.5,0,0]", "--resume"]
+    assert_one_line_error(
+        CliRunner().invoke(app, other), f"{tmp_path / '000_steps=200'}", "another scenario"
+    )
+    assert (tmp_path / "sweep.csv").read_text() == table
+    fresh = [*args[:-4], "--out", str(tmp_path / "none"), "--resume"]
+    assert_one_line_error(CliRunner().invoke(app, fresh), "no sweep there")
