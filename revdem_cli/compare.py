@@ -169,9 +169,11 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     """What destroyed information just before the reversed run parted from the forward one.
 
     The reversed run parts at the frame `divergence_step`, having come from the next frame
-    of the forward run: the mechanisms that acted in between, newest first. If none did and
-    the run has drag, the reversed run's division by gamma_d, which amplifies round-off
-    exponentially; otherwise nothing is named (round-off growth alone).
+    of the forward run: the mechanisms that acted in between, newest first. If none did:
+    the reversed run's division by gamma_d where the run has drag, which amplifies round-off
+    exponentially, and a time step above the critical one or the kinematic limit where the
+    run was let go on at one (`--allow-unstable-dt`); otherwise nothing is named (round-off
+    growth alone).
     """
     if divergence_step is None or "observables/events" not in forward:
         return []
@@ -187,8 +189,15 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     causes = sorted(
         (_cause(k, log[k], walls, ids) for k in window), key=lambda cause: -cause["step"]
     )
-    if not causes and scenario is not None and scenario.damping.drag < 1.0:
-        causes = [_drag_amplification(scenario.damping.drag, int(steps[-1]), divergence_step)]
+    if causes or scenario is None:
+        return causes
+    if scenario.damping.drag < 1.0:
+        causes.append(_drag_amplification(scenario.damping.drag, int(steps[-1]), divergence_step))
+    from revdem_cli.timestep.guard import time_step_excess
+
+    excess = time_step_excess(scenario)
+    if excess is not None:
+        causes.append(_unstable_time_step(excess, int(steps[-1]), divergence_step))
     return causes
 
 
@@ -214,6 +223,24 @@ def _drag_amplification(drag: float, restart_step: int, step: int) -> dict:
         "message": f"no mechanism destroyed information here, but the reversed run divides "
         f"velocities by gamma_d = {drag:g} each step (Eq 28): round-off has grown by "
         f"e^{exponent:.3g} over the {restart_step - step} steps back from the restart",
+    }
+
+
+def _unstable_time_step(excess, restart_step: int, step: int) -> dict:
+    """A run let go on above the critical time step, whose velocity-Verlet steps amplify
+    round-off each step (Peng 2020 Eq 47), or above the kinematic limit, where contacts can
+    be missed going either way."""
+    what = (
+        "velocity-Verlet is unstable there and amplifies round-off every step"
+        if excess.limit_name == "critical time step"
+        else "a contact can begin or end unseen between two steps, going forward or back"
+    )
+    return dict.fromkeys(("particle", "partner", "particle_id", "partner_id", "partner_wall")) | {
+        "mechanism": "time_step_above_limit",
+        "step": step,
+        "amount": excess.dt / excess.limit if excess.limit > 0.0 else math.inf,
+        "occurrences": restart_step - step,
+        "message": f"no mechanism destroyed information here, but {excess}: {what}",
     }
 
 

@@ -302,29 +302,12 @@ def check_time_step(scenario: Scenario, origin: str = "") -> None:
     """Refuse a time step above the critical estimate of `timestep.guard`, or above its
     kinematic limit, saying by how much; the message starts with `origin`, the file the
     scenario was read from, where given."""
-    from revdem_cli.timestep.guard import critical_time_step, kinematic_dt
+    from revdem_cli.timestep.guard import time_step_excess
 
-    steps = [("integrator.dt", scenario.integrator.dt)] + [
-        (f"stages[{i}].dt", stage.dt) for i, stage in enumerate(scenario.stages) if stage.dt
-    ]
-    steps = [(field, dt) for field, dt in steps if dt != "auto"]  # 'auto' is below both
-    if not steps:
-        return
-    field, dt = max(steps, key=lambda item: item[1])
-    where = f"{origin}: {field}" if origin else field
-    limits = [
-        ("critical time step", *critical_time_step(scenario)),
-        ("kinematic limit", *kinematic_dt(scenario)),
-    ]
-    if limits[0][1] == 0.0:  # speeds so high that no contact law bounds them: say so
-        limits.reverse()
-    for name, limit, reason in limits:
-        if dt > limit:
-            times = f"{dt / limit:.3g} times" if limit > 0.0 else "above"
-            raise InputError(
-                f"{where} = {dt:.3g} s is {times} the {name} {limit:.3g} s "
-                f"({reason}); use a smaller dt, or --allow-unstable-dt to run anyway"
-            )
+    excess = time_step_excess(scenario)
+    if excess is not None:
+        where = f"{origin}: " if origin else ""
+        raise InputError(f"{where}{excess}; use a smaller dt, or --allow-unstable-dt to run anyway")
 
 
 def reverse_run(

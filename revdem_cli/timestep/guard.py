@@ -238,3 +238,45 @@ def critical_time_step(scenario: Scenario) -> tuple[float, str]:
         f"the {normal.NAME.capitalize()} stiffness of a head-on impact at {kind.speed:.3g} m/s "
         f"(Peng 2020 Eq 47, {normal.EQUATION.split(' (')[0]})"
     )
+
+
+@dataclass(frozen=True)
+class Excess:
+    """A time step above a limit: the field that sets it, its value, the limit's name and
+    value (s), and where the limit comes from."""
+
+    field: str
+    dt: float
+    limit_name: str
+    limit: float
+    reason: str
+
+    def __str__(self) -> str:
+        times = f"{self.dt / self.limit:.3g} times" if self.limit > 0.0 else "above"
+        return (
+            f"{self.field} = {self.dt:.3g} s is {times} the {self.limit_name} {self.limit:.3g} s "
+            f"({self.reason})"
+        )
+
+
+def time_step_excess(scenario: Scenario) -> Excess | None:
+    """The largest time step the scenario sets (integrator.dt or a stage's; 'auto' is below
+    both limits) where it is above the critical estimate or the kinematic limit; None where
+    it is not."""
+    steps = [("integrator.dt", scenario.integrator.dt)] + [
+        (f"stages[{i}].dt", stage.dt) for i, stage in enumerate(scenario.stages) if stage.dt
+    ]
+    steps = [(field, dt) for field, dt in steps if dt != "auto"]
+    if not steps:
+        return None
+    field, dt = max(steps, key=lambda item: item[1])
+    limits = [
+        ("critical time step", *critical_time_step(scenario)),
+        ("kinematic limit", *kinematic_dt(scenario)),
+    ]
+    if limits[0][1] == 0.0:  # speeds so high that no contact law bounds them: say so
+        limits.reverse()
+    for name, limit, reason in limits:
+        if dt > limit:
+            return Excess(field, dt, name, limit, reason)
+    return None

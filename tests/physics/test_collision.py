@@ -137,3 +137,27 @@ def test_local_damping_stops_a_bouncing_sphere_and_is_named_when_reversal_fails(
     causes = {cause["mechanism"]: cause for cause in verdict["divergence_causes"]}
     damping = causes["local_damping"]  # no contact: no partner, where -1 named wall 0
     assert damping["partner"] is damping["partner_id"] is damping["partner_wall"] is None
+
+
+def test_a_reversal_run_above_the_critical_time_step_is_blamed_on_it_not_on_round_off(tmp_path):
+    """The smoke collision let go on at dt = 1.55 times its critical step (0.386 ms) parts at
+    once with no mechanism acting: the verdict names the time step, where it had said
+    round-off growth, and below the limit (0.26 ms) nothing is blamed on it."""
+    from revdem_cli.config import load_scenario
+    from tests.conftest import CONFIGS
+
+    def verdict(dt):
+        sets = [f"integrator.dt={dt}", "stages.0.steps=100", "stages.0.output_every=10"]
+        scenario, text = load_scenario(CONFIGS / "smoke" / "collision.yaml", sets)
+        out = tmp_path / str(dt)
+        return run_scenario(scenario, text, ".yaml", out, allow_unstable_dt=True).verdict
+
+    above = verdict(6e-4)
+    assert not above["reversible"]
+    (cause,) = above["divergence_causes"]
+    assert cause["mechanism"] == "time_step_above_limit"
+    assert cause["amount"] == pytest.approx(6e-4 / 3.86e-4, rel=2e-3)
+    assert "1.55 times the critical time step" in cause["message"]
+    assert "amplifies round-off" in cause["message"]
+    below = verdict(2.6e-4)
+    assert below["reversible"] and below["divergence_causes"] == []
