@@ -187,7 +187,8 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     ids = forward["particles/all/id"][:]
     window = [k for k in range(len(KINDS)) if log[k, COUNT] > 0 and log[k, LAST] > divergence_step]
     causes = sorted(
-        (_cause(k, log[k], walls, ids) for k in window), key=lambda cause: -cause["step"]
+        (_cause(k, log[k], walls, ids, _velocity_read(scenario)) for k in window),
+        key=lambda cause: -cause["step"],
     )
     if causes or scenario is None:
         return causes
@@ -251,7 +252,18 @@ CONTACTS = frozenset(
 """The mechanisms that act at a contact: theirs is the only cause with a partner."""
 
 
-def _cause(kind: int, entry, walls: list[str], ids: np.ndarray) -> dict:
+def _velocity_read(scenario: Scenario | None) -> str:
+    """Why a velocity-dependent force breaks reversal, under the run's scheme."""
+    order = scenario.integrator.predictor_order if scenario is not None else 0
+    if order == 0:
+        return "it pairs forces with the velocity of the other half step when reversed"
+    return (
+        f"it reads the time-reversible velocity predictor of order {order} (Kolafa & Lisal "
+        f"2011), whose values going forward and back differ by O(dt^{2 * order + 1})"
+    )
+
+
+def _cause(kind: int, entry, walls: list[str], ids: np.ndarray, velocity_read: str) -> dict:
     """One mechanism of the event log `entry` as compare.json gives it: its last step, the
     particle and, at a contact (CONTACTS), the partner (a sphere's index in the arrays, -1 - w
     for wall w) with their ids (a wall's partner_wall its name), null where there is none,
@@ -269,10 +281,9 @@ def _cause(kind: int, entry, walls: list[str], ids: np.ndarray) -> dict:
         f"step {step}: the force zeroed at separation cannot be recovered",
         "coulomb_slip": f"{contact} slid at step {step}: the Coulomb limit removed "
         f"{amount * 1e3:.3g} mN of shear force, which cannot be recovered",
-        "local_damping": f"local damping (gamma_l = {amount:g}) acted up to step {step}: it "
-        "pairs forces with the velocity of the other half step when reversed",
-        "viscous_damping": f"viscous contact damping acted up to step {step}: it pairs forces "
-        "with the velocity of the other half step when reversed",
+        "local_damping": f"local damping (gamma_l = {amount:g}) acted up to step {step}: "
+        f"{velocity_read}",
+        "viscous_damping": f"viscous contact damping acted up to step {step}: {velocity_read}",
         "velocity_fixed_point_under_drag": f"{particle} reached a fixed point of the drag "
         f"map at step {step} (|v| = {amount:.4g} m/s, terminal velocity or rest): the time spent "
         "there cannot be recovered",

@@ -46,8 +46,20 @@ def _scenario(text: str) -> dict:
             for s in scenario.stages
         ],
         "arithmetic": scenario.integrator.arithmetic,
+        "scheme": scenario.integrator.scheme,
+        "trvp_order": scenario.integrator.predictor_order or None,
         "cell": list(scenario.cell.size) if scenario.cell else None,
     }
+
+
+def _scheme(info: dict) -> str:
+    """How velocity-dependent forces read the velocity at a full step, as `info` prints it."""
+    if info["scheme"] == "verlet":
+        return "verlet (velocity-dependent forces read the half-step velocity)"
+    return (
+        f"trvp (velocity-dependent forces read the time-reversible velocity predictor of "
+        f"order {info['trvp_order']}, Kolafa & Lisal 2011)"
+    )
 
 
 def _stopping(condition: dict | None) -> str:
@@ -172,6 +184,7 @@ def info_lines(info: dict) -> list[str]:
         f"particles:  {info['particles']}",
         f"arithmetic: {info['arithmetic']}"
         + (" (64-bit integers on fixed grids)" if info["arithmetic"] == "fixed" else ""),
+        f"scheme:     {_scheme(info)}",
     ]
     if info["cell"] is not None:
         lines.append(f"cell:       periodic, {' x '.join(f'{e:.6g}' for e in info['cell'])} m")

@@ -142,3 +142,26 @@ def test_a_trvp_run_resumed_from_a_checkpoint_is_the_uninterrupted_run(tmp_path,
         for name in a:
             assert np.array_equal(a[name], b[name]), (run, name)
     assert resumed.comparison["reversible"]
+
+
+def test_a_damped_reversal_under_the_predictor_is_explained_by_it(tmp_path):
+    """The damped collision parts under trvp too (at the contact's end, the predictor's
+    O(dt^5) asymmetry grown): the cause says the force read the predictor, not the
+    half-step velocity of velocity Verlet, and `revdem info` names the scheme."""
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+    from tests.conftest import CONFIGS
+
+    experiment = revdem.load(CONFIGS / "trvp" / "collision_damped.toml").changed(
+        {"integrator.scheme": "trvp", "output.figures": []}
+    )
+    result = revdem.run(experiment, tmp_path)
+    assert not result.comparison["reversible"]
+    (cause,) = result.comparison["divergence_causes"]
+    assert cause["mechanism"] == "viscous_damping"
+    assert "velocity predictor of order 2" in cause["message"]
+    assert "O(dt^5)" in cause["message"] and "half step" not in cause["message"]
+    shown = CliRunner().invoke(app, ["info", str(result.outputs.forward)])
+    named = "trvp (velocity-dependent forces read the time-reversible velocity predictor of order 2"
+    assert f"scheme:     {named}" in shown.output, shown.output
