@@ -383,9 +383,10 @@ class Integrator(_Model):
         gt=0,
         le=1,
         description="with dt = 'auto', the fraction taken, at the start of each stage, of the "
-        "smaller of the critical time step of the packing then (the largest eigenvalue of its "
-        "mass and stiffness, as `revdem dt --restart`) and the start-up estimate of contacts "
-        "still to form (head-on impacts, Rayleigh), -",
+        "smallest of the critical time step of the packing then (the largest eigenvalue of its "
+        "mass and stiffness, as `revdem dt --restart`), the start-up estimate of contacts "
+        "still to form (head-on impacts, Rayleigh) and the kinematic limit (half the skin a "
+        "step), -",
     )
     arithmetic: Literal["float", "fixed"] = Field(
         default="float",
