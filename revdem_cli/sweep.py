@@ -302,10 +302,6 @@ def run_sweep(
     SIGINT or SIGTERM stops the sweep: each running variant at its next whole step with a
     checkpoint, none begins after, and the table says which are done, stopped or not
     started; a second signal stops at once."""
-    from distributed import as_completed
-
-    from revdem_cli.checkpoint import stop_asked
-
     out_dir = Path(out_dir)
     variants = sweep.variants()
     # bad input stops the sweep before it starts; a local cluster runs on this machine
@@ -320,39 +316,65 @@ def run_sweep(
     else:
         _keep_earlier(out_dir, loaded, folders, force)
         results = {}
-    suffix = sweep.scenario.suffix.lower()
-    stop_file = out_dir / STOP_FILE
+    stopped = _run_pending(
+        [(loaded[i], out_dir / folders[i], i) for i in range(len(variants)) if i not in results],
+        results,
+        len(variants),
+        out_dir / STOP_FILE,
+        (scheduler, workers, threads),
+        sweep.scenario.suffix.lower(),
+        allow_unstable_dt,
+        progress,
+    )
+    rows = [{"folder": folders[i], **variants[i], **results[i]} for i in range(len(variants))]
+    return rows, write_table(rows, out_dir / "sweep"), stopped
+
+
+def _run_pending(
+    pending: list[tuple],
+    results: dict[int, dict],
+    total: int,
+    stop_file: Path,
+    cluster: tuple,
+    suffix: str,
+    allow_unstable_dt: bool,
+    progress,
+) -> int:
+    """Run the variants `pending` ((scenario, text), folder, index) on the cluster
+    (scheduler, workers, threads), each row into `results` by index as it comes; the signal
+    that stopped them, 0 if none. No cluster is started for none."""
+    from distributed import as_completed
+
+    from revdem_cli.checkpoint import stop_asked
+
+    if progress is not None:
+        progress("variants", len(results), total)
+    if not pending:
+        return 0
     stop_file.unlink(missing_ok=True)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    stop_file.parent.mkdir(parents=True, exist_ok=True)
     try:
-        with _client(scheduler, workers, threads) as client, _stopping(stop_file):
+        with _client(*cluster) as client, _stopping(stop_file):
             futures = {
                 client.submit(
                     run_variant,
                     scenario.model_dump_json(),
                     text,
                     suffix,
-                    out_dir / folder,
+                    folder,
                     allow_unstable_dt,
                     stop_file,
-                    key=f"variant-{folder}",
+                    key=f"variant-{folder.name}",
                 ): index
-                for index, ((scenario, text), folder) in enumerate(
-                    zip(loaded, folders, strict=True)
-                )
-                if index not in results
+                for (scenario, text), folder, index in pending
             }
-            if progress is not None:
-                progress("variants", len(results), len(variants))
             for future in as_completed(futures):
                 results[futures[future]] = _result_of(future)
                 if progress is not None:
-                    progress("variants", len(results), len(variants))
-        stopped = stop_asked(stop_file)
+                    progress("variants", len(results), total)
+        return stop_asked(stop_file)
     finally:
         stop_file.unlink(missing_ok=True)
-    rows = [{"folder": folders[i], **variants[i], **results[i]} for i in range(len(variants))]
-    return rows, write_table(rows, out_dir / "sweep"), stopped
 
 
 def _result_of(future) -> dict:

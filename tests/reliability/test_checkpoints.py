@@ -476,15 +476,19 @@ def test_ctrl_c_stops_a_sweep_with_its_table_and_resume_ends_it_as_an_uninterrup
     assert sorted(p.name for p in cut.iterdir()) == sorted(p.name for p in whole.iterdir())
 
 
-def test_resume_refuses_a_sweep_of_other_values_than_the_one_stopped(tmp_path):
-    """A checkpoint of a variant is that variant's: a sweep given other values (here
-    another velocity in the folder of the same name) is refused before any variant runs."""
+def test_resume_keeps_a_finished_sweep_and_refuses_one_of_other_values(tmp_path):
+    """A sweep all done is kept as its table has it. A variant's files are that variant's:
+    a sweep given other values (here another velocity in the folder of the same name) is
+    refused before any variant runs."""
     args = [
         "sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--workers", "1", "-q",
         "--out", str(tmp_path), "--set", "stages.0.steps=200,300",
     ]  # fmt: skip
     assert CliRunner().invoke(app, args).exit_code == 0
     table = (tmp_path / "sweep.csv").read_text()
+    again = CliRunner().invoke(app, [*args, "--resume"])  # every variant done: kept as it was
+    assert again.exit_code == 0 and "2 variants, 0 failed" in again.output, again.output
+    assert (tmp_path / "sweep.csv").read_text() == table
     other = [*args, "--set", "particles.0.velocity=[0.5,0,0]", "--resume"]
     assert_one_line_error(
         CliRunner().invoke(app, other), f"{tmp_path / '000_steps=200'}", "another scenario"
