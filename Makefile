@@ -40,7 +40,7 @@ paper: $(STAMP)
 	mkdir -p scenarios/report
 	rm -f $(OUT)/paper/*.checkpoint.h5  # an interrupted make paper's: every case runs afresh
 	for case in $(PAPER_CASES); do $(BIN)/revdem run configs/$$case.toml --out $(OUT)/paper -q --force || exit 1; done
-	$(BIN)/revdem report $(OUT)/paper --out scenarios/report/hanley2020.md
+	$(BIN)/revdem report $(OUT)/paper --out scenarios/report/hanley2020.md --force
 	$(BIN)/revdem run configs/ellipsoid_dt.toml --out scenarios/report -q --force
 
 clean:

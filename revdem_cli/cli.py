@@ -431,10 +431,12 @@ def export(
         given = "give one" if format is None else f"got {format!r}"
         raise InputError(f"export: --format must be one of {', '.join(formats)}; {given}")
     target = out or trajectory.with_suffix(formats[format])
-    _refuse_overwriting(target, trajectory, out is not None and not force)
     from contextlib import nullcontext
 
-    from revdem_cli.io import particles
+    from revdem_cli.io import particles, refuse_overwriting
+
+    if format != "vtk":  # its --out is a folder
+        refuse_overwriting("export", target, out is not None and not force, trajectory)
     from revdem_cli.io.vtk import export_vtk
 
     exporter = {
@@ -449,23 +451,6 @@ def export(
         typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
     else:
         typer.echo(f"wrote {written}")
-
-
-def _refuse_overwriting(target: Path, trajectory: Path, keep: bool) -> None:
-    """InputError where an export would write over the trajectory it reads or another HDF5
-    file (a run's trajectory, restart or tape: an export's formats are never HDF5), or, where
-    `keep` (an --out given without --force), over any file: a run's verdict or figure, say.
-    Its default target, the trajectory's name with the format's suffix, is its own to
-    write again."""
-    import h5py
-
-    if not target.is_file():
-        return
-    if target.resolve() == trajectory.resolve() or h5py.is_hdf5(target):
-        what = "the trajectory exported" if target.resolve() == trajectory.resolve() else "HDF5"
-        raise InputError(f"export: --out {target}: {what}, which an export would overwrite")
-    if keep:
-        raise InputError(f"export: --out {target}: exists; use --force to overwrite")
 
 
 @app.command()
@@ -577,12 +562,18 @@ def report(
             "--out", parser=_named_path, help="Markdown file (default: DIRECTORY/report.md)."
         ),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Write over a file that --out names and exists.")
+    ] = False,
 ) -> None:
     """Write a Markdown page setting the paper's numbers beside the runs in DIRECTORY.
 
     Example: revdem report out
     """
+    from revdem_cli.io import refuse_overwriting
     from revdem_cli.report.paper import HANLEY_2020, write_report
+
+    refuse_overwriting("report", out or directory / "report.md", out is not None and not force)
 
     written = write_report(directory, paper or HANLEY_2020, out or directory / "report.md")
     typer.echo(f"wrote {written}")

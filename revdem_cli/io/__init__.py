@@ -29,6 +29,31 @@ def write_text(path, text: str) -> None:
     write_file(path, text.encode())
 
 
+def refuse_overwriting(command: str, target, keep: bool, reading=None) -> None:
+    """InputError where `command` (export, dt, report) would write the file --out names,
+    `target`, over: a folder; the file it reads, `reading`; an HDF5 file (a run's
+    trajectory, restart or tape, which none of their outputs is); or, where `keep` (an --out
+    given without --force), any file, a run's verdict or figure say. A command's default
+    target is its own to write again."""
+    from pathlib import Path
+
+    import h5py
+
+    from revdem_cli.errors import InputError
+
+    target = Path(target)
+    if target.is_dir():
+        raise InputError(f"{command}: --out {target}: a folder; name a file")
+    if not target.is_file():
+        return
+    read = reading is not None and target.resolve() == Path(reading).resolve()
+    if read or h5py.is_hdf5(target):
+        what = "the file it reads" if read else "HDF5"
+        raise InputError(f"{command}: --out {target}: {what}, which {command} would overwrite")
+    if keep:
+        raise InputError(f"{command}: --out {target}: exists; use --force to overwrite")
+
+
 def write_file(path, data: bytes) -> None:
     """Write a file under a temporary name renamed over `path`: the old file or the new one,
     whole; WriteFailed naming it if it cannot be written, the temporary removed."""

@@ -417,6 +417,9 @@ def dt(
         ),
     ] = None,
     out: Annotated[Path | None, typer.Option(help="CSV file of a sweep (default stdout).")] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Write over a file that --out names and exists.")
+    ] = False,
     figures: Annotated[
         Path | None,
         typer.Option(
@@ -495,6 +498,10 @@ def dt(
     )
     if out is not None and sweep is None:
         raise InputError("--out names the CSV file of a --sweep; give --sweep too")
+    if out is not None:
+        from revdem_cli.io import refuse_overwriting
+
+        refuse_overwriting("dt", out, not force)
     if sweep is not None:
         if as_json:
             raise InputError("--sweep writes CSV; leave out --json")

@@ -72,7 +72,7 @@ def test_export_needs_a_format_and_a_trajectory(smoke_run):
 def test_an_export_never_writes_over_the_trajectory_or_another_runs_file(smoke_run, fmt):
     forward, restart = (smoke_run / f"collision_smoke.{kind}.h5" for kind in ("forward", "restart"))
     kept = {path: path.read_bytes() for path in (forward, restart)}
-    for target, what in ((forward, "the trajectory exported"), (restart, "HDF5")):
+    for target, what in ((forward, "the file it reads"), (restart, "HDF5")):
         args = ["export", str(forward), "--format", fmt, "--out", str(target)]
         assert_one_line_error(runner.invoke(app, args), f"--out {target}: {what}, which")
     assert all(path.read_bytes() == data for path, data in kept.items())

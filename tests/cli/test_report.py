@@ -53,7 +53,7 @@ def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypat
     assert "| max_position_error_rel | ≤ 1e-10 |" in page
     assert page.startswith(f"# {ROOT / 'scenarios/hanley2020/paper_numbers.toml'} against ")
     monkeypatch.chdir(ROOT)  # below the working folder, named from there, as `make paper` does
-    result = runner.invoke(app, ["report", str(runs), "--out", str(tmp_path / "r.md")])
+    result = runner.invoke(app, ["report", str(runs), "--out", str(tmp_path / "r.md"), "--force"])
     assert result.exit_code == 0, result.output
     heading = (tmp_path / "r.md").read_text().splitlines()[0]
     assert heading == f"# scenarios/hanley2020/paper_numbers.toml against the runs in {runs}"

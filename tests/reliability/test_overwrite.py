@@ -140,3 +140,31 @@ def test_a_run_forward_only_is_reversed_without_force(tmp_path):
     result = invoke("reverse", out / f"{NAME}.restart.h5", "-q")
     assert result.exit_code == 0, result.output
     assert (out / f"{NAME}.compare.json").exists() and figure.stat().st_mtime_ns > drawn
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "2500", "--kn", "1e6",
+         "--sweep", "kn=1e5:1e7:3"],
+        ["report"],
+    ],
+    ids=["dt --sweep", "report"],
+)  # fmt: skip
+def test_a_table_or_page_named_by_out_keeps_a_run_and_any_file_without_force(out, command):
+    """`revdem dt --sweep --out` wrote its CSV over a trajectory it was pointed at, and
+    `revdem report --out` its page over any file. A run's HDF5 file is never written over;
+    another existing file only with --force; an --out that is a folder is refused."""
+    args = [*command, *([str(out)] if command == ["report"] else [])]
+    forward, verdict = out / f"{NAME}.forward.h5", out / f"{NAME}.compare.json"
+    kept = snapshot(out)
+    assert_one_line_error(invoke(*args, "--out", forward, "--force"), f"--out {forward}: HDF5")
+    assert_one_line_error(invoke(*args, "--out", verdict), f"--out {verdict}: exists; use --force")
+    assert_one_line_error(invoke(*args, "--out", out), f"--out {out}: a folder")
+    assert snapshot(out) == kept
+    (out / "collision.compare.json").symlink_to(verdict)  # a case of the paper, for report
+    mine = out.parent / f"{command[0]}-table.txt"
+    mine.write_text("mine\n")
+    forced = invoke(*args, "--out", mine, "--force")
+    assert forced.exit_code == 0, forced.output
+    assert mine.read_text() != "mine\n"
