@@ -240,24 +240,27 @@ def _client(scheduler: str | None, workers: int, threads: int | None):
         ) as cluster,
         Client(cluster) as client,
     ):
-        client.register_plugin(_deaf_to_ctrl_c())
+        client.register_plugin(_deaf_to_signals())
         yield client
 
 
-def _deaf_to_ctrl_c():
+def _deaf_to_signals():
     """A plugin that has a local cluster's workers, and those that replace them, ignore
-    SIGINT: Ctrl-C reaches every process of the terminal's group, and would end each
-    worker's event loop with its variant unsaved; the sweep stops them through its stop
-    file (`_stopping`) instead. (Made here, where dask is imported; cloudpickle sends it.)"""
+    SIGINT and SIGTERM: Ctrl-C reaches every process of the terminal's group, as SLURM's
+    scancel and systemd send SIGTERM to every process of the job, and either would end each
+    worker with its variant unsaved; the sweep stops them through its stop file
+    (`_stopping`) instead. Their nanny closes them by its own queue, and kills them with
+    SIGKILL, never SIGTERM. (Made here, where dask is imported; cloudpickle sends it.)"""
     from distributed import WorkerPlugin
 
-    class DeafToCtrlC(WorkerPlugin):
+    class DeafToSignals(WorkerPlugin):
         def setup(self, worker):
             import signal
 
-            signal.signal(signal.SIGINT, signal.SIG_IGN)  # on the worker's loop: main thread
+            for kind in (signal.SIGINT, signal.SIGTERM):  # on the worker's loop: main thread
+                signal.signal(kind, signal.SIG_IGN)
 
-    return DeafToCtrlC()
+    return DeafToSignals()
 
 
 def load_variants(sweep: Sweep, host: bool = False, allow_unstable_dt: bool = False) -> list[tuple]:

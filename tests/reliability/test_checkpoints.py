@@ -434,6 +434,38 @@ def _sweep_rows(out: Path) -> list[dict]:
         return [row | {"seconds": ""} for row in csv.DictReader(f)]
 
 
+def _stopped_sweep(out: Path, signum: int) -> str:
+    """Run SWEEP into `out` as a job of its own process group, and send `signum` to the
+    whole group (as Ctrl-C does SIGINT, and SLURM's scancel or systemd SIGTERM) once the
+    third variant has begun; its standard error, once it has exited with 128 + signum
+    within 10 s."""
+    command = [sys.executable, "-m", "revdem_cli.cli", *SWEEP, "--out", str(out)]
+    process = subprocess.Popen(command, start_new_session=True, stderr=subprocess.PIPE, text=True)
+    third = out / "002_steps=400000_velocity=0.9+0.1+0.0" / "collision_smoke.forward.h5"
+    while not third.exists():
+        assert process.poll() is None, process.communicate()[1]
+        time.sleep(0.01)
+    os.killpg(process.pid, signum)
+    started = time.monotonic()
+    try:
+        _, err = process.communicate(timeout=60)
+    finally:  # the workers too, should the sweep not end
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 128 + signum, err
+    assert time.monotonic() - started < 10, err
+    name = signal.Signals(signum).name
+    assert err.strip().splitlines()[-1] == (
+        f"stopped: {name}: 2 variants done, 1 stopped with a checkpoint, 1 not started; "
+        "continue with the same command and --resume"
+    ), err
+    rows = _sweep_rows(out)
+    assert [row["status"] for row in rows] == ["done", "done", "stopped", "not started"]
+    assert rows[2]["error"].startswith(f"stopped: {name} at step ")
+    assert list(third.parent.glob("*.checkpoint.h5"))
+    return err
+
+
 def test_ctrl_c_stops_a_sweep_with_its_table_and_resume_ends_it_as_an_uninterrupted_one(
     tmp_path,
 ):
@@ -442,29 +474,7 @@ def test_ctrl_c_stops_a_sweep_with_its_table_and_resume_ends_it_as_an_uninterrup
     says so and the sweep exits 130; `--resume` keeps the variants done, continues the
     stopped one and runs the last, to the rows and files of a sweep never stopped."""
     cut = tmp_path / "cut"
-    command = [sys.executable, "-m", "revdem_cli.cli", *SWEEP, "--out", str(cut)]
-    process = subprocess.Popen(command, start_new_session=True, stderr=subprocess.PIPE, text=True)
-    third = cut / "002_steps=400000_velocity=0.9+0.1+0.0" / "collision_smoke.forward.h5"
-    while not third.exists():
-        assert process.poll() is None, process.communicate()[1]
-        time.sleep(0.01)
-    os.killpg(process.pid, signal.SIGINT)
-    started = time.monotonic()
-    try:
-        _, err = process.communicate(timeout=60)
-    finally:  # the workers too, should the sweep not end
-        if process.poll() is None:
-            os.killpg(process.pid, signal.SIGKILL)
-    assert process.returncode == 130, err
-    assert time.monotonic() - started < 10, err
-    assert err.strip().splitlines()[-1] == (
-        "stopped: SIGINT: 2 variants done, 1 stopped with a checkpoint, 1 not started; "
-        "continue with the same command and --resume"
-    ), err
-    rows = _sweep_rows(cut)
-    assert [row["status"] for row in rows] == ["done", "done", "stopped", "not started"]
-    assert rows[2]["error"].startswith("stopped: SIGINT at step ")
-    assert list(third.parent.glob("*.checkpoint.h5"))
+    _stopped_sweep(cut, signal.SIGINT)
     resumed = CliRunner().invoke(app, [*SWEEP, "--out", str(cut), "--resume"])
     assert resumed.exit_code == 0, resumed.output
     whole = tmp_path / "whole"
@@ -474,6 +484,13 @@ def test_ctrl_c_stops_a_sweep_with_its_table_and_resume_ends_it_as_an_uninterrup
     for row in _sweep_rows(whole):
         assert_same_files(whole / row["folder"], cut / row["folder"])
     assert sorted(p.name for p in cut.iterdir()) == sorted(p.name for p in whole.iterdir())
+
+
+def test_sigterm_to_the_whole_job_stops_a_sweep_as_ctrl_c_does(tmp_path):
+    """SLURM's scancel and systemd send SIGTERM to every process of the job: the workers
+    died of it, their variants unsaved, and dask restarted them."""
+    err = _stopped_sweep(tmp_path, signal.SIGTERM)
+    assert "Restarting worker" not in err
 
 
 def test_resume_keeps_a_finished_sweep_and_refuses_one_of_other_values(tmp_path):
