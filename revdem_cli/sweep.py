@@ -185,7 +185,6 @@ def run_variant(
     from revdem_cli.checkpoint import Interrupted, find_checkpoints, stop_asked
     from revdem_cli.config import Scenario
     from revdem_cli.engine import resume_run, run_scenario
-    from revdem_cli.io.h5md import open_trajectory, read_observable
 
     started = time.perf_counter()
     row = dict.fromkeys(RESULTS)
@@ -207,13 +206,22 @@ def run_variant(
     except (InputError, RuntimeError, OSError, MemoryError) as exc:
         row["status"], row["error"] = FAILED, f"{type(exc).__name__}: {exc}"
         return row
-    with open_trajectory(outputs.forward) as f:
+    return done_row(outputs.forward, outputs.verdict, time.perf_counter() - started)
+
+
+def done_row(forward: Path, verdict: dict | None, seconds: float | None) -> dict:
+    """The row of RESULTS of a variant done: its final energies from its forward trajectory,
+    its `verdict` and the `seconds` it took."""
+    from revdem_cli.io.h5md import open_trajectory, read_observable
+
+    row = dict.fromkeys(RESULTS)
+    with open_trajectory(forward) as f:
         row["kinetic_energy"] = float(read_observable(f, "kinetic_energy")[1][-1])
         row["total_energy"] = float(read_observable(f, "total_energy")[1][-1])
-    if outputs.verdict is not None:
+    if verdict is not None:
         for key in ("reversible", "max_position_error_rel", "first_divergence_step"):
-            row[key] = outputs.verdict[key]
-    row["status"], row["seconds"] = DONE, time.perf_counter() - started
+            row[key] = verdict[key]
+    row["status"], row["seconds"] = DONE, seconds
     return row
 
 
@@ -406,10 +414,13 @@ def _keep_earlier(out_dir: Path, loaded: list[tuple], folders: list[str], force:
 
 
 def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> dict[int, dict]:
-    """The rows of the earlier sweep in `out_dir` whose variants are done and whose outputs
-    are all there, by index; InputError if there is no earlier sweep, or if a variant's
-    checkpoint or outputs are of another scenario than this sweep's variant."""
-    from revdem_cli.api import output_paths_of
+    """The rows of the variants of the earlier sweep in `out_dir` that are done, by index:
+    all their outputs there and no checkpoint (the row its table has, or else, for one
+    finished apart with `revdem run --resume`, the row its files give, without seconds).
+    A variant neither done nor stopped with a checkpoint has what it left removed, as it
+    will run again. InputError if there is no earlier sweep, or if a variant's checkpoint or
+    outputs are of another scenario than this sweep's variant."""
+    from revdem_cli.api import keep_outputs, output_paths_of
     from revdem_cli.checkpoint import find_checkpoints
     from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.io.restart import read_restart
@@ -423,16 +434,14 @@ def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> 
         checkpoints = find_checkpoints(out_dir / folder)
         outputs = output_paths_of(scenario, out_dir / folder, reverse=True)
         if checkpoints:
-            stored, path = (
-                read_restart(checkpoints[0], checkpoint=True).scenario_json,
-                checkpoints[0],
-            )
-        elif all(path.exists() for path in outputs) and rows.get(folder, {}).get("status") == DONE:
+            path = checkpoints[0]
+            stored = read_restart(path, checkpoint=True).scenario_json
+        elif all(path.exists() for path in outputs):
             path = outputs[0]
             with open_trajectory(path) as f:
                 stored = f["parameters/revdem"].attrs["scenario_json"]
-            results[index] = {key: rows[folder][key] for key in RESULTS}
         else:
+            keep_outputs(outputs, force=True)
             continue
         if stored != scenario.model_dump_json():
             raise InputError(
@@ -440,7 +449,21 @@ def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> 
                 f"{folder}; give the sweep's own file and --set options, or start over with "
                 "--force"
             )
+        if not checkpoints:
+            results[index] = _kept_row(rows.get(folder), outputs)
     return results
+
+
+def _kept_row(row: dict | None, outputs: list[Path]) -> dict:
+    """The row of a variant done before --resume: its table's, or where the table does not
+    have it done, the one its outputs (forward trajectory, comparison) give."""
+    import json
+
+    if row is not None and row["status"] == DONE:
+        return row
+    forward, compare = outputs[0], next((p for p in outputs if p.suffix == ".json"), None)
+    verdict = json.loads(compare.read_text()) if compare is not None else None
+    return done_row(forward, verdict, None)
 
 
 @contextmanager

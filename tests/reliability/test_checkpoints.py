@@ -488,9 +488,25 @@ def test_ctrl_c_stops_a_sweep_with_its_table_and_resume_ends_it_as_an_uninterrup
 
 def test_sigterm_to_the_whole_job_stops_a_sweep_as_ctrl_c_does(tmp_path):
     """SLURM's scancel and systemd send SIGTERM to every process of the job: the workers
-    died of it, their variants unsaved, and dask restarted them."""
+    died of it, their variants unsaved, and dask restarted them. A variant then finished on
+    its own (`revdem run --resume FOLDER`, as `revdem info` of its checkpoint says) is kept
+    by `sweep --resume`, its row read from its files; it was run again from its start."""
     err = _stopped_sweep(tmp_path, signal.SIGTERM)
     assert "Restarting worker" not in err
+    third = tmp_path / _sweep_rows(tmp_path)[2]["folder"]
+    assert CliRunner().invoke(app, ["run", "--resume", str(third), "-q"]).exit_code == 0
+    finished = snapshot_files(third)
+    resumed = CliRunner().invoke(app, [*SWEEP, "--out", str(tmp_path), "--resume"])
+    assert resumed.exit_code == 0, resumed.output
+    assert snapshot_files(third) == finished
+    rows = _sweep_rows(tmp_path)
+    assert [row["status"] for row in rows] == ["done"] * 4
+    assert rows[2]["reversible"] == "True" and rows[2]["kinetic_energy"]
+
+
+def snapshot_files(folder: Path) -> dict[str, int]:
+    """Each file in `folder` and the time it was last written (ns)."""
+    return {p.name: p.stat().st_mtime_ns for p in sorted(folder.iterdir())}
 
 
 def test_resume_keeps_a_finished_sweep_and_refuses_one_of_other_values(tmp_path):
