@@ -43,6 +43,15 @@ class Interrupted(Exception):
         super().__init__(f"{signal.Signals(signum).name} at step {step}: checkpoint {path} written")
 
 
+class Unfinished(Exception):
+    """The run stopped on a signal after its last step, before what it writes then (a
+    comparison, figures) was written: its trajectories and restart are whole."""
+
+    def __init__(self, signum: int, what: str):
+        self.exit_code = 128 + signum
+        super().__init__(f"{signal.Signals(signum).name} after the last step, before {what}")
+
+
 class Checkpoints:
     """The checkpoint policy of one run: its file, its interval, the signal it was sent, and
     the `Stepper` that signal stops."""
@@ -53,6 +62,18 @@ class Checkpoints:
         self.signal = 0  # the signal that asked for a checkpoint and a stop
         self.saved = time.monotonic()
         self.stepper = Stepper()
+        self.finishing = ""  # once stepped to the end: what the run writes after
+
+    def finish(self, what: str) -> None:
+        """The run has taken its last step and writes `what` (its comparison, its figures):
+        in the main thread, where Python runs the handler, a signal now stops it at once, as
+        `Unfinished` (one already taken too); off it (a sweep's variant, which its stop file
+        stops) the run writes them and ends."""
+        if threading.current_thread() is not threading.main_thread():
+            return
+        self.finishing = what
+        if self.signal:
+            raise Unfinished(self.signal, what)
 
     def due(self) -> bool:
         return self.signal != 0 or time.monotonic() - self.saved >= self.interval
@@ -91,6 +112,8 @@ class Checkpoints:
             self.ask(signum)
             for kind in kinds:
                 signal.signal(kind, before[kind])
+            if self.finishing:
+                raise Unfinished(signum, self.finishing)
 
         for kind in kinds:
             signal.signal(kind, handler)

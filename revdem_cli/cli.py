@@ -231,12 +231,19 @@ def run(
 def _interruptible(command, *args):
     """Run `command`; a checkpoint written on SIGINT or SIGTERM ends it with one line and
     exit status 128 + the signal's number."""
-    from revdem_cli.checkpoint import Interrupted
+    from revdem_cli.checkpoint import Interrupted, Unfinished
 
     try:
         return command(*args)
     except Interrupted as exc:
         typer.echo(f"stopped: {exc}; continue with revdem run --resume {exc.path.parent}", err=True)
+        raise typer.Exit(exc.exit_code) from None
+    except Unfinished as exc:
+        typer.echo(
+            f"stopped: {exc}; its trajectories and restart are whole (revdem compare FORWARD "
+            "REVERSE gives the verdict)",
+            err=True,
+        )
         raise typer.Exit(exc.exit_code) from None
 
 

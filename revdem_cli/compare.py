@@ -11,7 +11,7 @@ import numpy as np
 from revdem_cli.config import Reversal, Scenario
 from revdem_cli.errors import InputError, check_regular
 from revdem_cli.io import GRID_FIELDS
-from revdem_cli.io.h5md import frame_steps, open_trajectory, read_frame
+from revdem_cli.io.h5md import frame_steps, open_trajectory, read_frames
 from revdem_cli.kernels.events import AMOUNT, COUNT, KINDS, LAST, PARTICLE, PARTNER
 from revdem_cli.state import particle_named, partner_named
 
@@ -41,8 +41,17 @@ def read_verdict(path: Path) -> dict:
     return verdict
 
 
-def _max_norm(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.sqrt(((a - b) ** 2).sum(axis=1)).max()) if len(a) else 0.0
+def _max_norms(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The largest |a - b| over the particles of each frame of two (frames, particles, 3)
+    blocks."""
+    if a.shape[1] == 0:
+        return np.zeros(len(a))
+    return np.sqrt(((a - b) ** 2).sum(axis=2)).max(axis=1)
+
+
+BLOCK_VALUES = 1 << 20
+"""Values of a field read at once from each trajectory (8 MB): frames a block at a time,
+where reading them one by one took 24 s for the 30 001 frames of two spheres."""
 
 
 def tolerances_of(trajectory) -> Reversal:
@@ -76,21 +85,26 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         rows = []
         identical = True
         on_grids = all(f"particles/all/{name}" in run for run in (a, b) for name in GRID_FIELDS)
-        for k in order:
+        per_block = max(1, BLOCK_VALUES // (3 * max(1, len(radius))))
+        for start in range(0, len(order), per_block):
+            ks = order[start : start + per_block]
             errors = []
             for field in ("position", "velocity", "angular_velocity"):
-                va = read_frame(a, field, index_a[k])
-                vb = read_frame(b, field, index_b[k])
+                va = read_frames(a, field, index_a[ks])
+                vb = read_frames(b, field, index_b[ks])
                 if not on_grids:
                     identical &= bool(np.array_equal(va, vb))
-                errors.append(_max_norm(va, vb))
+                errors.append(_max_norms(va, vb))
             for field in GRID_FIELDS if on_grids else ():
                 identical &= bool(
                     np.array_equal(
-                        read_frame(a, field, index_a[k]), read_frame(b, field, index_b[k])
+                        read_frames(a, field, index_a[ks]), read_frames(b, field, index_b[ks])
                     )
                 )
-            rows.append((int(common[k]), errors[0] / diameter, errors[0], errors[1], errors[2]))
+            rows += [
+                (int(common[k]), float(e) / diameter, float(e), float(v), float(w))
+                for k, e, v, w in zip(ks, *errors, strict=True)
+            ]
         first_divergence = first_divergence_of(rows, tolerance)
         causes = divergence_causes(a, first_divergence)
     table = np.array([r[1:] for r in rows])

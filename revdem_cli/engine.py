@@ -281,6 +281,7 @@ def _forward(
         return reversed_outputs
     outputs.chosen_dt, outputs.stopped = chosen, stopped
     run.checkpoints.discard()
+    run.checkpoints.finish("its figures were drawn")
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
     return outputs
 
@@ -377,6 +378,7 @@ def _reverse(
             stop, events = clock.first_step, None
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(start.trajectory)
+    run.checkpoints.finish("its comparison and figures were written")
     if forward.exists():
         outputs.forward = forward
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)

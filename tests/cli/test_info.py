@@ -3,6 +3,7 @@
 import json
 
 import h5py
+import numpy as np
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
@@ -103,3 +104,17 @@ def test_a_stage_of_automatic_time_step_says_so():
                    "frames": 2, "first_step": 0, "last_step": 1}
     )  # fmt: skip
     assert "compress (" in lines[3] and "steps of dt chosen at its start, reversed)" in lines[3]
+
+
+def test_frames_read_at_once_are_the_frames_read_one_by_one(smoke_run):
+    """`read_frames`, which the comparison reads a block of frames with, in any order, dense
+    (one slab) or sparse (the rows alone), gives each frame `read_frame` gives."""
+    from revdem_cli.io.h5md import open_trajectory, read_frame, read_frames
+
+    with open_trajectory(smoke_run / "collision_smoke.forward.h5") as f:
+        count = len(f["particles/all/position/step"])
+        for indices in ([3, 4, 5, 6], [6, 5, 4, 3], [0, count - 1], [count - 1, 2, 7], []):
+            got = read_frames(f, "velocity", np.array(indices, dtype=np.int64))
+            assert got.shape == (len(indices), 2, 3)
+            for row, index in zip(got, indices, strict=True):
+                assert np.array_equal(row, read_frame(f, "velocity", index))

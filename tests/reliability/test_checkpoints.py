@@ -529,3 +529,26 @@ def test_resume_keeps_a_finished_sweep_and_refuses_one_of_other_values(tmp_path)
     assert (tmp_path / "sweep.csv").read_text() == table
     fresh = [*args[:-4], "--out", str(tmp_path / "none"), "--resume"]
     assert_one_line_error(CliRunner().invoke(app, fresh), "no sweep there")
+
+
+def test_a_signal_after_the_last_step_stops_the_run_at_once(tmp_path):
+    """After its last step a run compares and draws (24 s for the 30 001 frames of a long
+    collision, before the comparison read frames in blocks); a signal then was only noted,
+    and the run went on to exit 0. Now it stops at once, as `Unfinished`, whether it comes
+    during that work or came after the last halt check."""
+    from revdem_cli.checkpoint import Checkpoints, Unfinished
+
+    checkpoints = Checkpoints(tmp_path / "x.checkpoint.h5", 60.0)
+    with checkpoints.on_signals():
+        checkpoints.finish("its comparison was written")
+        with pytest.raises(Unfinished, match="^SIGINT after the last step, before its compar"):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5.0)  # Python runs the handler, which raises, at once
+    late = Checkpoints(tmp_path / "y.checkpoint.h5", 60.0)
+    with late.on_signals():
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.1)
+        with pytest.raises(Unfinished, match="^SIGTERM after the last step") as stopped:
+            late.finish("its figures were drawn")
+    assert stopped.value.exit_code == 143
+    assert not list(tmp_path.iterdir())  # no checkpoint: the run's files are whole
