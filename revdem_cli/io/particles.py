@@ -5,8 +5,9 @@ which OVITO, VMD and LAMMPS' own tools read) and a LAMMPS data file of the last 
 
 Each takes the frames of a revdem H5MD trajectory as they are: each sphere's id, type (its
 material, numbered from 1 in the order of [materials]), radius, position and velocity, and
-the box at each frame, the periodic cell [0, L) where the run had one, else the bounding box
-of the spheres (open boundaries).
+the box at each frame, the periodic cell [0, L) where the run had one, else the spheres'
+bounding box over the whole trajectory (open boundaries): one box for every frame, so that
+a viewer's positions relative to it (GSD's, from its centre) keep their displacements.
 """
 
 from __future__ import annotations
@@ -18,7 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from revdem_cli.io.h5md import frame_steps, open_trajectory, read_contacts, read_frame
+from revdem_cli.io.h5md import frame_steps, open_trajectory, read_contacts, read_frame, read_frames
+
+BLOCK_VALUES = 1 << 20
+"""Position values read at once to find the bounding box of every frame (8 MB)."""
 
 
 @dataclass(frozen=True)
@@ -54,14 +58,13 @@ def frames(
         periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
         steps = frame_steps(f)
+        if not periodic:
+            lower, upper = _bounding_box(f, radius, len(steps))
         for k in range(len(steps) - 1 if last_only else 0, len(steps)):
             step = steps[k]
             position = read_frame(f, "position", k)
             if periodic:
                 lower, upper = np.zeros(3), particles["box/edges/value"][k]
-            else:
-                lower = (position - radius[:, None]).min(axis=0)
-                upper = (position + radius[:, None]).max(axis=0)
             yield Frame(int(step), float(times[k]), lower, upper, periodic, ids, species + 1,
                         radius, mass, position, read_frame(f, "velocity", k),
                         read_frame(f, "angular_velocity", k), read_contacts(f, k))  # fmt: skip
@@ -69,12 +72,25 @@ def frames(
                 progress(Path(trajectory).name, k + 1, len(steps))
 
 
+def _bounding_box(f, radius: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) corners of the box that holds every sphere of the `count` frames of
+    the open trajectory `f`, m."""
+    lower, upper = np.full(3, np.inf), np.full(3, -np.inf)
+    per_block = max(1, BLOCK_VALUES // (3 * max(1, len(radius))))
+    for start in range(0, count, per_block):
+        block = read_frames(f, "position", np.arange(start, min(count, start + per_block)))
+        lower = np.minimum(lower, (block - radius[:, None]).min(axis=(0, 1)))
+        upper = np.maximum(upper, (block + radius[:, None]).max(axis=(0, 1)))
+    return lower, upper
+
+
 def export_lammps_dump(
     trajectory: str | Path, path: str | Path, progress: FrameProgress | None = None
 ) -> Path:
     """Every frame as a LAMMPS `dump custom` text file: ITEM: TIMESTEP, NUMBER OF ATOMS, BOX
     BOUNDS (pp on periodic axes, ff on open ones) and ATOMS id type radius x y z vx vy vz,
-    in SI units, 17 significant digits (positions exactly as stored)."""
+    in SI units, 17 significant digits (positions exactly as stored: in a periodic cell,
+    where they are not wrapped into it, as LAMMPS' unwrapped xu yu zu)."""
     from revdem_cli.io import write_text
 
     path = Path(path)
@@ -84,7 +100,8 @@ def export_lammps_dump(
         lines += ["ITEM: TIMESTEP", str(frame.step), "ITEM: NUMBER OF ATOMS", str(len(frame.id))]
         lines += [f"ITEM: BOX BOUNDS {bounds}"]
         lines += [f"{lo:.17g} {hi:.17g}" for lo, hi in zip(frame.lower, frame.upper, strict=True)]
-        lines += ["ITEM: ATOMS id type radius x y z vx vy vz"]
+        xyz = "xu yu zu" if frame.periodic else "x y z"
+        lines += [f"ITEM: ATOMS id type radius {xyz} vx vy vz"]
         table = np.column_stack([frame.radius, frame.position, frame.velocity])
         lines += [
             f"{i} {t} " + " ".join(f"{v:.17g}" for v in row)
@@ -117,8 +134,8 @@ def export_gsd(
     trajectory: str | Path, path: str | Path, progress: FrameProgress | None = None
 ) -> Path:
     """Every frame as a GSD file (the `gsd` package, HOOMD schema): positions relative to
-    the box's centre (HOOMD's boxes are centred on the origin), diameters, velocities, the
-    box edges, the step, and each sphere's id, which the schema lacks, as the logged
+    the box's centre (HOOMD's boxes are centred on the origin), diameters, masses,
+    velocities, the box edges, the step, and each sphere's id, which the schema lacks, as the logged
     per-particle quantity `particles/Particle Identifier` (OVITO's name for ids, which it
     reads as that property, as from a LAMMPS dump). GSD stores float32: positions to about
     1e-7 of the box."""
@@ -143,6 +160,7 @@ def export_gsd(
                 centre = 0.5 * (frame.lower + frame.upper)
                 snapshot.particles.position = (frame.position - centre).astype(np.float32)
                 snapshot.particles.diameter = (2.0 * frame.radius).astype(np.float32)
+                snapshot.particles.mass = frame.mass.astype(np.float32)
                 snapshot.particles.velocity = frame.velocity.astype(np.float32)
                 snapshot.particles.typeid = (frame.type - 1).astype(np.uint32)
                 snapshot.particles.types = materials

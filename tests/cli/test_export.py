@@ -139,10 +139,12 @@ def test_ovito_reads_every_frame_of_an_export(packings, kind, fmt, tmp_path):
     with h5py.File(trajectory, "r") as f:
         position = f["particles/all/position/value"][:]
         radius = f["particles/all/radius"][:]
+        mass = f["particles/all/mass"][:]
         ids = f["particles/all/id"][:]
         edges = f["particles/all/box/edges/value"][:]
     pipeline = import_file(str(target))
     assert pipeline.source.num_frames == len(position) > 3
+    offsets = []
     for frame in (0, len(position) // 2, len(position) - 1):
         data = pipeline.compute(frame)
         assert data.particles.count == len(radius)
@@ -150,16 +152,23 @@ def test_ovito_reads_every_frame_of_an_export(packings, kind, fmt, tmp_path):
         seen = np.asarray(data.particles.positions)
         if fmt == "gsd":
             np.testing.assert_allclose(np.asarray(data.particles["Radius"]), radius, rtol=1e-6)
+            np.testing.assert_allclose(np.asarray(data.particles["Mass"]), mass, rtol=1e-6)
             centre = data.cell[:, 3] + 0.5 * data.cell[:, :3].diagonal()
             lower = position[frame] - seen  # the box's centre, the same for every sphere
             np.testing.assert_allclose(lower - lower[0], 0.0, atol=1e-6 * edges[frame].max())
             assert np.abs(centre).max() < 1e-6 * edges[frame].max()
+            offsets.append(lower[0])
         else:  # 17 digits: OVITO reads positions to an ulp or two, radii into float32
             np.testing.assert_allclose(np.asarray(data.particles["Radius"]), radius, rtol=3e-7)
             np.testing.assert_allclose(seen, position[frame], rtol=0, atol=1e-15 * edges.max())
         if kind == "fcc":
             np.testing.assert_allclose(data.cell[:, :3].diagonal(), edges[frame], rtol=1e-6)
             assert all(data.cell.pbc)
+    if fmt == "lammps-dump":  # unwrapped in a periodic cell: LAMMPS' xu yu zu, not x y z
+        columns = "xu yu zu" if kind == "fcc" else "x y z"
+        assert f"ITEM: ATOMS id type radius {columns} vx vy vz\n" in target.read_text()
+    if fmt == "gsd" and kind == "oedometer":  # open: one box, so displacements are kept
+        np.testing.assert_allclose(np.array(offsets) - offsets[0], 0.0, atol=1e-6 * edges.max())
 
 
 def _contacts(trajectory: Path, frame: int) -> dict[str, np.ndarray]:
