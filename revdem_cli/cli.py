@@ -536,7 +536,8 @@ def sweep(
     }
     for path in tables:
         typer.echo(f"wrote {path}")
-    typer.echo(f"{len(rows)} variants, {count[FAILED]} failed")
+    if not signum:  # stopped, the line below counts each status
+        typer.echo(f"{len(rows)} variants, {count[FAILED]} failed")
     for row in rows:
         if row["status"] == FAILED:
             typer.echo(f"failed: {row['folder']}: {row['error']}", err=True)

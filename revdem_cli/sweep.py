@@ -105,6 +105,9 @@ def parse_sets(sets: list[str], origin: str = "") -> dict[str, list[str]]:
         key, values = key.strip(), split_values(raw)
         if not sep or not key or "" in values:
             raise InputError(f"{where}: expected key=value or key=value1,value2,...")
+        twice = next((value for k, value in enumerate(values) if value in values[:k]), None)
+        if twice is not None:
+            raise InputError(f"{where}: {key}: {twice} is given twice; a variant runs once")
         if key in grid:
             raise InputError(
                 f"{where}: {key} is given twice (also in {given[key]}); give its values "
@@ -235,7 +238,11 @@ def _client(scheduler: str | None, workers: int, threads: int | None):
     from revdem_cli.threads import available
 
     if scheduler:
-        with Client(scheduler) as client:
+        try:
+            client = Client(scheduler)
+        except ValueError as exc:  # not an address; one that does not answer is an OSError
+            raise InputError(f"--scheduler {scheduler}: {exc}") from None
+        with client:
             yield client
         return
     with (
@@ -363,26 +370,27 @@ def _run_pending(
     if not pending:
         return 0
     stop_file.unlink(missing_ok=True)
-    stop_file.parent.mkdir(parents=True, exist_ok=True)
     try:
-        with _client(*cluster) as client, _stopping(stop_file):
-            futures = {
-                client.submit(
-                    run_variant,
-                    scenario.model_dump_json(),
-                    text,
-                    suffix,
-                    folder,
-                    allow_unstable_dt,
-                    stop_file,
-                    key=f"variant-{folder.name}",
-                ): index
-                for (scenario, text), folder, index in pending
-            }
-            for future in as_completed(futures):
-                results[futures[future]] = _result_of(future)
-                if progress is not None:
-                    progress("variants", len(results), total)
+        with _client(*cluster) as client:
+            stop_file.parent.mkdir(parents=True, exist_ok=True)
+            with _stopping(stop_file):
+                futures = {
+                    client.submit(
+                        run_variant,
+                        scenario.model_dump_json(),
+                        text,
+                        suffix,
+                        folder,
+                        allow_unstable_dt,
+                        stop_file,
+                        key=f"variant-{folder.name}",
+                    ): index
+                    for (scenario, text), folder, index in pending
+                }
+                for future in as_completed(futures):
+                    results[futures[future]] = _result_of(future)
+                    if progress is not None:
+                        progress("variants", len(results), total)
         return stop_asked(stop_file)
     finally:
         stop_file.unlink(missing_ok=True)

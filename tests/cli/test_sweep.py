@@ -207,3 +207,21 @@ def test_a_bad_value_of_a_list_is_named_by_its_variant(tmp_path):
     result = CliRunner().invoke(app, [*args, "--set", "contact.friction=0.1,-0.3"])
     assert_one_line_error(result, "error: variant contact.friction=-0.3: ", "greater than or equal")
     assert not list(tmp_path.iterdir())  # refused before any variant ran
+
+
+def test_a_scheduler_address_that_is_none_is_one_line(tmp_path):
+    """`--scheduler notanaddress` printed dask's traceback of 60 lines, exit 1."""
+    args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--set", "stages.0.steps=10,20"]
+    out = tmp_path / "out"
+    result = runner.invoke(app, [*args, "--out", str(out), "--scheduler", "notanaddress", "-q"])
+    assert_one_line_error(result, "error: --scheduler notanaddress: missing port number")
+    assert not out.exists()
+
+
+def test_a_value_given_twice_in_a_list_is_refused(tmp_path):
+    """`contact.friction=0.1,0.1` ran the same variant twice."""
+    args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--out", str(tmp_path)]
+    result = runner.invoke(app, [*args, "--set", "contact.friction=0.1,0.3,0.1"])
+    assert_one_line_error(result, "--set contact.friction=0.1,0.3,0.1: contact.friction: 0.1")
+    assert "given twice" in result.output
+    assert not list(tmp_path.iterdir())
