@@ -301,3 +301,37 @@ def resume(out: str | Path, progress=False) -> Result:
 
     with _progress(progress) as shown:
         return Result(resume_run(Path(out), shown))
+
+
+def read(out: str | Path, name: str | None = None) -> Result:
+    """The Result of a run written earlier into the folder `out` (by `revdem run`, a sweep's
+    variant, this module): its forward trajectory, and its restart, reversed trajectory,
+    comparison and figures where they are there; `name`, the scenario's, where `out` holds
+    several runs. The trajectory is checked as every command checks it."""
+    import json
+
+    from revdem_cli.engine import output_paths
+    from revdem_cli.io.h5md import open_trajectory
+
+    out = Path(out)
+    if not out.is_dir():
+        raise InputError(f"{out}: {'a file, not' if out.exists() else 'no'} folder of a run")
+    if name is None:
+        names = sorted(p.name.removesuffix(".forward.h5") for p in out.glob("*.forward.h5"))
+        if len(names) != 1:
+            found = f"the runs {', '.join(names)}; give name=" if names else "no run"
+            raise InputError(f"{out}: {found} (NAME.forward.h5)")
+        name = names[0]
+    paths = {
+        kind: path if path.exists() else None for kind, path in output_paths(out, name).items()
+    }
+    if paths["forward"] is None:
+        raise InputError(f"{out}: no run {name} ({name}.forward.h5)")
+    open_trajectory(paths["forward"]).close()
+    verdict = json.loads(paths["compare"].read_text()) if paths["compare"] else None
+    figures = tuple(sorted(out.glob(f"{name}.*.png")))
+    return Result(
+        Outputs(
+            paths["forward"], paths["restart"], paths["reverse"], paths["compare"], figures, verdict
+        )
+    )

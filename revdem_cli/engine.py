@@ -42,7 +42,7 @@ class Outputs:
     reverse: Path | None = None
     comparison: Path | None = None
     figures: tuple[Path, ...] = ()
-    verdict: dict | None = None
+    verdict: dict | None = field(default=None, repr=False)  # compare.json's, every frame's
     chosen_dt: dict[str, float] = field(default_factory=dict)  # stages of dt = 'auto', s
     # stages a stop condition ended: (steps run, steps at most, steps between its checks)
     stopped: dict[str, tuple[int, int, int]] = field(default_factory=dict)

@@ -83,3 +83,27 @@ def test_what_a_script_gives_wrongly_is_refused_before_anything_runs(tmp_path):
         with pytest.raises(InputError, match=f"^frame {frame!r}: the trajectory has {frames}"):
             result.contacts(frame)
     assert revdem.run(collision, tmp_path / "path", reverse=False, force=True).comparison is None
+
+
+def test_an_earlier_run_is_read_back_as_the_result_it_gave(tmp_path):
+    """`revdem.read(folder)` gives the Result of a run written before (there was no way to
+    open one): its paths, its verdict as compare.json holds it, its arrays; a folder of no
+    run, or of several without a name, is refused naming what it holds."""
+    experiment = revdem.load(CONFIGS / "smoke" / "collision.yaml").changed({"stages.0.steps": 300})
+    ran = revdem.run(experiment, tmp_path / "a")
+    read = revdem.read(tmp_path / "a")
+    assert (read.outputs.forward, read.outputs.reverse) == (
+        ran.outputs.forward,
+        ran.outputs.reverse,
+    )
+    assert read.comparison == ran.comparison and read.comparison["reversible"]
+    steps, _, velocity = read.frames("velocity", "reverse")  # the reversal, from step 300
+    assert steps[0] == 300 and steps[-1] == 0 and velocity.shape == (len(steps), 2, 3)
+    assert "verdict" not in repr(read.outputs)  # every frame's errors are not printed
+    revdem.run(experiment.changed({"name": "other"}), tmp_path / "a", reverse=False)
+    with pytest.raises(InputError, match="the runs collision_smoke, other; give name="):
+        revdem.read(tmp_path / "a")
+    forward_only = revdem.read(tmp_path / "a", "other")
+    assert forward_only.comparison is None and forward_only.outputs.reverse is None
+    with pytest.raises(InputError, match="no run"):
+        revdem.read(tmp_path)
