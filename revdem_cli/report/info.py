@@ -73,6 +73,7 @@ def _stopping(condition: dict | None) -> str:
 
 
 def _trajectory(path: Path, f: h5py.File) -> dict:
+    from revdem_cli.checkpoint import checkpoint_path
     from revdem_cli.compare import read_verdict
 
     attrs = f["parameters/revdem"].attrs
@@ -87,6 +88,9 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
         "first_step": int(steps[0]) if len(steps) else None,
         "last_step": int(steps[-1]) if len(steps) else None,
     }
+    checkpoint = checkpoint_path(path.parent, info["scenario"])
+    if checkpoint.exists():  # the run stopped, or is going on
+        info["checkpoint"] = str(checkpoint)
     comparison = path.with_name(f"{info['scenario']}.compare.json")
     if comparison.exists():
         verdict = read_verdict(comparison)
@@ -192,6 +196,11 @@ def info_lines(info: dict) -> list[str]:
         lines.append(
             f"frames:     {info['frames']}, steps {info['first_step']} to {info['last_step']}"
         )
+        if "checkpoint" in info:
+            lines.append(
+                f"unfinished: {info['checkpoint']} is beside it (the run stopped, or goes on); "
+                f"continue with revdem run --resume {Path(info['file']).parent}"
+            )
     elif info["kind"] == "checkpoint":
         lines.append(
             f"step:       {info['step']} (in stage {info['stage']}, dt {info['stage_dt']:.6g} s)"

@@ -24,6 +24,28 @@ def test_a_forward_trajectory_shows_its_run_and_the_reversal_verdict(smoke_run):
     assert "reversal:   reversible" in result.output
 
 
+def test_the_trajectory_of_a_stopped_run_says_so_and_how_to_go_on(tmp_path, smoke_run):
+    """A killed run's trajectory showed its frames as a whole run's; its checkpoint beside
+    it now says that the run is unfinished, and how to continue it. A finished run's does
+    not (the smoke run above)."""
+    from revdem_cli import api as revdem
+    from tests.conftest import CONFIGS, crashed_after
+
+    experiment = revdem.load(CONFIGS / "smoke" / "collision.yaml").changed(
+        {"output.checkpoint_interval": 0.0}
+    )
+    crashed_after(experiment, tmp_path, 5)
+    result = info(tmp_path / "collision_smoke.forward.h5")
+    assert result.exit_code == 0, result.output
+    assert (
+        f"unfinished: {tmp_path / 'collision_smoke.checkpoint.h5'} is beside it (the run "
+        f"stopped, or goes on); continue with revdem run --resume {tmp_path}"
+    ) in result.output
+    summary = json.loads(info(tmp_path / "collision_smoke.forward.h5", "--json").output)
+    assert summary["checkpoint"] == str(tmp_path / "collision_smoke.checkpoint.h5")
+    assert "unfinished" not in info(smoke_run / "collision_smoke.forward.h5").output
+
+
 def test_json_summary_of_a_reversed_trajectory(smoke_run):
     result = info(smoke_run / "collision_smoke.reverse.h5", "--json")
     assert result.exit_code == 0, result.output
