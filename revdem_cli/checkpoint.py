@@ -9,7 +9,10 @@ is the one an uninterrupted run writes.
 SIGINT and SIGTERM stop a run at the next whole step, wherever it falls between frames,
 with a checkpoint there: the compiled stage loop runs in the main thread (`threads.Stepper`),
 where Python's handler waits for it to return, so each signal also wakes a watcher thread
-(`signal.set_wakeup_fd`), which sets the flag the loop reads at every step.
+(`signal.set_wakeup_fd`), which sets the flag the loop reads at every step. After the last
+step a signal stops the comparison and figures at once (`Unfinished`). A run off the main
+thread, a sweep's variant on a dask worker, takes no signal: a stop file the sweep writes
+sets the same flag (`polling`).
 """
 
 from __future__ import annotations

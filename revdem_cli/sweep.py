@@ -2,8 +2,10 @@
 reversed) in parallel on a dask.distributed cluster, one table of results.
 
 Each variant runs in its own folder under the sweep's output directory. The results table
-(`sweep.csv` and `sweep.h5`) holds, per variant, its folder, the values set, the verdict of
-the reversal and the final kinetic and total energies of the forward run.
+(`sweep.csv` and `sweep.h5`) holds, per variant, its folder, the values set, its status,
+the verdict of the reversal and the final kinetic and total energies of the forward run.
+SIGINT or SIGTERM stops the running variants with checkpoints (`_stopping`, the stop file
+their runs poll) and writes the table; `--resume` goes on from it (`_earlier_results`).
 
 A sweep file is a TOML file with `kind = "sweep"`, the scenario it varies (a path relative
 to the file) and the same `set` strings as the command line (a field is set once in each; a
