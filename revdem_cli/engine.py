@@ -46,6 +46,8 @@ class Outputs:
     chosen_dt: dict[str, float] = field(default_factory=dict)  # stages of dt = 'auto', s
     # stages a stop condition ended: (steps run, steps at most, steps between its checks)
     stopped: dict[str, tuple[int, int, int]] = field(default_factory=dict)
+    # stages that ran all their steps with their stop condition never met: the condition
+    unmet: dict[str, dict] = field(default_factory=dict)
 
 
 def output_paths(out_dir: Path, name: str) -> dict[str, Path]:
@@ -224,7 +226,7 @@ def _forward(
     scenario, paths = run.scenario, run.paths
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
-    chosen, stopped = {}, {}
+    chosen, stopped, unmet = {}, {}, {}
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
             stage = scenario.stages[index]
@@ -263,6 +265,8 @@ def _forward(
             if state.step != clock.last_step:  # its stop condition ended it
                 ran = state.step - clock.first_step
                 stopped[stage.name] = (ran, stage.steps, stage.observable_interval)
+            elif stage.stop_when is not None:
+                unmet[stage.name] = stage.stop_when.model_dump(exclude_none=True)
             time = float(clock.time(state.step))
             if index < len(scenario.stages) - 1 and scenario.reversal.all_stages:
                 stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
@@ -278,8 +282,9 @@ def _forward(
         reversed_outputs = _reverse(run, restart, source, None, progress)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
         reversed_outputs.chosen_dt, reversed_outputs.stopped = chosen, stopped
+        reversed_outputs.unmet = unmet
         return reversed_outputs
-    outputs.chosen_dt, outputs.stopped = chosen, stopped
+    outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
     run.checkpoints.discard()
     run.checkpoints.finish("its figures were drawn")
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)

@@ -62,14 +62,14 @@ def _scheme(info: dict) -> str:
     )
 
 
-def _stopping(condition: dict | None) -> str:
-    """A stage's stop condition as `info` prints it: ', until kinetic_energy_below 1e-07'."""
+def stop_condition(condition: dict | None) -> str:
+    """A stage's stop condition in words, 'kinetic_energy_below 1e-07'; '' for none."""
     if not condition:
         return ""
     (name, value), *_ = condition.items()
     if isinstance(value, dict):
         value = " ".join(f"{key} {item}" for key, item in value.items())
-    return f", until {name} {value}"
+    return f"{name} {value}"
 
 
 def _trajectory(path: Path, f: h5py.File) -> dict:
@@ -149,6 +149,11 @@ def _tape_of(path: Path, name: str) -> dict:
     return {"tape": summary(tape)} if name and tape.is_file() else {}
 
 
+def _until(condition: dict | None) -> str:
+    """A stage's stop condition as `info` prints it: ', until kinetic_energy_below 1e-07'."""
+    return f", until {stop_condition(condition)}" if condition else ""
+
+
 def _time_step(dt: float | str) -> str:
     return "dt chosen at its start" if dt == "auto" else f"{dt:.6g} s"
 
@@ -176,7 +181,7 @@ def info_lines(info: dict) -> list[str]:
         ]
     stages = ", ".join(
         f"{s['name']} ({'at most ' if s['stop_when'] else ''}{s['steps']} steps of "
-        f"{_time_step(s['dt'])}{_stopping(s['stop_when'])}{', reversed' if s['reverse'] else ''})"
+        f"{_time_step(s['dt'])}{_until(s['stop_when'])}{', reversed' if s['reverse'] else ''})"
         for s in info["stages"]
     )
     lines = [

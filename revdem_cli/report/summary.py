@@ -5,6 +5,8 @@ from __future__ import annotations
 from rich.console import Console
 from rich.table import Table
 
+from revdem_cli.report.info import stop_condition
+
 
 def comparison_table(verdict: dict) -> Table:
     """The forward-versus-reversed comparison as a table."""
@@ -81,6 +83,11 @@ def print_summary(outputs, console: Console | None = None) -> None:
     for stage, (ran, most, every) in outputs.stopped.items():
         first = ", at its first check: its condition held from its start" if ran <= every else ""
         line = f"  {'stopped':<20} stage {stage} after {ran} of {most} steps{first}"
+        console.print(line, soft_wrap=True)
+    for stage, condition in outputs.unmet.items():
+        line = (
+            f"  {'not met':<20} stage {stage} ran all its steps without {stop_condition(condition)}"
+        )
         console.print(line, soft_wrap=True)
     if outputs.verdict is not None:
         console.print(verdict_line(outputs.verdict))

@@ -149,6 +149,11 @@ def test_a_wall_pushing_down_stops_when_its_force_exceeds_the_target(tmp_path):
         steps = f["observables/wall_force/lid/step"][:]
     assert steps[-1] < 4000 + 20000  # stopped early
     assert lid[-1] > 0.02 and (lid[steps <= steps[-1] - 100] <= 0.02).all()
+    assert outputs.unmet == {}
+    data["stages"][1]["steps"] = 1000  # the lid does not reach the packing: not met, and said
+    outputs = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path / "short")
+    assert "press" not in outputs.stopped
+    assert outputs.unmet == {"press": {"wall_force_above": {"wall": "lid", "force": 0.02}}}
 
 
 def test_the_summary_says_where_a_stop_condition_ended_a_stage_and_when_at_once():
@@ -159,9 +164,15 @@ def test_the_summary_says_where_a_stop_condition_ended_a_stage_and_when_at_once(
     from revdem_cli.report import summary
 
     console = Console(record=True, width=200)
-    outputs = Outputs(stopped={"settle": (28000, 60000, 500), "pour": (500, 200000, 500)})
+    outputs = Outputs(
+        stopped={"settle": (28000, 60000, 500), "pour": (500, 200000, 500)},
+        unmet={"rest": {"kinetic_energy_below": 1e-8}},
+    )
     summary.print_summary(outputs, console)
     lines = console.export_text().splitlines()
     assert lines[0].split() == "stopped stage settle after 28000 of 60000 steps".split()
     assert lines[1].endswith("pour after 500 of 200000 steps, at its first check: its "
                              "condition held from its start")  # fmt: skip
+    assert lines[2].split() == (  # a stage that ran all its steps: its condition not met
+        "not met stage rest ran all its steps without kinetic_energy_below 1e-08".split()
+    )
