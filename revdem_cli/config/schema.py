@@ -155,6 +155,11 @@ class _Contact(_Model):
                     raise ValueError(f"{selector} = '{name}' needs {field}: {description}")
         if self.tangential != "none" and self.friction is None:
             raise ValueError("a tangential law needs friction (mu; inf for no sliding)")
+        if self.tangential == "none" and self.friction is not None:
+            raise ValueError(
+                "friction needs a tangential law (tangential = 'mindlin', ...): frictionless "
+                "spheres have no shear force to cap"
+            )
         if self.rolling != "none" and self.tangential == "none":
             raise ValueError(
                 "rolling resistance needs a tangential law: the spheres turn only under "

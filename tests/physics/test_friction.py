@@ -43,7 +43,7 @@ def on_plane(
             "contact": {
                 "model": "hertz",
                 "tangential": tangential,
-                "friction": friction,
+                **({"friction": friction} if tangential != "none" else {}),
                 **shear,
                 **contact,
             },

@@ -97,7 +97,8 @@ def in_a_row(names: list[str], overlap: float, tangential: str) -> Scenario:
         {
             "name": "row",
             "materials": {name: ELASTIC[name] for name in dict.fromkeys(names)},
-            "contact": {"model": "hertz", "tangential": tangential, "friction": 0.5},
+            "contact": {"model": "hertz", "tangential": tangential}
+            | ({"friction": 0.5} if tangential != "none" else {}),
             "particles": [
                 {"material": name, "radius": R, "position": (k * (2 * R - overlap), 0, 0)}
                 for k, name in enumerate(names)

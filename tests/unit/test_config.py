@@ -51,6 +51,8 @@ def test_overrides_reach_nested_fields_and_list_items():
         ("contact.kn=nan", "contact.kn"),
         ("integrator.dt='fast'", "integrator.dt: Input should be a valid number"),
         ("stages.0.colour='red'", "stages[0].colour: unknown field"),
+        # was silently ignored, where the same in a stage's [contact] is refused
+        ("contact.friction=0.5", "contact: friction needs a tangential law"),
         (
             "particles.1.position=[0.005, 0, 0]",
             "particles[1].position: sphere 1 of particles overlaps sphere 0 of",
