@@ -22,6 +22,7 @@ from pydantic import (
     PrivateAttr,
     WithJsonSchema,
     create_model,
+    field_validator,
     model_validator,
 )
 
@@ -354,6 +355,17 @@ class ParticlesFrom(_Model):
     materials: dict[str, str] = Field(
         min_length=1, description="the material in [materials] of each LAMMPS atom type, by type"
     )
+
+    @field_validator("materials", mode="before")
+    @classmethod
+    def _types_as_text(cls, value):
+        """An atom type is a number: YAML's {1: glass} gives it as one, TOML's as text."""
+        if isinstance(value, dict):
+            return {
+                str(k) if isinstance(k, int) and not isinstance(k, bool) else k: v
+                for k, v in value.items()
+            }
+        return value
     periodic: bool = Field(
         strict=True,
         default=False,

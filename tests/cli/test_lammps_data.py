@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -281,3 +282,18 @@ def test_an_open_box_must_hold_its_atoms_as_lammps_read_data_demands(tmp_path, x
         result, "particles_from[0].lammps_data", "atom 2 of", "lies at [0.05, 0.01, 0.01]",
         "outside its box [0.0, 0.0, 0.0] to [0.04, 0.04, 0.04]",
     )  # fmt: skip
+
+
+def test_atom_types_written_as_yaml_numbers_name_their_materials(tmp_path):
+    """YAML's `materials: {1: sphere}` gives the atom type as a number, as LAMMPS numbers
+    types; it was refused ('[key]: Input should be a valid string')."""
+    import yaml
+
+    toml = tomllib.loads(_scenario(tmp_path, DATA / "fcc_step0.data").read_text())
+    toml["particles_from"][0]["materials"] = {1: "sphere"}
+    path = tmp_path / "from_lammps.yaml"
+    path.write_text(yaml.safe_dump(toml))
+    assert "1: sphere" in path.read_text()
+    scenario, _ = load_scenario(path, [])
+    assert scenario.particles_from[0].materials == {"1": "sphere"}
+    assert scenario.sphere_count == read_header(DATA / "fcc_step0.data")[0]
