@@ -63,7 +63,12 @@ def check_consistency(scenario) -> None:
             raise FieldError(f"stages[{i}].name", f"stage name '{name}' is used twice")
     reversed_stages = [i for i, stage in enumerate(scenario.stages) if stage.reverse]
     if len(reversed_stages) > 1:
-        raise FieldError(f"stages[{reversed_stages[1]}].reverse", "only one stage can be reversed")
+        marked = " and ".join(f"stages[{i}]" for i in reversed_stages)
+        raise FieldError(
+            f"stages[{reversed_stages[0]}].reverse",
+            f"only one stage can be reversed, the last; {marked} are marked (reversal.all_stages "
+            "reverses every stage)",
+        )
     if reversed_stages and reversed_stages[0] != len(scenario.stages) - 1:
         raise FieldError(
             f"stages[{reversed_stages[0]}].reverse", "the reversed stage must be the last stage"

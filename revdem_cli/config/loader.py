@@ -35,10 +35,38 @@ def describe_validation_error(error: ValidationError) -> str:
     if first["type"] == "missing":
         message = "missing required field"
     elif first["type"] == "extra_forbidden":
-        message = "unknown field"
+        message = "unknown field" + _did_you_mean(first["loc"])
     text = f"{path}: {message}" if path else message
     more = len(error.errors()) - 1
     return text + (f" (and {more} more problem{'s' * (more > 1)})" if more else "")
+
+
+def _did_you_mean(location: tuple) -> str:
+    """' (did you mean NAME?)' for the field of the model at `location` whose name is
+    closest to the unknown one there; '' where none is close."""
+    import difflib
+    import typing
+
+    from pydantic import BaseModel
+
+    model, *parents = Scenario, *location[:-1]
+    for part in parents:
+        fields = getattr(model, "model_fields", None)
+        if fields is not None and isinstance(part, str) and part in fields:
+            model = fields[part].annotation
+        elif typing.get_origin(model) in (list, tuple, dict):
+            model = typing.get_args(model)[-1]
+        else:
+            return ""
+        while typing.get_origin(model) is typing.Union or type(model).__name__ == "UnionType":
+            options = [a for a in typing.get_args(model) if a is not type(None)]
+            if len(options) != 1:
+                return ""
+            model = options[0]
+    if not (isinstance(model, type) and issubclass(model, BaseModel)):
+        return ""
+    close = difflib.get_close_matches(str(location[-1]), list(model.model_fields), n=1)
+    return f" (did you mean {close[0]}?)" if close else ""
 
 
 _YAML_FLOAT = re.compile(r"^(?:[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+|[-+]?inf)$", re.I)

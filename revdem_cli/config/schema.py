@@ -366,6 +366,7 @@ class ParticlesFrom(_Model):
                 for k, v in value.items()
             }
         return value
+
     periodic: bool = Field(
         strict=True,
         default=False,

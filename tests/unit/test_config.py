@@ -51,6 +51,15 @@ def test_overrides_reach_nested_fields_and_list_items():
         ("contact.kn=nan", "contact.kn"),
         ("integrator.dt='fast'", "integrator.dt: Input should be a valid number"),
         ("stages.0.colour='red'", "stages[0].colour: unknown field"),
+        (
+            "contact.normal_dampin=0.1",
+            "contact.normal_dampin: unknown field (did you mean normal_damping?)",
+        ),
+        ("stages.0.stop_whn=1", "stages[0].stop_whn: unknown field (did you mean stop_when?)"),
+        (
+            "materials.sphere.densty=1",
+            "materials.sphere.densty: unknown field (did you mean density?)",
+        ),
         # was silently ignored, where the same in a stage's [contact] is refused
         ("contact.friction=0.5", "contact: friction needs a tangential law"),
         (
@@ -79,6 +88,13 @@ def test_only_the_last_stage_can_be_reversed():
     )
     with pytest.raises(InputError, match=r"stages\[0\]\.reverse: the reversed stage must be"):
         scenario_from_text(text, ".yaml", "pair.yaml")
+    both = text.replace("{name: settle, steps: 5}", "{name: settle, steps: 5, reverse: true}")
+    with pytest.raises(InputError) as error:  # the message named the later stage alone
+        scenario_from_text(both, ".yaml", "pair.yaml")
+    assert (
+        "stages[0].reverse: only one stage can be reversed, the last; stages[0] and "
+        "stages[1] are marked" in str(error.value)
+    )
 
 
 def test_the_platens_are_the_planes_across_z():
