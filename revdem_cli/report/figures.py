@@ -33,7 +33,8 @@ def _figure(
     xlabel: str = "time (ms)",
 ) -> Path:
     """Plot series(path) -> [(label, x, values)] for both runs: forward solid, reversed
-    dashed, same colour per series."""
+    dashed, same colour per series; an entry (note, None, None) titles the legend instead
+    (what was left out)."""
     return _panels(forward, reverse, png, [(series, ylabel)], xlabel)
 
 
@@ -56,10 +57,14 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
     for ax, (series, ylabel) in zip(axes[:, 0], panels, strict=True):
         spans = {"forward": [], "reversed": []}
         named = {}  # each series by its colour, once for both runs
+        notes = set()
         for run, path, style in runs:
             if path is None:
                 continue
             for k, (label, x, values) in enumerate(series(path)):
+                if x is None:
+                    notes.add(label)
+                    continue
                 colour = colours[k % len(colours)]
                 ax.plot(x, values, color=colour, **style)
                 named[label] = Line2D([], [], color=colour, lw=2.0)
@@ -71,20 +76,21 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
                 named[run] = Line2D([], [], color="0.3", **style)
         ax.set_ylim(*_limits(*spans.values()))
         ax.set_ylabel(ylabel)
-        _legend(ax, named)
+        _legend(ax, named, "; ".join(sorted(notes)) or None)
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel(xlabel)
     return _save(fig, png)
 
 
-def _legend(ax, named: dict) -> None:
-    """The legend of `named` (label: line) inside the axes where it is short, beside them
-    where its entries would cover the curves (more than 4: eight spheres, six walls)."""
+def _legend(ax, named: dict, title: str | None = None) -> None:
+    """The legend of `named` (label: line), titled `title`, inside the axes where it is
+    short, beside them where its entries would cover the curves (more than 4: eight
+    spheres, six walls)."""
     if len(named) <= 4:
-        ax.legend(named.values(), named.keys(), fontsize=8)
+        ax.legend(named.values(), named.keys(), fontsize=8, title=title, title_fontsize=8)
     else:
-        ax.legend(named.values(), named.keys(), fontsize=7, loc="upper left",
-                  bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # fmt: skip
+        ax.legend(named.values(), named.keys(), fontsize=7, loc="upper left", title=title,
+                  title_fontsize=7, bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # fmt: skip
 
 
 def _limits(forward: list[float], reversed: list[float]) -> tuple[float, float]:
@@ -133,7 +139,10 @@ def _each_sphere(component):
             ids = f["particles/all/id"][:]
         values = component(v)
         count = min(values.shape[1], PLOTTED_SPHERES)
-        return [(particle_named(q, ids), time * 1e3, values[:, q]) for q in range(count)]
+        drawn = [(particle_named(q, ids), time * 1e3, values[:, q]) for q in range(count)]
+        if count < values.shape[1]:
+            drawn.append((f"the first {count} of {values.shape[1]} spheres", None, None))
+        return drawn
 
     return series
 
@@ -235,11 +244,14 @@ def stress_ratios_figure(forward: Path, reverse: Path | None, png: Path) -> Path
 
     def ratios(path):
         compression, principal = read(path, "principal_stress")
-        with np.errstate(divide="ignore", invalid="ignore"):  # no stress yet: not plotted
-            return [
-                ("σ1/σ3", compression, principal[:, 0] / principal[:, 2]),
-                ("σ2/σ3", compression, principal[:, 1] / principal[:, 2]),
-            ]
+        # not plotted where σ3 (compression positive) is not a compression: no contacts, or
+        # a packing pulled apart, whose ratios (-44 in a lattice's brief loss of contacts)
+        # would squeeze the others into a line
+        confined = np.where(principal[:, 2] > 0.0, principal[:, 2], np.nan)
+        return [
+            ("σ1/σ3", compression, principal[:, 0] / confined),
+            ("σ2/σ3", compression, principal[:, 1] / confined),
+        ]
 
     def coordination(path):
         return [("coordination", *read(path, "coordination_number"))]
@@ -275,19 +287,27 @@ def contact_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Pat
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
-    for run, path, style in (
-        ("forward end", forward, {"lw": 2.5, "alpha": 0.5}),
-        ("reversed end", reverse, {"lw": 1.2, "ls": "--"}),
-    ):
-        if path is None:
-            continue
-        forces = _normalised_forces(path)
-        if not len(forces):
-            continue
-        density, edges = np.histogram(forces, bins=40, range=(0.0, max(4.0, forces.max())),
-                                      density=True)  # fmt: skip
-        ax.step(edges[:-1], np.where(density > 0, density, np.nan), where="post",
-                label=f"{run} ({len(forces)} contacts)", **style)  # fmt: skip
+    runs = [
+        (run, _normalised_forces(path), style)
+        for run, path, style in (
+            ("forward end", forward, {"lw": 2.5, "alpha": 0.5}),
+            ("reversed end", reverse, {"lw": 1.2, "ls": "--"}),
+        )
+        if path is not None
+    ]
+    runs = [(run, forces, style) for run, forces, style in runs if len(forces)]
+    # the axis to 4 means or the 99.9th percentile: one force of 32 means in a few hundred
+    # squeezed the rest against the left edge; those beyond are counted in the legend
+    top = max([4.0] + [float(np.quantile(forces, 0.999)) for _, forces, _ in runs])
+    for run, forces, style in runs:
+        density, edges = np.histogram(
+            forces, bins=np.arange(0.0, forces.max() + 0.2, 0.1), density=True
+        )  # bins of a tenth of the mean, as 40 over [0, 4]
+        beyond = int((forces > top).sum())
+        label = f"{run} ({len(forces)} contacts{f', {beyond} beyond the axis' if beyond else ''})"
+        ax.step(edges[:-1], np.where(density > 0, density, np.nan), where="post", label=label,
+                **style)  # fmt: skip
+    ax.set_xlim(0.0, top)
     ax.set_yscale("log")
     ax.set_xlabel("normal contact force / mean")
     ax.set_ylabel("probability density")
@@ -308,6 +328,7 @@ def contact_normals_figure(forward: Path, reverse: Path | None, png: Path) -> Pa
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     contacts = _last_contacts(forward)
     normal = contacts["normal_force"]
@@ -323,6 +344,8 @@ def contact_normals_figure(forward: Path, reverse: Path | None, png: Path) -> Pa
         share = counts / max(weight.sum(), np.finfo(float).tiny)
         ax.bar(edges[:-1], share, width=np.diff(edges), align="edge", alpha=0.7, edgecolor="k")
         ax.set_title(f"contact normals, {plane} plane ({len(n)} contacts)", fontsize=9)
+        ax.yaxis.set_major_locator(MaxNLocator(3))  # radial labels that do not overlap
+        ax.tick_params(axis="y", labelsize=7)
         ax.set_xticks(np.radians([0, 90, 180, 270]), [plane[0], plane[1], f"-{plane[0]}",
                                                       f"-{plane[1]}"])  # fmt: skip
     return _save(fig, png)
