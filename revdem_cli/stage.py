@@ -342,7 +342,7 @@ def run_stage(
                 )
             if status != OK:
                 state.grow_pairs()
-        stopped = _stop_reached(state, model, dyn, stop)
+        stopped = _stop_reached(state, model, dyn, stop, state.step - clock.first_step)
         if target in frame_steps or stopped:
             _write_frame(writer, state, model, clock, events)
             if progress is not None:
@@ -406,9 +406,10 @@ def _likely_cause(scenario: Scenario, dt: float) -> str:
     )
 
 
-def _stop_reached(state: State, model: Model, dyn: Dynamics, stop) -> bool:
-    """Whether a stage's stop condition holds in the state as it is."""
-    if stop is None:
+def _stop_reached(state: State, model: Model, dyn: Dynamics, stop, ran: int) -> bool:
+    """Whether a stage's stop condition holds in the state as it is, `ran` steps into the
+    stage (none before its `after_steps`)."""
+    if stop is None or ran < (stop.after_steps or 0):
         return False
     row = model.observe(state, dyn)
 

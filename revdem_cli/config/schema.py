@@ -485,11 +485,18 @@ class StopWhen(_Model):
     solid_fraction_above: Float | None = Field(
         default=None, gt=0, lt=1, description="the solid fraction of [solid_fraction] above this"
     )
+    after_steps: Int | None = Field(
+        default=None,
+        gt=0,
+        description="steps of the stage before the condition is first checked, -: a pour from "
+        "rest meets kinetic_energy_below at once without it",
+    )
 
     @model_validator(mode="after")
     def _one(self) -> StopWhen:
-        if sum(getattr(self, name) is not None for name in type(self).model_fields) != 1:
-            raise ValueError(f"give exactly one of {', '.join(type(self).model_fields)}")
+        conditions = [name for name in type(self).model_fields if name != "after_steps"]
+        if sum(getattr(self, name) is not None for name in conditions) != 1:
+            raise ValueError(f"give exactly one of {', '.join(conditions)}")
         return self
 
     @property

@@ -63,13 +63,15 @@ def _scheme(info: dict) -> str:
 
 
 def stop_condition(condition: dict | None) -> str:
-    """A stage's stop condition in words, 'kinetic_energy_below 1e-07'; '' for none."""
+    """A stage's stop condition in words, 'kinetic_energy_below 1e-07 (from step 2000 of
+    the stage)'; '' for none."""
     if not condition:
         return ""
-    (name, value), *_ = condition.items()
+    after = condition.get("after_steps")
+    (name, value), *_ = ((k, v) for k, v in condition.items() if k != "after_steps")
     if isinstance(value, dict):
         value = " ".join(f"{key} {item}" for key, item in value.items())
-    return f"{name} {value}"
+    return f"{name} {value}" + (f" (from step {after} of the stage)" if after else "")
 
 
 def _trajectory(path: Path, f: h5py.File) -> dict:

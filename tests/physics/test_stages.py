@@ -166,7 +166,10 @@ def test_the_summary_says_where_a_stop_condition_ended_a_stage_and_when_at_once(
     console = Console(record=True, width=200)
     outputs = Outputs(
         stopped={"settle": (28000, 60000, 500), "pour": (500, 200000, 500)},
-        unmet={"rest": {"kinetic_energy_below": 1e-8}},
+        unmet={
+            "rest": {"kinetic_energy_below": 1e-8},
+            "fill": {"after_steps": 2000, "solid_fraction_above": 0.6},
+        },
     )
     summary.print_summary(outputs, console)
     lines = console.export_text().splitlines()
@@ -176,3 +179,33 @@ def test_the_summary_says_where_a_stop_condition_ended_a_stage_and_when_at_once(
     assert lines[2].split() == (  # a stage that ran all its steps: its condition not met
         "not met stage rest ran all its steps without kinetic_energy_below 1e-08".split()
     )
+    assert (
+        lines[3].split()
+        == (
+            "not met stage fill ran all its steps without solid_fraction_above 0.6 (from step 2000 "
+            "of the stage)"
+        ).split()
+    )
+
+
+def test_a_drop_from_rest_is_checked_for_rest_only_after_the_steps_it_asks(tmp_path):
+    """The sphere dropped from rest 0.2 mm above the plane has 2.5e-8 J after its first
+    100 steps, below a threshold of 1e-7 J: kinetic_energy_below ends the stage at its
+    first check, in mid-air. With after_steps the first check waits past the fall (6.4 ms,
+    640 steps), and the stage ends at rest on the plane."""
+    data = settle_then_push().model_dump()
+    data["stages"] = data["stages"][:1]
+    data["stages"][0] |= {"steps": 40000, "observables_every": 100}
+    data["stages"][0]["stop_when"] = {"kinetic_energy_below": 1e-7}
+    at_once = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path / "at_once")
+    assert at_once.stopped == {"settle": (100, 40000, 100)}
+    with h5py.File(at_once.forward) as f:
+        assert f["particles/all/position/value"][-1, 0, 2] > 0.005  # in the air
+    data["stages"][0]["stop_when"]["after_steps"] = 2000
+    settled = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path / "settled")
+    ran = settled.stopped["settle"][0]
+    assert 2000 <= ran < 40000
+    with h5py.File(settled.forward) as f:
+        z = f["particles/all/position/value"][-1, 0, 2]
+        kinetic = f["observables/kinetic_energy/value"][-1]
+    assert kinetic < 1e-7 and z < 0.005  # on the plane, pressed into it by its weight
