@@ -716,7 +716,9 @@ class Output(_Model):
 
     @model_validator(mode="after")
     def _contact_figures(self) -> Output:
-        for kind in self.figures:
+        for k, kind in enumerate(self.figures):
+            if kind in self.figures[:k]:
+                raise ValueError(f"figure '{kind}' is listed twice")
             if kind.startswith("contact_") and not self.contacts:
                 raise ValueError(f"figure '{kind}' needs contacts = true")
         return self

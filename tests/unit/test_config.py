@@ -60,6 +60,7 @@ def test_overrides_reach_nested_fields_and_list_items():
             "materials.sphere.densty=1",
             "materials.sphere.densty: unknown field (did you mean density?)",
         ),
+        ("output.figures=['speed','speed']", "output: figure 'speed' is listed twice"),
         # was silently ignored, where the same in a stage's [contact] is refused
         ("contact.friction=0.5", "contact: friction needs a tangential law"),
         (
