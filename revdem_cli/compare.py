@@ -107,6 +107,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
             ]
         first_divergence = first_divergence_of(rows, tolerance)
         causes = divergence_causes(a, first_divergence)
+        energy = _energy_back(a, b)
     table = np.array([r[1:] for r in rows])
     return {
         "frames_compared": len(rows),
@@ -118,6 +119,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         "bitwise_identical": identical,
         "reversible": first_divergence is None,
         "divergence_causes": causes,
+        "total_energy_back": energy,
         "pairing": pairing,
         "tolerance": tolerance.model_dump(),
         "smallest_diameter": diameter,
@@ -126,6 +128,28 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
             "position_error_rel": table[:, 0].tolist(),
             "velocity_error": table[:, 2].tolist(),
         },
+    }
+
+
+def _energy_back(forward, reverse) -> dict | None:
+    """The total energy (J) the reversed run ends with, at the step it returns to, beside the
+    forward run's there: equal for a reversal that retraces its run, and where it parts,
+    whether it took energy out or put it in (a damped run reversed gains it, Hanley 2020
+    §5.2). None where the forward run has no observables row at that step."""
+    names = "observables/total_energy/step", "observables/total_energy/value"
+    if not all(name in run for run in (forward, reverse) for name in names):
+        return None
+    back = reverse[names[0]][:]
+    if not len(back):
+        return None
+    end = int(np.argmin(back))
+    there = np.nonzero(forward[names[0]][:] == back[end])[0]
+    if not len(there):
+        return None
+    return {
+        "step": int(back[end]),
+        "forward": float(forward[names[1]][there[0]]),
+        "reversed": float(reverse[names[1]][end]),
     }
 
 

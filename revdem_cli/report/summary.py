@@ -35,6 +35,11 @@ def comparison_table(verdict: dict) -> Table:
     first = verdict["first_divergence_step"]
     table.add_row("first divergence step", "none" if first is None else str(first), "")
     table.add_row("bitwise identical", "yes" if verdict["bitwise_identical"] else "no", "")
+    energy = verdict.get("total_energy_back")
+    if energy is not None:
+        step = energy["step"]
+        table.add_row(f"total energy at step {step}, reversed (J)", f"{energy['reversed']:.6g}", "")
+        table.add_row(f"total energy at step {step}, forward (J)", f"{energy['forward']:.6g}", "")
     tape = verdict.get("information_tape")
     if tape is not None:
         table.add_row("bits destroyed (information tape)", f"{tape['bits_destroyed']:.4g}", "")

@@ -31,6 +31,8 @@ def test_collision_reverses_to_round_off(collision_run):
     assert verdict["max_position_error_rel"] <= 1e-10
     assert verdict["max_velocity_error"] <= 1e-9
     assert verdict["reversible"] and verdict["first_divergence_step"] is None
+    energy = verdict["total_energy_back"]  # the energy it started with, to round-off
+    assert energy["step"] == 0 and energy["reversed"] == pytest.approx(energy["forward"], 1e-12)
     with h5py.File(collision_run.forward) as f, h5py.File(collision_run.reverse) as r:
         steps = f["particles/all/position/step"][:]
         np.testing.assert_array_equal(steps, r["particles/all/position/step"][:][::-1])
@@ -137,6 +139,12 @@ def test_local_damping_stops_a_bouncing_sphere_and_is_named_when_reversal_fails(
     causes = {cause["mechanism"]: cause for cause in verdict["divergence_causes"]}
     damping = causes["local_damping"]  # no contact: no partner, where -1 named wall 0
     assert damping["partner"] is damping["partner_id"] is damping["partner_wall"] is None
+    # the total energy of each run at step 0, where the reversal returns
+    energy = verdict["total_energy_back"]
+    with h5py.File(outputs.forward) as f, h5py.File(outputs.reverse) as r:
+        assert energy["forward"] == f["observables/total_energy/value"][0]
+        assert energy["reversed"] == r["observables/total_energy/value"][-1]
+        assert r["observables/total_energy/step"][-1] == energy["step"] == 0
 
 
 def test_a_reversal_run_above_the_critical_time_step_is_blamed_on_it_not_on_round_off(tmp_path):
