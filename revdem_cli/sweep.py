@@ -211,10 +211,10 @@ def run_variant(
     except (InputError, RuntimeError, OSError, MemoryError) as exc:
         row["status"], row["error"] = FAILED, f"{type(exc).__name__}: {exc}"
         return row
-    return done_row(outputs.forward, outputs.verdict, time.perf_counter() - started)
+    return _done_row(outputs.forward, outputs.verdict, time.perf_counter() - started)
 
 
-def done_row(forward: Path, verdict: dict | None, seconds: float | None) -> dict:
+def _done_row(forward: Path, verdict: dict | None, seconds: float | None) -> dict:
     """The row of RESULTS of a variant done: its final energies from its forward trajectory,
     its `verdict` and the `seconds` it took."""
     from revdem_cli.io.h5md import open_trajectory, read_observable
@@ -446,7 +446,7 @@ def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> 
         if checkpoints:
             path = checkpoints[0]
             stored = read_restart(path, checkpoint=True).scenario_json
-        elif all(path.exists() for path in outputs):
+        elif all(p.exists() for p in outputs):
             path = outputs[0]
             with open_trajectory(path) as f:
                 stored = f["parameters/revdem"].attrs["scenario_json"]
@@ -473,7 +473,7 @@ def _kept_row(row: dict | None, outputs: list[Path]) -> dict:
         return row
     forward, compare = outputs[0], next((p for p in outputs if p.suffix == ".json"), None)
     verdict = json.loads(compare.read_text()) if compare is not None else None
-    return done_row(forward, verdict, None)
+    return _done_row(forward, verdict, None)
 
 
 @contextmanager
