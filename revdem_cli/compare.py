@@ -11,7 +11,7 @@ import numpy as np
 from revdem_cli.config import Reversal, Scenario
 from revdem_cli.errors import InputError, check_regular
 from revdem_cli.io import GRID_FIELDS
-from revdem_cli.io.h5md import frame_steps, open_trajectory, read_frames
+from revdem_cli.io.h5md import frame_steps, frames_per_block, open_trajectory, read_frames
 from revdem_cli.kernels.events import AMOUNT, COUNT, KINDS, LAST, PARTICLE, PARTNER
 from revdem_cli.state import particle_named, partner_named
 
@@ -49,11 +49,6 @@ def _max_norms(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.sqrt(((a - b) ** 2).sum(axis=2)).max(axis=1)
 
 
-BLOCK_VALUES = 1 << 20
-"""Values of a field read at once from each trajectory (8 MB): frames a block at a time,
-where reading them one by one took 24 s for the 30 001 frames of two spheres."""
-
-
 def tolerances_of(trajectory) -> Reversal:
     """The reversal tolerances of the scenario a trajectory was run from."""
     scenario = _scenario_of(trajectory)
@@ -85,7 +80,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         rows = []
         identical = True
         on_grids = all(f"particles/all/{name}" in run for run in (a, b) for name in GRID_FIELDS)
-        per_block = max(1, BLOCK_VALUES // (3 * max(1, len(radius))))
+        per_block = frames_per_block(len(radius))
         for start in range(0, len(order), per_block):
             ks = order[start : start + per_block]
             errors = []

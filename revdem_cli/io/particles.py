@@ -19,10 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from revdem_cli.io.h5md import frame_steps, open_trajectory, read_contacts, read_frame, read_frames
-
-BLOCK_VALUES = 1 << 20
-"""Position values read at once to find the bounding box of every frame (8 MB)."""
+from revdem_cli.io.h5md import (
+    frame_steps,
+    frames_per_block,
+    open_trajectory,
+    read_contacts,
+    read_frame,
+    read_frames,
+)
 
 
 @dataclass(frozen=True)
@@ -76,7 +80,7 @@ def _bounding_box(f, radius: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
     """(lower, upper) corners of the box that holds every sphere of the `count` frames of
     the open trajectory `f`, m."""
     lower, upper = np.full(3, np.inf), np.full(3, -np.inf)
-    per_block = max(1, BLOCK_VALUES // (3 * max(1, len(radius))))
+    per_block = frames_per_block(len(radius))
     for start in range(0, count, per_block):
         block = read_frames(f, "position", np.arange(start, min(count, start + per_block)))
         lower = np.minimum(lower, (block - radius[:, None]).min(axis=(0, 1)))
