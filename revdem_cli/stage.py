@@ -345,8 +345,9 @@ def run_stage(
         stopped = _stop_reached(state, model, dyn, stop, state.step - clock.first_step)
         if target in frame_steps or stopped:
             _write_frame(writer, state, model, clock, events)
-            if progress is not None:
-                progress(label, abs(state.step - frames[0]), total, len(state.particles.x))
+            if progress is not None:  # a stop condition ends the stage: its bar ends there
+                done = abs(state.step - frames[0])
+                progress(label, done, done if stopped else total, len(state.particles.x))
         if stopped:
             break
         if checkpoint is not None and target in frame_steps and target != frames[-1]:

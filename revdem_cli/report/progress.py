@@ -69,7 +69,7 @@ class RunProgress:
             rate = particles * abs(done - done_then) / (now - then)
             shown["rate"] = f"{rate:,.3g} particle-steps/s"
         self.last[label] = (now, done)
-        self.bar.update(self.tasks[label], completed=done, **shown)
+        self.bar.update(self.tasks[label], completed=done, total=total, **shown)
 
 
 def threads_line() -> str:
