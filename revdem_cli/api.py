@@ -10,8 +10,10 @@ as numpy arrays.
     time, energy = result.observable("kinetic_energy")  # forward; run="reverse" for the other
 
 Bad input raises `revdem_cli.errors.InputError` with the one line the command line prints;
-a run that cannot go on raises `RunFailed`. No progress is shown unless asked for
-(`progress=True`).
+a run that cannot go on raises `RunFailed`; SIGINT or SIGTERM stops a run with
+`revdem_cli.checkpoint.Interrupted` once its checkpoint is written (`resume` goes on), or
+after its last step with `Unfinished`. No progress is shown unless asked for
+(`progress=True`). `read` gives the Result of a run written before.
 """
 
 from __future__ import annotations
