@@ -148,7 +148,7 @@ class _Case:
         _check_sizes(self.other, other.shape, "other-")
         first, other = _body(self.first, ""), _body(other, "other-")
         kn = _positive("--kn", self.kn)
-        ks = _positive("--ks", self.ks if self.ks is not None else kn)
+        ks = _non_negative("--ks", self.ks if self.ks is not None else kn)
         _non_negative("--damping", self.damping)
         if self.omega_max is not None:
             _positive("--omega-max", self.omega_max)
@@ -391,7 +391,11 @@ def dt(
     ] = None,
     kn: Annotated[float | None, typer.Option(help="Normal contact stiffness k_n (N/m).")] = None,
     ks: Annotated[
-        float | None, typer.Option(help="Shear contact stiffness k_s (N/m); default k_n.")
+        float | None,
+        typer.Option(
+            help="Shear contact stiffness k_s (N/m); default k_n; 0: frictionless, the shear "
+            "direction left out."
+        ),
     ] = None,
     damping: Annotated[
         float, typer.Option(help="Damping number N: c_n = c_s = N √(k_n/A_max).")

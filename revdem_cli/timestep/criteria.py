@@ -24,9 +24,10 @@ class Contact:
     cs: float = 0.0
 
     @property
-    def directions(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        """(stiffness, damping) of the normal and the shear direction."""
-        return (self.kn, self.cn), (self.ks, self.cs)
+    def directions(self) -> tuple[tuple[float, float], ...]:
+        """(stiffness, damping) of the normal and the shear direction; the normal alone for a
+        frictionless contact (ks = 0), whose shear direction has no spring to bound Δt."""
+        return ((self.kn, self.cn),) + (((self.ks, self.cs),) if self.ks > 0.0 else ())
 
 
 def a_max(body1: Body, body2: Body) -> float:

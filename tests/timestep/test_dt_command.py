@@ -80,6 +80,26 @@ def test_sphere_pair_recommends_eq49(paper):
     assert data["recommended_dt"] == pytest.approx(expected)
 
 
+def test_frictionless_spheres_are_bounded_by_the_normal_spring_alone():
+    """--ks 0 (frictionless, refused before): no shear direction. Two spheres' normal force
+    has no moment, so the engine and the rigid pair integrated find the two-body limit of
+    the normal spring, 2 / sqrt(kn (1/m + 1/m)); the formulas keep Peng's A_max (Eq 26,
+    7/m with the lever arm), conservative by sqrt(3.5) for them, and recommend below both."""
+    args = ("--shape", "sphere", "--radius", 0.01, "--density", 1000, "--kn", 1e6, "--verify")
+    data = as_json(*args, "--ks", 0)
+    mass = data["particles"][0]["mass"]
+    two_body = 2.0 / math.sqrt(1e6 * 2.0 / mass)
+    assert data["checks"]["engine_integrated"]["dt"] == pytest.approx(two_body, rel=1e-3)
+    assert data["checks"]["rigid_body_integrated"]["dt"] == pytest.approx(two_body, rel=1e-3)
+    formula = data["criteria"]["velocity_verlet"]["dt"]
+    assert formula == pytest.approx(2.0 / math.sqrt(1e6 * 7.0 / mass), rel=1e-12)
+    assert data["recommended_dt"] <= two_body
+    sticking = as_json(*args)  # with shear springs the engine's limit is the formula's
+    assert sticking["checks"]["engine_integrated"]["dt"] == pytest.approx(formula, rel=1e-3)
+    ellipsoid = as_json(*ELLIPSOID, "--ks", 0)
+    assert ellipsoid["recommended_dt"] > 0.0
+
+
 def test_superquadric_with_unit_exponents_gives_the_ellipsoid_numbers():
     ellipsoid = as_json(*ELLIPSOID)
     quadric = as_json(*ELLIPSOID, "--shape", "superquadric", "--exponents", 1, 1)
@@ -169,6 +189,7 @@ def test_density_sweep_goes_to_stdout():
             ["--other-vertices does not size a sphere; it takes --other-radius"],
         ),
         ((*ELLIPSOID, "--damping", -1), ["--damping"]),
+        ((*ELLIPSOID, "--ks", -1), ["--ks must be zero or positive"]),
         ((*ELLIPSOID, "--omega-max", 0), ["--omega-max"]),
         ((*ELLIPSOID, "--sweep", "mass=1:2:3"), ["--sweep", "one of"]),
         ((*ELLIPSOID, "--sweep", "kn=1:2"), ["--sweep", "START:STOP:COUNT"]),
