@@ -24,7 +24,6 @@ from revdem_cli.io.h5md import (
     frames_per_block,
     open_trajectory,
     read_contacts,
-    read_frame,
     read_frames,
 )
 
@@ -50,6 +49,10 @@ FrameProgress = Callable[[str, int, int], None]
 """progress(label, done, total), called as each frame is written (`report.progress`)."""
 
 
+PER_FRAME = ("position", "velocity", "angular_velocity")
+"""The per-sphere fields a Frame holds, read a block of frames at a time."""
+
+
 def frames(
     trajectory: str | Path, last_only: bool = False, progress: FrameProgress | None = None
 ) -> Iterator[Frame]:
@@ -64,16 +67,18 @@ def frames(
         steps = frame_steps(f)
         if not periodic:
             lower, upper = _bounding_box(f, radius, len(steps))
-        for k in range(len(steps) - 1 if last_only else 0, len(steps)):
-            step = steps[k]
-            position = read_frame(f, "position", k)
-            if periodic:
-                lower, upper = np.zeros(3), particles["box/edges/value"][k]
-            yield Frame(int(step), float(times[k]), lower, upper, periodic, ids, species + 1,
-                        radius, mass, position, read_frame(f, "velocity", k),
-                        read_frame(f, "angular_velocity", k), read_contacts(f, k))  # fmt: skip
-            if progress is not None:
-                progress(Path(trajectory).name, k + 1, len(steps))
+        first, per_block = len(steps) - 1 if last_only else 0, frames_per_block(len(radius))
+        for start in range(first, len(steps), per_block):  # read a block of frames at once
+            block = np.arange(start, min(len(steps), start + per_block))
+            fields = [read_frames(f, name, block) for name in PER_FRAME]
+            for k, position, velocity, spin in zip(block, *fields, strict=True):
+                if periodic:
+                    lower, upper = np.zeros(3), particles["box/edges/value"][k]
+                yield Frame(int(steps[k]), float(times[k]), lower, upper, periodic, ids,
+                            species + 1, radius, mass, position, velocity, spin,
+                            read_contacts(f, k))  # fmt: skip
+                if progress is not None:
+                    progress(Path(trajectory).name, int(k) + 1, len(steps))
 
 
 def _bounding_box(f, radius: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
