@@ -359,7 +359,8 @@ def schema() -> None:
 @app.command()
 def info(
     file: Annotated[
-        Path | None, typer.Argument(help="A revdem trajectory or restart file (.h5).")
+        Path | None,
+        typer.Argument(help="A revdem trajectory, restart, checkpoint, tape or sweep.h5."),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
     system: Annotated[
@@ -369,10 +370,11 @@ def info(
         ),
     ] = False,
 ) -> None:
-    """Summarise a revdem trajectory or restart file, or (--system) this machine.
+    """Summarise a revdem trajectory, restart, tape or sweep table, or (--system) this machine.
 
     Kind, direction, scenario, stages, particles, frames and steps, dt, and the reversal
-    verdict when the run's NAME.compare.json lies beside the trajectory. --system: the
+    verdict when the run's NAME.compare.json lies beside the trajectory; of a sweep's
+    sweep.h5, each variant's status and verdict. --system: the
     threading layer numba loaded, the threads and cores, numba's version, the kernel caches
     and what they hold.
 

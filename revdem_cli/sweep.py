@@ -53,6 +53,8 @@ failed (its `error` says why), stopped by a signal with a checkpoint in its fold
 begun before the sweep stopped."""
 TEXT = ("status", "error")
 """The result columns of text."""
+KIND_OF_TABLE = "revdem sweep"
+"""The `kind` attribute of a sweep's STEM.h5, which `revdem info` summarises."""
 STOP_FILE = ".stop"
 """In the sweep's folder while it stops: the variants' runs poll it (`checkpoint.polling`)."""
 
@@ -522,6 +524,7 @@ def write_table(rows: list[dict], stem: Path) -> list[Path]:
     write_text(csv_path, text.getvalue())
     tmp = h5_path.with_name(h5_path.name + ".tmp")
     with h5py.File(tmp, "w") as f:
+        f.attrs["kind"] = KIND_OF_TABLE
         group = f.create_group("sweep")
         group.attrs["columns"] = columns
         for column in columns:

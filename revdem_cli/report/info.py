@@ -23,7 +23,9 @@ def describe(path: str | Path) -> dict:
                 return _trajectory(path, f)
             if f.attrs.get("kind") == "revdem tape":
                 return _tape(path, f)
-            raise InputError(f"{path}: not a revdem trajectory or restart file")
+            if "sweep" in f and "columns" in f["sweep"].attrs:  # kind = "revdem sweep"
+                return _sweep(path)
+            raise InputError(f"{path}: not a revdem trajectory, restart, tape or sweep table")
     except (KeyError, ValueError, OSError) as exc:
         raise InputError(f"{path}: damaged revdem file ({exc})") from None
 
@@ -122,6 +124,49 @@ def _tape(path: Path, f: h5py.File) -> dict:
     }
 
 
+def _sweep(path: Path) -> dict:
+    """A sweep's table (`sweep.write_table`): each variant's folder, status and verdict."""
+    from revdem_cli.sweep import read_table
+
+    rows = read_table(path)
+    return {
+        "file": str(path),
+        "kind": "sweep",
+        "variants": [
+            {"folder": folder, **{key: row[key] for key in SWEEP_SHOWN}}
+            for folder, row in rows.items()
+        ],
+    }
+
+
+SWEEP_SHOWN = ("status", "reversible", "max_position_error_rel", "error")
+"""What `revdem info` shows of each variant of a sweep."""
+
+
+def _sweep_lines(info: dict) -> list[str]:
+    variants = info["variants"]
+    counts = {}
+    for variant in variants:
+        counts[variant["status"]] = counts.get(variant["status"], 0) + 1
+    width = max(len(v["folder"]) for v in variants)
+    lines = [
+        f"file:       {info['file']}",
+        f"kind:       sweep table of {len(variants)} variants ("
+        + ", ".join(f"{count} {status}" for status, count in counts.items())
+        + ")",
+    ]
+    for v in variants:
+        if v["status"] != "done":
+            verdict = v["error"] or ""
+        elif v["reversible"] is None:
+            verdict = "not reversed"
+        else:
+            verdict = "reversible" if v["reversible"] else "not reversible"
+            verdict += f" (max position error / diameter {v['max_position_error_rel']:.3g})"
+        lines.append(f"  {v['folder']:<{width}}  {v['status']:<11}  {verdict}".rstrip())
+    return lines
+
+
 def _restart(path: Path) -> dict:
     """A restart file, or a checkpoint: a restart taken part-way through a run; read whole,
     every checksum checked, as `revdem reverse` and `--resume` read it."""
@@ -174,6 +219,8 @@ def tape_lines(tape: dict) -> list[str]:
 
 def info_lines(info: dict) -> list[str]:
     """The summary as `label: value` lines."""
+    if info["kind"] == "sweep":
+        return _sweep_lines(info)
     if info["kind"] == "tape":
         return [
             f"file:       {info['file']}",

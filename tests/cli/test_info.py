@@ -87,7 +87,7 @@ def test_other_files_exit_2_with_one_line(smoke_run, tmp_path):
         f["particles/all/position/value"] = [[[0.0, 0.0, 0.0]]]
     for path, message in (
         (text, "not a readable HDF5 file"),
-        (foreign, "not a revdem trajectory or restart file"),
+        (foreign, "not a revdem trajectory, restart, tape or sweep table"),
         (damaged, "damaged revdem file"),
         (tmp_path / "missing.h5", "not a readable HDF5 file"),
     ):

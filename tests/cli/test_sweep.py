@@ -72,6 +72,14 @@ def test_six_variants_on_two_workers_give_one_table(tmp_path):
         np.testing.assert_array_equal(table["stages.0.steps"][:], [100.0] * 3 + [200.0] * 3)
         assert list(table["particles.0.velocity"].asstr()[:3]) == list(VELOCITIES)
         assert list(table["status"].asstr()[:]) == ["done"] * 6
+    shown = runner.invoke(app, ["info", str(tmp_path / "sweep.h5")])  # was "not a revdem file"
+    assert shown.exit_code == 0, shown.output
+    lines = shown.output.splitlines()
+    assert lines[1] == "kind:       sweep table of 6 variants (6 done)"
+    assert lines[6].split() == [
+        "004_steps=200_velocity=0.5+0.0+0.0", "done", "reversible", "(max", "position", "error",
+        "/", "diameter", f"{float(rows[4]['max_position_error_rel']):.3g})",
+    ]  # fmt: skip
 
 
 def test_values_split_at_commas_outside_brackets():

@@ -100,7 +100,7 @@ def test_an_hdf5_file_of_another_program(command, run, tmp_path):
         f.create_group("metadata").attrs["program"] = "other"
     message = {
         "reverse": "not a revdem restart file (no /revdem group)",
-        "info": "not a revdem trajectory or restart file",
+        "info": "not a revdem trajectory, restart, tape or sweep table",
     }.get(command, "not a revdem trajectory (no /parameters/revdem)")
     refused(command, plain, run, message)
 
