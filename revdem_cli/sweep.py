@@ -369,8 +369,11 @@ def _run_pending(
 
     from revdem_cli.checkpoint import stop_asked
 
+    def ended() -> int:  # the variants run to their end: stopped and not started are not
+        return sum(row["status"] in (DONE, FAILED) for row in results.values())
+
     if progress is not None:
-        progress("variants", len(results), total)
+        progress("variants", ended(), total)
     if not pending:
         return 0
     stop_file.unlink(missing_ok=True)
@@ -394,7 +397,7 @@ def _run_pending(
                 for future in as_completed(futures):
                     results[futures[future]] = _result_of(future)
                     if progress is not None:
-                        progress("variants", len(results), total)
+                        progress("variants", ended(), total)
         return stop_asked(stop_file)
     finally:
         stop_file.unlink(missing_ok=True)
