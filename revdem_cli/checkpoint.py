@@ -108,24 +108,43 @@ class Checkpoints:
             with polling(stop_file, self.ask):
                 yield
             return
-        kinds = (signal.SIGINT, signal.SIGTERM)
-        before = {kind: signal.getsignal(kind) for kind in kinds}
+        with first_signal(self._taken), watching(SIGNALS, self.ask):
+            yield
 
-        def handler(signum, frame):
-            self.ask(signum)
-            for kind in kinds:
-                signal.signal(kind, before[kind])
-            if self.finishing:
-                raise Unfinished(signum, self.finishing)
+    def _taken(self, signum: int) -> None:
+        """A signal taken by Python's handler: a stop asked, and after the last step the run
+        stopped at once."""
+        self.ask(signum)
+        if self.finishing:
+            raise Unfinished(signum, self.finishing)
 
-        for kind in kinds:
-            signal.signal(kind, handler)
-        try:
-            with watching(kinds, self.ask):
-                yield
-        finally:
-            for kind in kinds:
-                signal.signal(kind, before[kind])
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+"""The signals that stop a run, or a sweep, with a checkpoint."""
+
+
+@contextmanager
+def first_signal(act) -> Iterator[None]:
+    """While inside, in the main thread (the only one Python gives signals to): the first
+    of SIGNALS puts back the handlers there were, so that a second one does what it did
+    before (stops at once), and calls `act(signum)`, which may raise; nothing elsewhere."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = {kind: signal.getsignal(kind) for kind in SIGNALS}
+
+    def handler(signum, frame):
+        for kind in SIGNALS:
+            signal.signal(kind, before[kind])
+        act(signum)
+
+    for kind in SIGNALS:
+        signal.signal(kind, handler)
+    try:
+        yield
+    finally:
+        for kind in SIGNALS:
+            signal.signal(kind, before[kind])
 
 
 _DONE = b"\0"  # no signal is numbered 0: what ends the watcher

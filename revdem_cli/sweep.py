@@ -4,8 +4,9 @@ reversed) in parallel on a dask.distributed cluster, one table of results.
 Each variant runs in its own folder under the sweep's output directory. The results table
 (`sweep.csv` and `sweep.h5`) holds, per variant, its folder, the values set, its status,
 the verdict of the reversal and the final kinetic and total energies of the forward run.
-SIGINT or SIGTERM stops the running variants with checkpoints (`_stopping`, the stop file
-their runs poll) and writes the table; `--resume` goes on from it (`_earlier_results`).
+SIGINT or SIGTERM stops the running variants with checkpoints (`checkpoint.first_signal`
+writes the stop file their runs poll) and writes the table; `--resume` goes on from it
+(`_earlier_results`).
 
 A sweep file is a TOML file with `kind = "sweep"`, the scenario it varies (a path relative
 to the file) and the same `set` strings as the command line (a field is set once in each; a
@@ -268,15 +269,18 @@ def _deaf_to_signals():
     SIGINT and SIGTERM: Ctrl-C reaches every process of the terminal's group, as SLURM's
     scancel and systemd send SIGTERM to every process of the job, and either would end each
     worker with its variant unsaved; the sweep stops them through its stop file
-    (`_stopping`) instead. Their nanny closes them by its own queue, and kills them with
-    SIGKILL, never SIGTERM. (Made here, where dask is imported; cloudpickle sends it.)"""
+    (`checkpoint.first_signal`) instead. Their nanny closes them by its own queue, and kills
+    them with SIGKILL, never SIGTERM. (Made here, where dask is imported; cloudpickle sends
+    it.)"""
     from distributed import WorkerPlugin
 
     class DeafToSignals(WorkerPlugin):
         def setup(self, worker):
             import signal
 
-            for kind in (signal.SIGINT, signal.SIGTERM):  # on the worker's loop: main thread
+            from revdem_cli.checkpoint import SIGNALS
+
+            for kind in SIGNALS:  # on the worker's loop: its main thread
                 signal.signal(kind, signal.SIG_IGN)
 
     return DeafToSignals()
@@ -367,7 +371,7 @@ def _run_pending(
     that stopped them, 0 if none. No cluster is started for none."""
     from distributed import as_completed
 
-    from revdem_cli.checkpoint import stop_asked
+    from revdem_cli.checkpoint import ask_to_stop, first_signal, stop_asked
 
     def ended() -> int:  # the variants run to their end: stopped and not started are not
         return sum(row["status"] in (DONE, FAILED) for row in results.values())
@@ -380,7 +384,7 @@ def _run_pending(
     try:
         with _client(*cluster) as client:
             stop_file.parent.mkdir(parents=True, exist_ok=True)
-            with _stopping(stop_file):
+            with first_signal(lambda signum: ask_to_stop(stop_file, signum)):
                 futures = {
                     client.submit(
                         run_variant,
@@ -479,35 +483,6 @@ def _kept_row(row: dict | None, outputs: list[Path]) -> dict:
     forward, compare = outputs[0], next((p for p in outputs if p.suffix == ".json"), None)
     verdict = json.loads(compare.read_text()) if compare is not None else None
     return _done_row(forward, verdict, None)
-
-
-@contextmanager
-def _stopping(stop_file: Path):
-    """While inside: the first SIGINT or SIGTERM writes `stop_file` (`ask_to_stop`), and the
-    variants stop; a second one stops this process at once, as it would have unhandled."""
-    import signal
-    import threading
-
-    from revdem_cli.checkpoint import ask_to_stop
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    kinds = (signal.SIGINT, signal.SIGTERM)
-    before = {kind: signal.getsignal(kind) for kind in kinds}
-
-    def handler(signum, frame):
-        for kind in kinds:
-            signal.signal(kind, before[kind])
-        ask_to_stop(stop_file, signum)
-
-    for kind in kinds:
-        signal.signal(kind, handler)
-    try:
-        yield
-    finally:
-        for kind in kinds:
-            signal.signal(kind, before[kind])
 
 
 def write_table(rows: list[dict], stem: Path) -> list[Path]:
