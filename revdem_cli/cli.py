@@ -583,9 +583,9 @@ def report(
     from revdem_cli.io import refuse_overwriting
     from revdem_cli.report.paper import HANLEY_2020, write_report
 
-    refuse_overwriting("report", out or directory / "report.md", out is not None and not force)
-
-    written = write_report(directory, paper or HANLEY_2020, out or directory / "report.md")
+    target = out or directory / "report.md"
+    refuse_overwriting("report", target, out is not None and not force)
+    written = write_report(directory, paper or HANLEY_2020, target)
     typer.echo(f"wrote {written}")
 
 

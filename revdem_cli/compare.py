@@ -219,8 +219,9 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     walls = [wall.name for wall in scenario.walls] if scenario else []
     ids = forward["particles/all/id"][:]
     window = [k for k in range(len(KINDS)) if log[k, COUNT] > 0 and log[k, LAST] > divergence_step]
+    velocity_read = _velocity_read(scenario)
     causes = sorted(
-        (_cause(k, log[k], walls, ids, _velocity_read(scenario)) for k in window),
+        (_cause(k, log[k], walls, ids, velocity_read) for k in window),
         key=lambda cause: -cause["step"],
     )
     if causes or scenario is None:
@@ -244,19 +245,24 @@ def _drag_amplification(drag: float, restart_step: int, step: int) -> dict:
     """The reversed step divides velocities by gamma_d (Hanley 2020 Eq 28): round-off grows
     by 1/gamma_d per step on the way back."""
     exponent = (restart_step - step) * -math.log(drag)
+    return _of_the_run(
+        "drag_amplifies_round_off", step, exponent, restart_step - step,
+        f"the reversed run divides velocities by gamma_d = {drag:g} each step (Eq 28): "
+        f"round-off has grown by e^{exponent:.3g} over the {restart_step - step} steps back "
+        "from the restart",
+    )  # fmt: skip
+
+
+def _of_the_run(mechanism: str, step: int, amount: float, steps: int, why: str) -> dict:
+    """A cause of the whole run, where no mechanism destroyed information: no particle or
+    partner, acting at each of the `steps` back from the restart."""
     return {
-        "mechanism": "drag_amplifies_round_off",
+        "mechanism": mechanism,
         "step": step,
-        "particle": None,
-        "partner": None,
-        "particle_id": None,
-        "partner_id": None,
-        "partner_wall": None,
-        "amount": exponent,
-        "occurrences": restart_step - step,
-        "message": f"no mechanism destroyed information here, but the reversed run divides "
-        f"velocities by gamma_d = {drag:g} each step (Eq 28): round-off has grown by "
-        f"e^{exponent:.3g} over the {restart_step - step} steps back from the restart",
+        **dict.fromkeys(("particle", "partner", "particle_id", "partner_id", "partner_wall")),
+        "amount": amount,
+        "occurrences": steps,
+        "message": f"no mechanism destroyed information here, but {why}",
     }
 
 
@@ -269,13 +275,10 @@ def _unstable_time_step(excess, restart_step: int, step: int) -> dict:
         if excess.limit_name == "critical time step"
         else "a contact can begin or end unseen between two steps, going forward or back"
     )
-    return dict.fromkeys(("particle", "partner", "particle_id", "partner_id", "partner_wall")) | {
-        "mechanism": "time_step_above_limit",
-        "step": step,
-        "amount": excess.dt / excess.limit if excess.limit > 0.0 else math.inf,
-        "occurrences": restart_step - step,
-        "message": f"no mechanism destroyed information here, but {excess}: {what}",
-    }
+    amount = excess.dt / excess.limit if excess.limit > 0.0 else math.inf
+    return _of_the_run(
+        "time_step_above_limit", step, amount, restart_step - step, f"{excess}: {what}"
+    )
 
 
 CONTACTS = frozenset(

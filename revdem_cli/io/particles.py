@@ -65,7 +65,9 @@ def frames(
         periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
         steps = frame_steps(f)
-        if not periodic:
+        if periodic:
+            edges = particles["box/edges/value"][:]
+        else:
             lower, upper = _bounding_box(f, radius, len(steps))
         first, per_block = len(steps) - 1 if last_only else 0, frames_per_block(len(radius))
         for start in range(first, len(steps), per_block):  # read a block of frames at once
@@ -73,7 +75,7 @@ def frames(
             fields = [read_frames(f, name, block) for name in PER_FRAME]
             for k, position, velocity, spin in zip(block, *fields, strict=True):
                 if periodic:
-                    lower, upper = np.zeros(3), particles["box/edges/value"][k]
+                    lower, upper = np.zeros(3), edges[k]
                 yield Frame(int(steps[k]), float(times[k]), lower, upper, periodic, ids,
                             species + 1, radius, mass, position, velocity, spin,
                             read_contacts(f, k))  # fmt: skip
