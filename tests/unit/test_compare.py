@@ -24,3 +24,27 @@ def test_a_cause_names_each_sphere_by_index_and_id_and_a_wall_by_name():
     cause = _cause(KINDS.index("coulomb_slip"), entry, ["bottom", "lid"], ids, "")
     assert (cause["partner"], cause["partner_id"], cause["partner_wall"]) == (-2, None, "lid")
     assert cause["message"].startswith("the contact of particle 2 (id 13) and wall lid slid")
+
+
+def test_a_cause_of_the_whole_run_names_no_particle_and_keeps_the_keys_of_a_mechanism():
+    """Drag's amplification of round-off (Hanley 2020 Eq 28) and a time step above its limit
+    act at every step back from the restart, at no particle: the keys of a mechanism's cause,
+    in its order, each particle field null, the amount its growth or its ratio."""
+    import math
+
+    from revdem_cli.compare import _drag_amplification, _unstable_time_step
+    from revdem_cli.timestep.guard import Excess
+
+    entry = np.zeros(len(COLUMNS))
+    entry[COUNT], entry[LAST], entry[PARTICLE], entry[PARTNER] = 1, 10, 0, 1
+    keys = list(_cause(KINDS.index("coulomb_slip"), entry, [], np.array([1, 2]), ""))
+    drag = _drag_amplification(0.99, 1000, 400)
+    assert list(drag) == keys and drag["mechanism"] == "drag_amplifies_round_off"
+    assert drag["amount"] == 600 * -math.log(0.99) and drag["occurrences"] == 600
+    assert all(drag[k] is None for k in ("particle", "partner", "particle_id", "partner_id"))
+    said = "no mechanism destroyed information here, but the reversed run divides velocities"
+    assert drag["message"].startswith(f"{said} by gamma_d = 0.99 each step (Eq 28)")
+    excess = Excess("integrator.dt", 6e-4, "critical time step", 3.86e-4, "Hertz contact")
+    unstable = _unstable_time_step(excess, 1000, 400)
+    assert list(unstable) == keys and unstable["amount"] == 6e-4 / 3.86e-4
+    assert "1.55 times the critical time step" in unstable["message"]
