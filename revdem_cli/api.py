@@ -310,8 +310,7 @@ def read(out: str | Path, name: str | None = None) -> Result:
     variant, this module): its forward trajectory, and its restart, reversed trajectory,
     comparison and figures where they are there; `name`, the scenario's, where `out` holds
     several runs. The trajectory is checked as every command checks it."""
-    import json
-
+    from revdem_cli.compare import read_verdict
     from revdem_cli.engine import output_paths
     from revdem_cli.io.h5md import open_trajectory
 
@@ -330,7 +329,7 @@ def read(out: str | Path, name: str | None = None) -> Result:
     if paths["forward"] is None:
         raise InputError(f"{out}: no run {name} ({name}.forward.h5)")
     open_trajectory(paths["forward"]).close()
-    verdict = json.loads(paths["compare"].read_text()) if paths["compare"] else None
+    verdict = read_verdict(paths["compare"]) if paths["compare"] else None
     figures = tuple(sorted(out.glob(f"{name}.*.png")))
     return Result(
         Outputs(

@@ -476,12 +476,12 @@ def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> 
 def _kept_row(row: dict | None, outputs: list[Path]) -> dict:
     """The row of a variant done before --resume: its table's, or where the table does not
     have it done, the one its outputs (forward trajectory, comparison) give."""
-    import json
+    from revdem_cli.compare import read_verdict
 
     if row is not None and row["status"] == DONE:
         return row
     forward, compare = outputs[0], next((p for p in outputs if p.suffix == ".json"), None)
-    verdict = json.loads(compare.read_text()) if compare is not None else None
+    verdict = read_verdict(compare) if compare is not None else None
     return _done_row(forward, verdict, None)
 
 
