@@ -6,7 +6,7 @@ which OVITO, VMD and LAMMPS' own tools read) and a LAMMPS data file of the last 
 Each takes the frames of a revdem H5MD trajectory as they are: each sphere's id, type (its
 material, numbered from 1 in the order of [materials]), radius, position and velocity, and
 the box at each frame, the periodic cell [0, L) where the run had one, else the spheres'
-bounding box over the whole trajectory (open boundaries): one box for every frame, so that
+bounding box over the frames exported (open boundaries): one box for every frame, so that
 a viewer's positions relative to it (GSD's, from its centre) keep their displacements.
 """
 
@@ -65,11 +65,11 @@ def frames(
         periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
         steps = frame_steps(f)
+        first, per_block = len(steps) - 1 if last_only else 0, frames_per_block(len(radius))
         if periodic:
             edges = particles["box/edges/value"][:]
         else:
-            lower, upper = _bounding_box(f, radius, len(steps))
-        first, per_block = len(steps) - 1 if last_only else 0, frames_per_block(len(radius))
+            lower, upper = _bounding_box(f, radius, range(first, len(steps)))
         for start in range(first, len(steps), per_block):  # read a block of frames at once
             block = np.arange(start, min(len(steps), start + per_block))
             fields = [read_frames(f, name, block) for name in PER_FRAME]
@@ -83,13 +83,13 @@ def frames(
                     progress(Path(trajectory).name, int(k) + 1, len(steps))
 
 
-def _bounding_box(f, radius: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """(lower, upper) corners of the box that holds every sphere of the `count` frames of
+def _bounding_box(f, radius: np.ndarray, exported: range) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) corners of the box that holds every sphere of the frames `exported` of
     the open trajectory `f`, m."""
     lower, upper = np.full(3, np.inf), np.full(3, -np.inf)
     per_block = frames_per_block(len(radius))
-    for start in range(0, count, per_block):
-        block = read_frames(f, "position", np.arange(start, min(count, start + per_block)))
+    for start in range(exported.start, exported.stop, per_block):
+        block = read_frames(f, "position", np.arange(start, min(exported.stop, start + per_block)))
         lower = np.minimum(lower, (block - radius[:, None]).min(axis=(0, 1)))
         upper = np.maximum(upper, (block + radius[:, None]).max(axis=(0, 1)))
     return lower, upper
