@@ -183,7 +183,9 @@ STOP_POLL = 0.05
 
 
 def ask_to_stop(path: Path, signum: int) -> None:
-    """Write the stop file at `path`: the runs polling it stop as on signal `signum`."""
+    """Write the stop file at `path` (its folder made if need be): the runs polling it stop
+    as on signal `signum`."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     write_text(path, f"{signum}\n")
 
 

@@ -381,27 +381,28 @@ def _run_pending(
     if not pending:
         return 0
     stop_file.unlink(missing_ok=True)
-    try:
-        with _client(*cluster) as client:
-            stop_file.parent.mkdir(parents=True, exist_ok=True)
-            with first_signal(lambda signum: ask_to_stop(stop_file, signum)):
-                futures = {
-                    client.submit(
-                        run_variant,
-                        scenario.model_dump_json(),
-                        text,
-                        suffix,
-                        folder,
-                        allow_unstable_dt,
-                        stop_file,
-                        key=f"variant-{folder.name}",
-                    ): index
-                    for (scenario, text), folder, index in pending
-                }
-                for future in as_completed(futures):
-                    results[futures[future]] = _result_of(future)
-                    if progress is not None:
-                        progress("variants", ended(), total)
+    try:  # a signal while the cluster starts stops the sweep before any variant begins
+        with (
+            first_signal(lambda signum: ask_to_stop(stop_file, signum)),
+            _client(*cluster) as client,
+        ):
+            futures = {
+                client.submit(
+                    run_variant,
+                    scenario.model_dump_json(),
+                    text,
+                    suffix,
+                    folder,
+                    allow_unstable_dt,
+                    stop_file,
+                    key=f"variant-{folder.name}",
+                ): index
+                for (scenario, text), folder, index in pending
+            }  # asked to stop already, each is not started
+            for future in as_completed(futures):
+                results[futures[future]] = _result_of(future)
+                if progress is not None:
+                    progress("variants", ended(), total)
         return stop_asked(stop_file)
     finally:
         stop_file.unlink(missing_ok=True)

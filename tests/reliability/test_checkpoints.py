@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -552,3 +553,32 @@ def test_a_signal_after_the_last_step_stops_the_run_at_once(tmp_path):
             late.finish("its figures were drawn")
     assert stopped.value.exit_code == 143
     assert not list(tmp_path.iterdir())  # no checkpoint: the run's files are whole
+
+
+def test_a_signal_while_the_sweeps_cluster_starts_stops_it_before_any_variant_begins(
+    tmp_path, monkeypatch
+):
+    """Ctrl-C while the local cluster's workers start (a second or more) raised
+    KeyboardInterrupt out of dask's start-up, waited seconds for the workers and wrote no
+    table. The first signal now writes the stop file from before the cluster starts: no
+    variant begins, the table says so and the sweep exits 130, as it does when stopped
+    later."""
+    from revdem_cli import sweep
+
+    starting = sweep._client
+
+    @contextmanager
+    def signalled_while_starting(*cluster):
+        os.kill(os.getpid(), signal.SIGINT)
+        with starting(*cluster) as client:
+            yield client
+
+    monkeypatch.setattr(sweep, "_client", signalled_while_starting)
+    result = CliRunner().invoke(app, [*SWEEP, "--out", str(tmp_path)])
+    assert result.exit_code == 130, result.output
+    assert result.output.strip().splitlines()[-1] == (
+        "stopped: SIGINT: 0 variants done, 0 stopped with a checkpoint, 4 not started; "
+        "continue with the same command and --resume"
+    )
+    assert [row["status"] for row in _sweep_rows(tmp_path)] == ["not started"] * 4
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.csv", "sweep.h5"]
