@@ -422,7 +422,8 @@ def _result_of(future) -> dict:
 
 def _keep_earlier(out_dir: Path, loaded: list[tuple], folders: list[str], force: bool) -> None:
     """Refuse an earlier sweep's tables and its variants' outputs and checkpoints in
-    `out_dir` unless `force`; forced, remove them."""
+    `out_dir` unless `force`; forced, remove them, and the runs of the earlier sweep's other
+    variants (`_runs_left`)."""
     from revdem_cli.api import keep_outputs, output_paths_of
     from revdem_cli.checkpoint import checkpoint_path
 
@@ -430,7 +431,45 @@ def _keep_earlier(out_dir: Path, loaded: list[tuple], folders: list[str], force:
     for (scenario, _), folder in zip(loaded, folders, strict=True):
         earlier += output_paths_of(scenario, out_dir / folder, reverse=True)
         earlier.append(checkpoint_path(out_dir / folder, scenario.name))
-    keep_outputs(earlier, force, "sweep")
+    left = _runs_left(out_dir, folders) if force else {}
+    keep_outputs(earlier + [path for paths in left.values() for path in paths], force, "sweep")
+    for folder in left:
+        if not any(folder.iterdir()):  # what else is there is not the sweep's
+            folder.rmdir()
+
+
+def _runs_left(out_dir: Path, folders: list[str]) -> dict[Path, list[Path]]:
+    """The files of the runs in each variant folder of the earlier sweep in `out_dir` (its
+    table's) that is not one of `folders`, those of another sweep forced over it: each
+    run's outputs and checkpoint, from the scenario its forward trajectory or checkpoint
+    stores."""
+    from revdem_cli.api import output_paths_of
+    from revdem_cli.checkpoint import checkpoint_path, find_checkpoints
+    from revdem_cli.config import Scenario
+
+    table = out_dir / "sweep.h5"
+    left = {}
+    for name in sorted(read_table(table).keys() - set(folders)) if table.exists() else []:
+        folder = out_dir / name
+        runs = [*find_checkpoints(folder), *sorted(folder.glob("*.forward.h5"))]
+        left[folder] = []
+        for path in runs:
+            spec = Scenario.model_validate_json(_stored_scenario(path))
+            left[folder] += output_paths_of(spec, folder, reverse=True)
+            left[folder].append(checkpoint_path(folder, spec.name))
+    return left
+
+
+def _stored_scenario(path: Path) -> str:
+    """The scenario, as JSON, that the checkpoint or trajectory at `path` stores."""
+    from revdem_cli.checkpoint import SUFFIX
+    from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.io.restart import read_restart
+
+    if path.name.endswith(SUFFIX):
+        return read_restart(path, checkpoint=True).scenario_json
+    with open_trajectory(path) as f:
+        return f["parameters/revdem"].attrs["scenario_json"]
 
 
 def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> dict[int, dict]:
@@ -442,8 +481,6 @@ def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> 
     outputs are of another scenario than this sweep's variant."""
     from revdem_cli.api import keep_outputs, output_paths_of
     from revdem_cli.checkpoint import find_checkpoints
-    from revdem_cli.io.h5md import open_trajectory
-    from revdem_cli.io.restart import read_restart
 
     table = out_dir / "sweep.h5"
     if not table.exists() and not any((out_dir / folder).is_dir() for folder in folders):
@@ -455,15 +492,12 @@ def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> 
         outputs = output_paths_of(scenario, out_dir / folder, reverse=True)
         if checkpoints:
             path = checkpoints[0]
-            stored = read_restart(path, checkpoint=True).scenario_json
         elif all(p.exists() for p in outputs):
             path = outputs[0]
-            with open_trajectory(path) as f:
-                stored = f["parameters/revdem"].attrs["scenario_json"]
         else:
             keep_outputs(outputs, force=True)
             continue
-        if stored != scenario.model_dump_json():
+        if _stored_scenario(path) != scenario.model_dump_json():
             raise InputError(
                 f"--resume {out_dir}: {path} is of another scenario than this sweep's variant "
                 f"{folder}; give the sweep's own file and --set options, or start over with "

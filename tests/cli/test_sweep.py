@@ -208,6 +208,21 @@ def test_an_earlier_sweep_in_the_folder_is_kept_unless_forced(tmp_path):
     assert forced.exit_code == 0 and "2 variants, 0 failed" in forced.output, forced.output
 
 
+def test_a_sweep_forced_over_another_of_other_values_leaves_none_of_its_runs(tmp_path):
+    """`--force` with other values left the earlier sweep's variant folders, whole runs
+    that the new table does not list. Their files go; a file of the user's in one stays."""
+    args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--out", str(tmp_path)]
+    args += ["--workers", "1", "-q"]
+    assert runner.invoke(app, [*args, "--set", "stages.0.steps=10,20"]).exit_code == 0
+    (tmp_path / "001_steps=20" / "notes.txt").write_text("mine")
+    forced = runner.invoke(app, [*args, "--set", "stages.0.steps=30,40", "--force"])
+    assert forced.exit_code == 0, forced.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "000_steps=30", "001_steps=20", "001_steps=40", "sweep.csv", "sweep.h5"
+    ]  # fmt: skip
+    assert [p.name for p in (tmp_path / "001_steps=20").iterdir()] == ["notes.txt"]
+
+
 def test_a_bad_value_of_a_list_is_named_by_its_variant(tmp_path):
     """`--set contact.friction=0.1,-0.3`: the error said the friction must be ≥ 0, not
     which of the values was not."""
