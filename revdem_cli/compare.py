@@ -70,6 +70,11 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         common, index_a, index_b = np.intersect1d(steps_a, steps_b, return_indices=True)
         if len(common) == 0:
             raise InputError(f"{first} and {second} have no frame at a common step")
+        if len(common) == 1 and common[0] == steps_b[0]:
+            raise InputError(
+                f"{first} and {second} share only the frame the reversal starts from (step "
+                f"{common[0]}), which its restart makes the same: nothing to compare"
+            )
         radius = a["particles/all/radius"][:]
         if len(radius) != len(b["particles/all/radius"]):
             raise InputError(f"{first} and {second} hold different numbers of particles")
@@ -124,6 +129,23 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
             "velocity_error": table[:, 2].tolist(),
         },
     }
+
+
+def refuse_nothing_to_compare(forward: Path, start: int, stop: int) -> None:
+    """InputError where a reversal from step `start` back to step `stop` would meet no frame
+    of the forward trajectory `forward` but the one it starts from, which its restart makes
+    the same: a comparison of it would prove nothing (`revdem reverse --steps`)."""
+    with open_trajectory(forward) as f:
+        steps = frame_steps(f)
+    earlier = steps[steps < start]
+    if len(earlier) and earlier.max() >= stop:
+        return
+    enough = f"; give --steps {start - int(earlier.max())} or more" if len(earlier) else ""
+    raise InputError(
+        f"--steps {start - stop}: the reversed run would end at step {stop}, and {forward} has "
+        f"no frame from there to step {start}, where it starts: nothing could be compared"
+        f"{enough}"
+    )
 
 
 def _energy_back(forward, reverse) -> dict | None:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from revdem_cli.checkpoint import Checkpoints, checkpoint_path, find_checkpoint
-from revdem_cli.compare import compare_trajectories
+from revdem_cli.compare import compare_trajectories, refuse_nothing_to_compare
 from revdem_cli.config import Scenario
 from revdem_cli.errors import InputError, RunFailed, whole_number
 from revdem_cli.io import open_hdf5, write_text
@@ -362,6 +362,8 @@ def _reverse(
                 "steps"
             )
         stop = clock.first_step if steps is None else start.state.step - steps
+        if Path(start.trajectory).exists():
+            refuse_nothing_to_compare(Path(start.trajectory), start.state.step, stop)
         events = None
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:

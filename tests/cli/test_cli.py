@@ -131,6 +131,37 @@ def test_run_writes_all_outputs_and_prints_the_comparison(scenario, tmp_path):
     assert json.loads(compared.output)["frames_compared"] == 61
 
 
+def test_a_reversal_that_would_meet_no_frame_but_its_first_is_refused(
+    scenario, tmp_path, monkeypatch
+):
+    """`reverse --steps 7` of a run with frames every 50 steps shared only the frame it
+    started from, which the restart makes the same, and was called reversible and bitwise
+    identical, even where the run was not (a critical-state run that slipped, its energy
+    43 % off at the end). It is refused before it runs; and `compare`, given such a pair,
+    refuses it too."""
+    out = tmp_path / "out"
+    assert invoke("run", scenario(), "--out", out, "-q", "--no-reverse").exit_code == 0
+    restart = out / "collision.restart.h5"
+    short = tmp_path / "short"
+    assert_one_line_error(
+        invoke("reverse", restart, "--out", short, "--steps", "7"),
+        f"--steps 7: the reversed run would end at step 2993, and {out / 'collision.forward.h5'}"
+        " has no frame from there to step 3000, where it starts: nothing could be compared; "
+        "give --steps 50 or more",
+    )
+    assert not list(short.iterdir())  # nothing run
+    assert invoke("reverse", restart, "--out", short, "--steps", "50", "-q").exit_code == 0
+
+    from revdem_cli import engine
+
+    monkeypatch.setattr(engine, "refuse_nothing_to_compare", lambda *_: None)
+    assert_one_line_error(
+        invoke("reverse", restart, "--out", tmp_path / "unchecked", "--steps", "7", "-q"),
+        "share only the frame the reversal starts from (step 3000), which its restart makes "
+        "the same: nothing to compare",
+    )
+
+
 def test_reverse_of_a_file_that_is_not_a_restart_exits_2(tmp_path):
     path = tmp_path / "x.h5"
     path.write_bytes(b"nothing")
