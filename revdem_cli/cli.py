@@ -584,8 +584,9 @@ def report(
     from revdem_cli.report.paper import HANLEY_2020, write_report
 
     target = out or directory / "report.md"
-    refuse_overwriting("report", target, out is not None and not force)
-    written = write_report(directory, paper or HANLEY_2020, target)
+    keep = out is not None and not force
+    refuse_overwriting("report", target, keep)
+    written = write_report(directory, paper or HANLEY_2020, target, keep)
     typer.echo(f"wrote {written}")
 
 

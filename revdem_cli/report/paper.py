@@ -242,9 +242,12 @@ def from_here(path: Path) -> Path:
         return Path(path)
 
 
-def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
-    """Write the Markdown page to `out`; InputError for a paper file that cannot be read, a
-    directory that holds no run of its cases, or a run's file that is damaged."""
+def write_report(directory: Path, paper_path: Path, out: Path, keep: bool = False) -> Path:
+    """Write the Markdown page to `out` (its folder made if need be), the runs' figures
+    copied beside it where they live elsewhere; InputError for a paper file that cannot be
+    read, a directory that holds no run of its cases, a run's file that is damaged, or a
+    figure's copy that would write over a folder, or over a file where `keep` (an --out
+    given without --force, as `io.refuse_overwriting` keeps the page's)."""
     paper = read_paper(paper_path)
     if not Path(directory).is_dir():
         raise InputError(f"{directory}: no such folder of runs")
@@ -259,6 +262,7 @@ def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
         "Run a case with `revdem run CONFIG --out DIR`; its files are NAME.forward.h5 and "
         "NAME.compare.json.",
     ]
+    copies = []
     for name, case in paper.items():
         title = f"## {name}" + (f" ({case['section']})" if "section" in case else "")
         lines += ["", title, ""]
@@ -266,18 +270,18 @@ def write_report(directory: Path, paper_path: Path, out: Path) -> Path:
             lines += [f"`{case['config']}`" + (f": {case['claim']}" if "claim" in case else ""), ""]
         lines += ["| quantity | paper | revdem | agrees |", "|---|---|---|---|"]
         lines += [f"| {' | '.join(row)} |" for row in case_rows(name, case, Path(directory))]
-        lines += [f"\n![{figure.stem}]({figure.name})" for figure in _figures(name, directory, out)]
+        figures = sorted(Path(directory).glob(f"{name}.*.png"))
+        lines += [f"\n![{figure.stem}]({figure.name})" for figure in figures]
+        copies += [(figure, Path(out).parent / figure.name) for figure in figures]
+    copies = [(figure, target) for figure, target in copies if target.resolve() != figure.resolve()]
+    for figure, target in copies:
+        if target.is_dir() or (keep and target.exists()):
+            kept = "a folder" if target.is_dir() else "exists"
+            force = "" if target.is_dir() else "; use --force to overwrite"
+            raise InputError(f"report: {target}: {kept}, where it would copy {figure}{force}")
     out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    for figure, target in copies:
+        shutil.copyfile(figure, target)
     out.write_text("\n".join(lines) + "\n")
     return out
-
-
-def _figures(name: str, directory: Path, out: Path) -> list[Path]:
-    """The run's figures (NAME.*.png), copied beside the page when they live elsewhere."""
-    figures = []
-    for figure in sorted(Path(directory).glob(f"{name}.*.png")):
-        target = Path(out).parent / figure.name
-        if target.resolve() != figure.resolve():
-            shutil.copyfile(figure, target)
-        figures.append(target)
-    return figures

@@ -124,3 +124,36 @@ def test_a_sphere_is_named_in_a_figure_as_in_messages(smoke_run):
     series = _each_sphere(lambda v: v[:, :, 2])(smoke_run / "collision_smoke.forward.h5")
     assert [label for label, _, _ in series] == ["particle 0 (id 1)", "particle 1 (id 2)"]
     assert all(len(time) == len(values) > 1 for _, time, values in series)
+
+
+def test_report_keeps_a_file_where_it_would_copy_a_figure_and_makes_its_folder(smoke_run, tmp_path):
+    """`report --out ELSEWHERE/r.md` copied the runs' figures over files of the same name
+    there (another run's figure), unasked; into a folder not yet made it failed, naming a
+    figure's path."""
+    import shutil
+
+    from revdem_cli.report.figures import speed_figure
+
+    runs = tmp_path / "runs"
+    shutil.copytree(smoke_run, runs)
+    speed_figure(runs / "collision_smoke.forward.h5", None, runs / "collision_smoke.speed.png")
+    paper = tmp_path / "paper.toml"
+    paper.write_text(PAPER)
+    args = ["report", str(runs), "--paper", str(paper), "--out"]
+    fresh = tmp_path / "new" / "deeper" / "r.md"
+    assert runner.invoke(app, [*args, str(fresh)]).exit_code == 0
+    assert (fresh.parent / "collision_smoke.speed.png").read_bytes()[:4] == b"\x89PNG"
+
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "collision_smoke.speed.png").write_bytes(b"another run's figure")
+    assert_one_line_error(
+        runner.invoke(app, [*args, str(other / "r.md")]),
+        f"report: {other / 'collision_smoke.speed.png'}: exists, where it would copy "
+        f"{runs / 'collision_smoke.speed.png'}; use --force to overwrite",
+    )
+    assert (other / "collision_smoke.speed.png").read_bytes() == b"another run's figure"
+    assert not (other / "r.md").exists()
+    forced = runner.invoke(app, [*args, str(other / "r.md"), "--force"])
+    assert forced.exit_code == 0, forced.output
+    assert (other / "collision_smoke.speed.png").read_bytes()[:4] == b"\x89PNG"
