@@ -19,6 +19,7 @@ after its last step with `Unfinished`. No progress is shown unless asked for
 from __future__ import annotations
 
 import copy
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +29,33 @@ import numpy as np
 
 from revdem_cli.config import Scenario
 from revdem_cli.engine import Outputs
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, path_problem
+
+
+def _paths_checked(function):
+    """`function` with an OSError over a path given that cannot be used (a file where a
+    folder is needed, a folder that cannot be made) raised as InputError with the line the
+    command line prints for it (`errors.path_problem`); other OSErrors, the machine's, as
+    they are."""
+
+    @functools.wraps(function)
+    def checked(*args, **kwargs):
+        try:
+            return function(*args, **kwargs)
+        except OSError as exc:
+            problem = path_problem(exc)
+            if problem is None:
+                raise
+            raise InputError(problem) from None
+
+    return checked
+
+
+def _path(value, what: str) -> Path:
+    """A path argument as a Path; InputError naming `what` for anything else."""
+    if not isinstance(value, str | Path):
+        raise InputError(f"{what}: a path (str or Path), not {type(value).__name__}")
+    return Path(value)
 
 
 @dataclass(frozen=True)
@@ -89,7 +116,11 @@ def load(
     from revdem_cli.config import apply_overrides, parse_text
     from revdem_cli.config.loader import read_scenario_text
 
-    path = Path(path)
+    path = _path(path, "path")
+    if isinstance(overrides, str):
+        raise InputError(
+            f"overrides: a list of key=value texts, not one text; give [{overrides!r}]"
+        )
     text, suffix = read_scenario_text(path), path.suffix.lower()
     fields = apply_overrides(parse_text(text, suffix, str(path)), list(overrides), str(path))
     return _experiment(_changed(fields, changes), str(path), path.parent, text, suffix, host)
@@ -103,6 +134,8 @@ def from_dict(
 ) -> Experiment:
     """The experiment of a scenario given as a dict of its fields (files it names are
     relative to `base`), with `changes` made."""
+    if not isinstance(fields, Mapping):
+        raise InputError(f"<dict>: the scenario's fields as a dict, not {type(fields).__name__}")
     fields = _changed(dict(fields), changes)
     return _experiment(fields, "<dict>", Path(base), *_yaml(fields), host)
 
@@ -235,6 +268,7 @@ def _progress(progress):
     return nullcontext()
 
 
+@_paths_checked
 def run(
     experiment: Experiment | str | Path,
     out: str | Path = "out",
@@ -252,9 +286,9 @@ def run(
 
     if isinstance(experiment, str | Path):
         experiment = load(experiment)
-    if not str(out).strip():
+    if isinstance(out, str) and not out.strip():  # Path("") would be this folder
         raise InputError("out: an empty path; give a folder ('.' for this one)")
-    out = Path(out)
+    out = _path(out, "out")
     keep_checkpoint(out, experiment.name, force)
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
         check_time_step(experiment.scenario, experiment.origin)
@@ -265,6 +299,7 @@ def run(
     return Result(outputs)
 
 
+@_paths_checked
 def reverse(
     restart: str | Path,
     out: str | Path | None = None,
@@ -278,10 +313,10 @@ def reverse(
     from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.io.restart import read_restart, restart_scenario
 
-    restart = Path(restart)
+    restart = _path(restart, "restart")
     spec, forward = restart_scenario(restart)
     read_restart(restart)  # every dataset checked before earlier outputs are replaced
-    folder = Path(out) if out is not None else restart.parent
+    folder = _path(out, "out") if out is not None else restart.parent
     paths = output_paths(folder, spec.name)
     written, figures = [paths["reverse"]], []
     if forward.is_file():  # compared with, and drawn beside, the reversed run
@@ -297,14 +332,16 @@ def reverse(
         return Result(reverse_run(restart, out, steps, shown))
 
 
+@_paths_checked
 def resume(out: str | Path, progress=False) -> Result:
     """Continue the run whose checkpoint is in `out` to its end, as `revdem run --resume`."""
     from revdem_cli.engine import resume_run
 
     with _progress(progress) as shown:
-        return Result(resume_run(Path(out), shown))
+        return Result(resume_run(_path(out, "out"), shown))
 
 
+@_paths_checked
 def read(out: str | Path, name: str | None = None) -> Result:
     """The Result of a run written earlier into the folder `out` (by `revdem run`, a sweep's
     variant, this module): its forward trajectory, and its restart, reversed trajectory,
@@ -314,7 +351,7 @@ def read(out: str | Path, name: str | None = None) -> Result:
     from revdem_cli.engine import output_paths
     from revdem_cli.io.h5md import open_trajectory
 
-    out = Path(out)
+    out = _path(out, "out")
     if not out.is_dir():
         raise InputError(f"{out}: {'a file, not' if out.exists() else 'no'} folder of a run")
     if name is None:

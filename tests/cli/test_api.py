@@ -85,6 +85,31 @@ def test_what_a_script_gives_wrongly_is_refused_before_anything_runs(tmp_path):
     assert revdem.run(collision, tmp_path / "path", reverse=False, force=True).comparison is None
 
 
+def test_paths_and_arguments_of_the_wrong_kind_are_input_errors(tmp_path):
+    """A file given as the folder of a run raised FileExistsError or NotADirectoryError, None
+    or a list TypeError, and overrides given as one text were read letter by letter (`--set
+    i: expected key=value`). Each is now the InputError with the command line's line."""
+    short = revdem.load(CONFIGS / "collision.toml", {"stages.0.steps": 200})
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    for out, line in [
+        (afile, f"{afile}: a file, not a folder"),
+        (afile / "sub", f"{afile / 'sub'}: {afile} is a file, not a folder"),
+        (None, "out: a path (str or Path), not NoneType"),
+    ]:
+        with pytest.raises(InputError) as raised:
+            revdem.run(short, out)
+        assert str(raised.value) == line
+    result = revdem.run(short, tmp_path / "run", reverse=False)
+    with pytest.raises(InputError, match=f"^{afile}: a file, not a folder$"):
+        revdem.reverse(result.outputs.restart, afile)
+    with pytest.raises(InputError, match="^<dict>: the scenario's fields as a dict, not list$"):
+        revdem.from_dict([1, 2])
+    with pytest.raises(InputError, match=r"^overrides: a list of key=value texts, not one"):
+        revdem.load(CONFIGS / "collision.toml", overrides="integrator.dt=5e-8")
+    assert afile.read_text() == "mine"
+
+
 def test_an_earlier_run_is_read_back_as_the_result_it_gave(tmp_path):
     """`revdem.read(folder)` gives the Result of a run written before (there was no way to
     open one): its paths, its verdict as compare.json holds it, its arrays; a folder of no
