@@ -337,7 +337,13 @@ def run_stage(
                     stepping.overlap_limit,
                     [wall.name for wall in model.scenario.walls],
                     state.ids,
-                    _likely_cause(model.scenario, clock.dt),
+                    _likely_cause(
+                        model.scenario,
+                        clock.dt,
+                        _reversed_damping(
+                            dyn, law, direction < 0 and not isinstance(tape, Replayer)
+                        ),
+                    ),
                     f"{writer.path} holds the frames up to step {writer.last_step}",
                 )
             if status != OK:
@@ -388,22 +394,42 @@ def reversal_history(state: State, model: Model, clock: StageClock) -> None:
     state.particles.omega_past[...] = ahead.particles.omega_past[::-1]
 
 
-def _likely_cause(scenario: Scenario, dt: float) -> str:
+def _reversed_damping(dyn: Dynamics, law: ContactLaw, backwards: bool) -> str:
+    """The damping of a stage run `backwards` without an information tape, which puts
+    energy in at each step as it took it out going forward (Hanley 2020 §5.2), in words;
+    "" where there is none, or the stage runs forward."""
+    kinds = [
+        (dyn.local_damping > 0.0, f"local damping {dyn.local_damping:g}"),
+        (dyn.drag != 1.0, f"drag {dyn.drag:g}"),
+        (law.beta_n > 0.0, f"viscous normal damping {law.beta_n:g}"),
+        (law.beta_t > 0.0, f"viscous tangential damping {law.beta_t:g}"),
+    ]
+    return " and ".join(words for present, words in kinds if present and backwards)
+
+
+def _likely_cause(scenario: Scenario, dt: float, damping: str = "") -> str:
     """What the time step says about a blow-up: above the critical estimate, the likely
-    cause; well below it, unlikely to be."""
+    cause; well below it, unlikely to be, and where the stage's `damping` ran backwards
+    (`_reversed_damping`), that is."""
     from revdem_cli.timestep.guard import critical_time_step
 
     limit, reason = critical_time_step(scenario)
-    ratio = dt / limit
+    ratio = abs(dt) / limit
     if ratio > 1.0:
         return (
             f"likely cause: dt = {dt:.3g} s is {ratio:.3g} times the critical time step "
             f"{limit:.3g} s ({reason})"
         )
+    of_dt = f"dt = {dt:.3g} s is {ratio:.2g} of the critical time step {limit:.3g} s ({reason})"
+    if damping:
+        return (
+            f"likely cause: the stage's {damping}, reversed, puts energy in at each step as it "
+            "took it out going forward (Hanley 2020 §5.2; an information tape, reversal.tape, "
+            f"reverses it exactly); {of_dt}"
+        )
     return (
-        f"dt = {dt:.3g} s is {ratio:.2g} of the critical time step {limit:.3g} s ({reason}), "
-        "so the time step is an unlikely cause: look at what drives the spheres together "
-        "(walls, the cell, overlaps at the start, velocities)"
+        f"{of_dt}, so the time step is an unlikely cause: look at what drives the spheres "
+        "together (walls, the cell, overlaps at the start, velocities)"
     )
 
 

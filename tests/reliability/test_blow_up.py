@@ -62,6 +62,18 @@ def test_a_time_step_above_the_critical_one_is_named_as_the_likely_cause(tmp_pat
     assert f"holds the frames up to step {frames[-1]}" in line
 
 
+def test_a_damped_stage_blown_up_backwards_names_its_damping(tmp_path):
+    """The oedometer's settle stage under local damping 0.7, reversed by velocity Verlet
+    without a tape, gains energy until two spheres overlap by half a radius. The line said
+    the time step was an unlikely cause and to look at the walls or the cell; it names the
+    damping run backwards (Hanley 2020 §5.2)."""
+    scenario = CONFIGS / "trvp" / "oedometer_settle.toml"
+    line = _failed(CliRunner().invoke(app, ["run", str(scenario), "--out", str(tmp_path), "-q"]))
+    assert "blown up at step" in line and "overlap by" in line
+    assert "likely cause: the stage's local damping 0.7, reversed, puts energy in" in line
+    assert "unlikely cause" not in line
+
+
 def _examined(scenario: Scenario, change, limit: float = 0.5) -> tuple[int, np.ndarray]:
     state = initial_state(scenario)
     change(state)
