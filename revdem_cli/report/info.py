@@ -54,6 +54,17 @@ def _scenario(text: str) -> dict:
     }
 
 
+def _grids(steps: list[float]) -> str:
+    """A fixed-point run's grid steps (`state.fixed_grid`, in the order of `fixed.X` to
+    `fixed.EDGE_RATE`) in words."""
+    x, y, z, v, w, f, t, edge, rate = (f"{step:.3g}" for step in steps)
+    return (
+        f"position {x} {y} {z} (m, or of the edge in a deforming cell), velocity {v} m/s, "
+        f"angular velocity {w} rad/s, force {f} N, moment {t} N m, edge {edge} m, edge rate "
+        f"{rate} m/s"
+    )
+
+
 def _scheme(info: dict) -> str:
     """How velocity-dependent forces read the velocity at a full step, as `info` prints it."""
     if info["scheme"] == "verlet":
@@ -92,6 +103,8 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
         "first_step": int(steps[0]) if len(steps) else None,
         "last_step": int(steps[-1]) if len(steps) else None,
     }
+    if info["arithmetic"] == "fixed" and "fixed_grid" in attrs:
+        info["grids"] = [float(step) for step in attrs["fixed_grid"]]
     checkpoint = checkpoint_path(path.parent, info["scenario"])
     if checkpoint.exists():  # the run stopped, or is going on
         info["checkpoint"] = str(checkpoint)
@@ -244,6 +257,8 @@ def info_lines(info: dict) -> list[str]:
         + (" (64-bit integers on fixed grids)" if info["arithmetic"] == "fixed" else ""),
         f"scheme:     {_scheme(info)}",
     ]
+    if "grids" in info:
+        lines.append(f"grids:      {_grids(info['grids'])}")
     if info["cell"] is not None:
         lines.append(f"cell:       periodic, {' x '.join(f'{e:.6g}' for e in info['cell'])} m")
     if info["kind"] == "trajectory":

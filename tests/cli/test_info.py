@@ -140,3 +140,26 @@ def test_frames_read_at_once_are_the_frames_read_one_by_one(smoke_run):
             assert got.shape == (len(indices), 2, 3)
             for row, index in zip(got, indices, strict=True):
                 assert np.array_equal(row, read_frame(f, "velocity", index))
+
+
+def test_a_fixed_point_trajectory_shows_its_grids(tmp_path, smoke_run):
+    """The grids come from the whole run's duration, so shortening a later stage can change
+    an earlier one's rounding; `info` did not show them. Each step is the trajectory's own,
+    and a floating-point run has none."""
+    from tests.conftest import CONFIGS
+
+    out = tmp_path / "fixed"
+    args = ["run", str(CONFIGS / "smoke" / "collision.yaml"), "--out", str(out), "-q"]
+    fixed = runner.invoke(app, [*args, "--no-reverse", "--set", "integrator.arithmetic=fixed"])
+    assert fixed.exit_code == 0, fixed.output
+    path = out / "collision_smoke.forward.h5"
+    with h5py.File(path) as f:
+        x, _, _, v, w, force, moment, edge, rate = f["parameters/revdem"].attrs["fixed_grid"]
+    shown = info(path).output
+    assert (
+        f"grids:      position {x:.3g} {x:.3g} {x:.3g} (m, or of the edge in a deforming "
+        f"cell), velocity {v:.3g} m/s, angular velocity {w:.3g} rad/s, force {force:.3g} N, "
+        f"moment {moment:.3g} N m, edge {edge:.3g} m, edge rate {rate:.3g} m/s"
+    ) in shown
+    assert json.loads(info(path, "--json").output)["grids"][3] == v
+    assert "grids:" not in info(smoke_run / "collision_smoke.forward.h5").output
