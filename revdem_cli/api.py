@@ -76,17 +76,21 @@ class Experiment:
     def changed(self, changes: Mapping[str, Any], host: bool = True) -> Experiment:
         """This experiment with the fields at dotted paths (as `--set` names them,
         `stages.0.steps`) set to Python values, checked again."""
-        fields = _changed(self.fields, changes)
+        fields = _changed(self.fields, changes, self.origin)
         text, suffix = (self.text, self.suffix) if self.origin != "<dict>" else _yaml(fields)
         return _experiment(fields, self.origin, self.base, text, suffix, host)
 
 
-def _changed(fields: dict, changes: Mapping[str, Any] | None) -> dict:
+def _changed(fields: dict, changes: Mapping[str, Any] | None, origin: str) -> dict:
+    """A copy of `fields` with `changes` made (numpy's numbers and arrays as Python's); an
+    InputError names `origin`, the fields' file or <dict>."""
     from revdem_cli.config import set_field
 
     fields = copy.deepcopy(fields)
     for key, value in (changes or {}).items():
-        set_field(fields, key, value)
+        if isinstance(value, np.generic | np.ndarray):
+            value = value.tolist()
+        set_field(fields, key, value, f"{origin}: ")
     return fields
 
 
@@ -123,7 +127,9 @@ def load(
         )
     text, suffix = read_scenario_text(path), path.suffix.lower()
     fields = apply_overrides(parse_text(text, suffix, str(path)), list(overrides), str(path))
-    return _experiment(_changed(fields, changes), str(path), path.parent, text, suffix, host)
+    return _experiment(
+        _changed(fields, changes, str(path)), str(path), path.parent, text, suffix, host
+    )
 
 
 def from_dict(
@@ -136,7 +142,7 @@ def from_dict(
     relative to `base`), with `changes` made."""
     if not isinstance(fields, Mapping):
         raise InputError(f"<dict>: the scenario's fields as a dict, not {type(fields).__name__}")
-    fields = _changed(dict(fields), changes)
+    fields = _changed(dict(fields), changes, "<dict>")
     return _experiment(fields, "<dict>", Path(base), *_yaml(fields), host)
 
 

@@ -108,6 +108,12 @@ def test_paths_and_arguments_of_the_wrong_kind_are_input_errors(tmp_path):
     with pytest.raises(InputError, match=r"^overrides: a list of key=value texts, not one"):
         revdem.load(CONFIGS / "collision.toml", overrides="integrator.dt=5e-8")
     assert afile.read_text() == "mine"
+    collision = CONFIGS / "collision.toml"
+    with pytest.raises(InputError, match=f"^{collision}: stages.5.steps: '5' is not an index"):
+        short.changed({"stages.5.steps": 3})
+    faster = short.changed({"particles.0.velocity": np.array([0.5, 0.0, 0.0]), "integrator.dt":
+                            np.float64(5e-8)})  # fmt: skip
+    assert faster.scenario.integrator.dt == 5e-8
 
 
 def test_an_earlier_run_is_read_back_as_the_result_it_gave(tmp_path):
