@@ -8,7 +8,8 @@ friction (mu = 0.5), elastic (mu = 0, undamped), viscous (mu = 0, viscous normal
 tangential (mu = 0, viscous tangential damping), seed23 (mu = 0.5 from another random
 packing) and long (mu = 0.5 to 40 %), and writes into DIR (default: this folder) the
 figures and results.json: for each run the values at the start of shearing, and their mean,
-standard deviation, least and largest over the last 5 % of axial strain.
+standard deviation, least and largest over the last 5 % of axial strain; and where OUT/tape
+holds the mu = 0.5 runs with an information tape, the bits they destroyed (information.png).
 """
 
 from __future__ import annotations
@@ -143,6 +144,53 @@ def panels(runs: dict, case: str, path: Path, reverse: dict | None = None) -> No
     plt.close(fig)
 
 
+def information(folder: Path, path: Path) -> dict:
+    """The information the mu = 0.5 shearing destroys (the tape runs: `[reversal] tape`),
+    against axial strain, for both samples: the bits recorded since the start of shearing,
+    and their rate per 1 % of axial strain (a moving mean over 0.5 %); and for each sample
+    its tape's totals by mechanism, its rate over the last 5 %, and its reversal's verdict."""
+    from revdem_cli.report.figures import information_by_step
+
+    fig, (total, rate) = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
+    summary = {}
+    for sample in SAMPLES:
+        forward = folder / f"critical_state_{sample}.forward.h5"
+        _, steps, _, bits, names = information_by_step(forward)
+        data = shearing(folder, sample)
+        strain = np.interp(steps, data["step"], data["strain"])
+        per_step = bits.sum(axis=1)
+        spent = np.cumsum(per_step)
+        width = 0.005
+        tail = strain >= strain[-1] - LAST
+        summary[sample] = {
+            "bits_destroyed": float(spent[-1]),
+            "by_mechanism": {name: float(bits[:, k].sum()) for k, name in enumerate(names)},
+            "bits_per_percent_strain_last": float(per_step[tail].sum() / (100 * LAST)),
+        }
+        verdict = json.loads((folder / f"critical_state_{sample}.compare.json").read_text())
+        summary[sample]["reversal"] = {
+            key: verdict[key] for key in ("reversible", "bitwise_identical", "max_position_error")
+        }
+        summary[sample]["tape_bytes"] = verdict["information_tape"]["bytes"]
+        centres = np.linspace(width / 2, strain[-1] - width / 2, 200)
+        edges = np.searchsorted(strain, np.stack([centres - width / 2, centres + width / 2]))
+        summed = np.concatenate([[0.0], spent])  # the bits before each step
+        in_window = (summed[edges[1]] - summed[edges[0]]) / (100 * width)
+        total.plot(100 * strain, spent, color=COLOURS[sample], label=sample)
+        rate.plot(100 * centres, in_window, color=COLOURS[sample], label=sample)
+    total.set_ylabel("bits destroyed since shearing began")
+    rate.set_ylabel("bits per 1 % of axial strain")
+    rate.set_xlabel("axial strain (%)")
+    for ax in (total, rate):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("Information destroyed on the way to the critical state (mu = 0.5)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return summary
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
@@ -171,6 +219,8 @@ def main() -> None:
                 results[case][s]["reversal"] = {k: verdict[k] for k in keys}
                 results[case][s]["reversal"]["void_ratio_back"] = float(reverse[s]["void_ratio"][0])
         panels(runs, case, args.into / f"{case}.png", reverse)
+    if all((args.out / "tape" / f"critical_state_{s}.tape.h5").is_file() for s in SAMPLES):
+        results["tape"] = information(args.out / "tape", args.into / "information.png")
     text = json.dumps(results, indent=2) + "\n"
     (args.into / "results.json").write_text(text)
     print(text)

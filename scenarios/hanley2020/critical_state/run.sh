@@ -11,6 +11,7 @@
 # tangential  mu = 0, viscous tangential damping 0.3 of critical: shear forces, no friction
 # seed23      mu = 0.5 as friction, from another random packing (packings.0.seed = 23)
 # long        mu = 0.5 as friction, to 40 % axial strain at 0.1 1/s (I <= 1e-3 still)
+# tape        mu = 0.5 as friction, with an information tape, reversed (0.8 GB a tape)
 set -euo pipefail
 out=${1:-out/critical_state}
 samples=${2:-dense loose}
@@ -34,4 +35,5 @@ for sample in $samples; do
         --set stages.2.contact.tangential_damping=0.3
     run seed23 --no-reverse --set packings.0.seed=23
     run long --no-reverse --set stages.2.steps=200000 --set stages.2.cell.z.strain_rate=-0.1
+    run tape --set reversal.tape=true
 done
