@@ -317,7 +317,10 @@ def _velocity_read(scenario: Scenario | None) -> str:
         return "it pairs forces with the velocity of the other half step when reversed"
     return (
         f"it reads the time-reversible velocity predictor of order {order} (Kolafa & Lisal "
-        f"2011), whose values going forward and back differ by O(dt^{2 * order + 1})"
+        f"2011), whose values going forward and back differ by O(dt^{2 * order + 1}) where "
+        "the force is smooth in time, and by more across a kink: a linear dashpot's jump as a "
+        "contact opens or closes (second order), local damping's sign change (no better than "
+        "velocity Verlet)"
     )
 
 

@@ -162,6 +162,7 @@ def test_a_damped_reversal_under_the_predictor_is_explained_by_it(tmp_path):
     assert cause["mechanism"] == "viscous_damping"
     assert "velocity predictor of order 2" in cause["message"]
     assert "O(dt^5)" in cause["message"] and "half step" not in cause["message"]
+    assert "a linear dashpot's jump as a contact opens or closes" in cause["message"]
     shown = CliRunner().invoke(app, ["info", str(result.outputs.forward)])
     named = "trvp (velocity-dependent forces read the time-reversible velocity predictor of order 2"
     assert f"scheme:     {named}" in shown.output, shown.output
