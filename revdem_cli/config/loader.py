@@ -29,15 +29,21 @@ def _field_path(location: tuple) -> str:
 
 def describe_validation_error(error: ValidationError) -> str:
     """The first problem of a validation error as `field.path: message`, and how many more."""
-    first = error.errors()[0]
+    errors = error.errors()
+    first = errors[0]
     message = first["msg"].removeprefix("Value error, ")
     path = _field_path(first["loc"])
-    if first["type"] == "missing":
+    if first["type"] == "missing" and isinstance(first["loc"][-1], int):  # a short tuple
+        short = [e for e in errors if e["type"] == "missing" and e["loc"][:-1] == first["loc"][:-1]]
+        errors = [e for e in errors if e not in short[1:]]  # one problem, not one an item
+        path = _field_path(first["loc"][:-1])
+        message = f"{len(first['input']) + len(short)} values needed, {len(first['input'])} given"
+    elif first["type"] == "missing":
         message = "missing required field"
     elif first["type"] == "extra_forbidden":
         message = "unknown field" + _did_you_mean(first["loc"])
     text = f"{path}: {message}" if path else message
-    more = len(error.errors()) - 1
+    more = len(errors) - 1
     return text + (f" (and {more} more problem{'s' * (more > 1)})" if more else "")
 
 

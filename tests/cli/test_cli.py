@@ -38,6 +38,11 @@ def scenario(tmp_path):
             ["particles[0].material", "unknown material 'granite'"],
         ),
         ("dt = 1.0e-7", 'dt = "fast"', ["integrator.dt", "valid number"]),
+        (  # said "particles[1].position[2]: missing required field"
+            "position = [0.0101, 0.0, 0.0]",
+            "position = [0.0101, 0.0]",
+            ["particles[1].position: 3 values needed, 2 given"],
+        ),
         ("[materials.sphere]", "[materials.glass]", ["particles[0].material"]),
     ],
 )
