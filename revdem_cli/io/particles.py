@@ -145,7 +145,8 @@ def export_gsd(
     trajectory: str | Path, path: str | Path, progress: FrameProgress | None = None
 ) -> Path:
     """Every frame as a GSD file (the `gsd` package, HOOMD schema): positions relative to
-    the box's centre (HOOMD's boxes are centred on the origin), diameters, masses,
+    the box's centre, in a periodic cell wrapped into it with image flags (`_gsd_box`; an
+    open system's box twice its bounding box), diameters, masses,
     velocities, the box edges, the step, and each sphere's id, which the schema lacks, as the logged
     per-particle quantity `particles/Particle Identifier` (OVITO's name for ids, which it
     reads as that property, as from a LAMMPS dump). GSD stores float32: positions to about
@@ -165,11 +166,11 @@ def export_gsd(
             for frame in frames(trajectory, progress=progress):
                 snapshot = gsd.hoomd.Frame()
                 snapshot.configuration.step = frame.step
-                edges = frame.upper - frame.lower
+                edges, position, image = _gsd_box(frame)
                 snapshot.configuration.box = [*edges, 0.0, 0.0, 0.0]
                 snapshot.particles.N = len(frame.id)
-                centre = 0.5 * (frame.lower + frame.upper)
-                snapshot.particles.position = (frame.position - centre).astype(np.float32)
+                snapshot.particles.position = position
+                snapshot.particles.image = image
                 snapshot.particles.diameter = (2.0 * frame.radius).astype(np.float32)
                 snapshot.particles.mass = frame.mass.astype(np.float32)
                 snapshot.particles.velocity = frame.velocity.astype(np.float32)
@@ -184,6 +185,29 @@ def export_gsd(
         tmp.unlink(missing_ok=True)
         raise WriteFailed(path, exc) from None
     return path
+
+
+def _gsd_box(frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(box edges, float32 positions, image flags) of a frame in HOOMD's convention, whose
+    boxes are periodic and centred on the origin and whose positions lie in [-L/2, L/2). A
+    periodic cell's spheres are wrapped into it (`lammps_data.wrapped`), each crossing an
+    image flag, so that position + image L is the unwrapped one. An open system's box is
+    twice the spheres' bounding box about its centre: a viewer's periodic images of it then
+    lie a bounding box apart, and no sphere finds a neighbour across its faces."""
+    from revdem_cli.io.lammps_data import wrapped
+
+    edges = frame.upper - frame.lower
+    if not frame.periodic:
+        centre = 0.5 * (frame.lower + frame.upper)
+        image = np.zeros(frame.position.shape, dtype=np.int32)
+        return 2.0 * edges, (frame.position - centre).astype(np.float32), image
+    inside, image = wrapped(frame.position - frame.lower, edges)
+    position = (inside - 0.5 * edges).astype(np.float32)
+    half = (0.5 * edges).astype(np.float32)
+    onto_upper = position >= half  # rounded onto the upper face in float32: the lower one
+    position[onto_upper] -= (2.0 * half)[np.nonzero(onto_upper)[1]]
+    image[onto_upper] += 1
+    return edges, position, image.astype(np.int32)
 
 
 def export_lammps_data(

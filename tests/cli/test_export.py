@@ -266,3 +266,47 @@ def test_contact_figures_are_drawn(packings, kind):
     for figure in ("contact_forces", "contact_normals"):
         png = out / f"{packings[kind].name.removesuffix('.forward.h5')}.{figure}.png"
         assert png.stat().st_size > 10_000, png
+
+
+def test_gsd_keeps_hoomds_box_convention_in_a_cell_and_for_an_open_system(tmp_path):
+    """A sphere that crossed a periodic cell's face lay outside the GSD box, its image flag
+    0 (HOOMD-blue refuses such a frame); and an open system's box, periodic to every GSD
+    reader, let OVITO find neighbours across it. In the cell every position is now in
+    [-L/2, L/2) and position + image L is the unwrapped one; an open system's box is twice
+    its bounding box."""
+    import gsd.hoomd
+
+    text = (CONFIGS / "smoke" / "collision.yaml").read_text()
+    runs = {"open": text}
+    runs["cell"] = text.replace("stages:", "cell:\n  size: [0.03, 0.03, 0.03]\nstages:", 1)
+    for kind, scenario in runs.items():
+        path = tmp_path / f"{kind}.yaml"
+        path.write_text(scenario)
+        out = tmp_path / kind
+        sets = ["--set", "stages.0.steps=40000", "--set", "stages.0.output_every=4000"]
+        ran = runner.invoke(app, ["run", str(path), "--out", str(out), "-q", "--no-reverse", *sets])
+        assert ran.exit_code == 0, ran.output
+        trajectory = out / "collision_smoke.forward.h5"
+        target = tmp_path / f"{kind}.gsd"
+        assert runner.invoke(app, ["export", str(trajectory), "--format", "gsd", "--out",
+                                   str(target)]).exit_code == 0  # fmt: skip
+        with h5py.File(trajectory, "r") as f:
+            unwrapped = f["particles/all/position/value"][:]
+            radius = f["particles/all/radius"][:]
+        with gsd.hoomd.open(target) as frames:
+            for k, frame in enumerate(frames):
+                edges = np.asarray(frame.configuration.box[:3], dtype=np.float64)
+                position = frame.particles.position.astype(np.float64)
+                image = frame.particles.image
+                assert (position >= -edges / 2).all() and (position < edges / 2).all()
+                if kind == "cell":
+                    np.testing.assert_allclose(edges, 0.03)
+                    shifted = position + image * edges + edges / 2
+                    np.testing.assert_allclose(shifted, unwrapped[k], rtol=0, atol=1e-8)
+                else:
+                    assert not image.any()
+                    span = (unwrapped + radius[:, None]).max(axis=(0, 1))
+                    span -= (unwrapped - radius[:, None]).min(axis=(0, 1))
+                    np.testing.assert_allclose(edges, 2 * span, rtol=1e-6)
+        if kind == "cell":  # the spheres crossed the cell's faces: the flags are not all 0
+            assert image.any()
