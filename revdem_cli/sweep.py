@@ -212,9 +212,23 @@ def run_variant(
         row["status"], row["error"] = STOPPED, f"stopped: {exc}"
         return row
     except (InputError, RuntimeError, OSError, MemoryError) as exc:
+        row = _forward_row(out_dir, scenario_json, time.perf_counter() - started)
         row["status"], row["error"] = FAILED, f"{type(exc).__name__}: {exc}"
         return row
     return _done_row(outputs.forward, outputs.verdict, time.perf_counter() - started)
+
+
+def _forward_row(out_dir: Path, scenario_json: str, seconds: float) -> dict:
+    """The row of RESULTS of a variant that failed: where its forward run had ended (its
+    restart written) and its reversal failed, the forward run's final energies and the
+    seconds it took; else empty."""
+    from revdem_cli.config import Scenario
+    from revdem_cli.engine import output_paths
+
+    paths = output_paths(out_dir, Scenario.model_validate_json(scenario_json).name)
+    if not (paths["restart"].exists() and paths["forward"].exists()):
+        return dict.fromkeys(RESULTS)
+    return _done_row(paths["forward"], None, seconds)
 
 
 def _done_row(forward: Path, verdict: dict | None, seconds: float | None) -> dict:

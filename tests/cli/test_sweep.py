@@ -193,6 +193,24 @@ def test_a_variant_runs_at_an_unstable_time_step_only_where_allowed(tmp_path, al
     assert "times the critical time step" in row["error"]
 
 
+def test_a_variant_whose_reversal_fails_keeps_its_forward_runs_results(tmp_path):
+    """The damped settle stage reversed without a tape blows up (Hanley 2020 §5.2): the row
+    was failed and empty, although the forward run had ended; it keeps that run's final
+    energies and seconds, the reversal's error beside them. A variant failed before its
+    forward run ended keeps none (above)."""
+    from revdem_cli.config import load_scenario
+    from revdem_cli.io.h5md import open_trajectory, read_observable
+    from revdem_cli.sweep import FAILED, run_variant
+
+    scenario, text = load_scenario(CONFIGS / "trvp" / "oedometer_settle.toml", [])
+    row = run_variant(scenario.model_dump_json(), text, ".toml", tmp_path)
+    assert row["status"] == FAILED and row["error"].startswith("BlownUp: "), row["error"]
+    with open_trajectory(tmp_path / "oedometer_settle.forward.h5") as f:
+        assert row["kinetic_energy"] == read_observable(f, "kinetic_energy")[1][-1]
+        assert row["total_energy"] == read_observable(f, "total_energy")[1][-1]
+    assert row["seconds"] > 0.0 and row["reversible"] is None
+
+
 def test_an_earlier_sweep_in_the_folder_is_kept_unless_forced(tmp_path):
     """As `revdem run` keeps a run's outputs: its tables and every variant's files."""
     args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--set", "stages.0.steps=10,20"]
