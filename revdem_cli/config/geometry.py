@@ -196,8 +196,11 @@ def check_inside_cell(scenario) -> None:
 
 def check_overlaps(scenario) -> None:
     """Spheres may touch, or overlap by up to 1 % of the smaller radius (a contact already
-    loaded), no more; in a periodic cell, through the nearest image."""
+    loaded), no more, but two of one data file by up to its `max_overlap` (a loaded packing,
+    `ParticlesFrom`); in a periodic cell, through the nearest image."""
     from scipy.spatial import cKDTree
+
+    from revdem_cli.config.schema import OVERLAP_AT_START
 
     x, r = scenario.spheres.position, scenario.spheres.radius
     size = np.array(scenario.cell.size) if scenario.cell else None
@@ -210,13 +213,31 @@ def check_overlaps(scenario) -> None:
     if size is not None:
         d -= size * np.round(d / size)
     gap = np.linalg.norm(d, axis=1) - r[i] - r[j]
-    bad = np.nonzero(gap < -1e-2 * np.minimum(r[i], r[j]))[0]
+    source, allowed = _data_files(scenario)
+    own = (source[i] == source[j]) & (source[i] >= 0)
+    depth = np.where(own, allowed[np.maximum(source[i], 0)], OVERLAP_AT_START)
+    bad = np.nonzero(gap < -depth * np.minimum(r[i], r[j]))[0]
     if len(bad):
         k = bad[0]
         where, sphere = located(scenario, int(j[k]))
+        share = -gap[k] / min(r[i[k]], r[j[k]])
+        more = f"; a loaded packing: particles_from[{source[j[k]]}].max_overlap" if own[k] else ""
         raise FieldError(
-            where, f"{sphere} overlaps {located(scenario, int(i[k]))[1]} by {-gap[k]:.3g} m"
+            where,
+            f"{sphere} overlaps {located(scenario, int(i[k]))[1]} by {-gap[k]:.3g} m, "
+            f"{100 * share:.2g} % of the smaller radius (at most {100 * depth[k]:g} %{more})",
         )
+
+
+def _data_files(scenario) -> tuple[np.ndarray, np.ndarray]:
+    """(the index in particles_from of each sphere's data file, -1 for a sphere of another
+    table; each data file's max_overlap)."""
+    source = np.full(len(scenario.spheres.radius), -1, dtype=np.int64)
+    start = len(scenario.particles) + sum(t.count for t in (*scenario.packings, *scenario.lattices))
+    for k, table in enumerate(scenario.particles_from):
+        source[start : start + table.count] = k
+        start += table.count
+    return source, np.array([t.max_overlap for t in scenario.particles_from] or [0.0])
 
 
 def check_walls(scenario) -> None:

@@ -341,6 +341,11 @@ class Lattice(_Model):
         return self.spacing or 2.0 * math.sqrt(2.0) * self.radius
 
 
+OVERLAP_AT_START = 0.01
+"""How deep spheres may overlap where they start, of the smaller radius (a contact already
+loaded; `geometry.check_overlaps`), but for a data file's own (`ParticlesFrom.max_overlap`)."""
+
+
 class ParticlesFrom(_Model):
     """Spheres read from a file another code wrote: a LAMMPS data file of atom_style sphere
     in units si (`write_data`), its atoms numbered in space (or in the order of their ids,
@@ -373,6 +378,15 @@ class ParticlesFrom(_Model):
         description="the file's box is the scenario's periodic [cell] (a data file does not "
         "say which axes are periodic): [cell] size must be its edges, and positions are "
         "taken relative to its lower corner",
+    )
+    max_overlap: float = Field(
+        default=OVERLAP_AT_START,
+        ge=0.0,
+        le=0.5,
+        description="how deep the file's spheres may overlap one another, of the smaller "
+        "radius: a loaded packing (compressed, confined, as LAMMPS' read_data takes any) "
+        "starts with its contacts' overlaps, a few %; spheres elsewhere start no deeper "
+        "than 0.01, which catches two placed at one point",
     )
     order: Literal["space", "ids"] = Field(
         default="space",

@@ -248,6 +248,36 @@ def test_a_bad_data_file_is_one_line_naming_it(tmp_path, edit, fragments):
     assert_one_line_error(result, "particles_from[0]", *fragments)
 
 
+def test_a_loaded_packing_reads_back_with_the_overlaps_its_file_allows(tmp_path):
+    """The fcc packing squeezed by 2 %, its contacts overlapping by 4.2 % of a radius, as a
+    compressed packing's do (LAMMPS' read_data takes any): refused at the 1 % that catches
+    two spheres placed at one point, naming how deep and the field that allows it; read with
+    `max_overlap = 0.05`."""
+    squeeze = 0.98
+    lines = (DATA / "fcc_step0.data").read_text().splitlines()
+    atoms = lines.index("Atoms # sphere") + 2
+    for k, line in enumerate(lines):
+        words = line.split()
+        if line.endswith(("xlo xhi", "ylo yhi", "zlo zhi")):
+            lines[k] = f"0 {float(words[1]) * squeeze!r} {' '.join(words[2:])}"
+        elif atoms <= k < atoms + 108:
+            words[4:7] = (repr(float(w) * squeeze) for w in words[4:7])
+            lines[k] = " ".join(words)
+    data = tmp_path / "squeezed.data"
+    data.write_text("\n".join(lines) + "\n")
+    edge = float(read_header(DATA / "fcc_step0.data")[2][0]) * squeeze
+    scenario = _scenario(tmp_path, data, edge=edge)
+    assert_one_line_error(
+        CliRunner().invoke(app, ["validate", str(scenario)]),
+        "particles_from[0]: atom ", "by 0.00021 m, 4.2 % of the smaller radius (at most 1 %; "
+        "a loaded packing: particles_from[0].max_overlap)",
+    )  # fmt: skip
+    text = scenario.read_text().replace("periodic = true", "periodic = true\nmax_overlap = 0.05")
+    scenario.write_text(text)
+    result = CliRunner().invoke(app, ["validate", str(scenario)])
+    assert result.exit_code == 0, result.output
+
+
 def test_a_periodic_box_must_be_the_cell(tmp_path):
     scenario = _scenario(tmp_path, DATA / "fcc_step0.data")
     text = scenario.read_text().replace("size = [0.04", "size = [0.05", 1)
