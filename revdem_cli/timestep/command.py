@@ -346,7 +346,7 @@ def _print_packing(report: dict) -> None:
         steps.add_row(key, estimate["label"], _seconds(math.inf if dt is None else dt), shown)
     console.print(steps)
     top = ", ".join(
-        f"{s['index']} ({s['share']:.2%}, {s['contacts']} contacts)" for s in mode["spheres"]
+        f"id {s['id']} ({s['share']:.2%}, {s['contacts']} contacts)" for s in mode["spheres"]
     )
     console.print(
         f"• fastest mode: ω_max = {assembly['omega_max']:.6g} rad/s, carried by about "

@@ -152,7 +152,9 @@ class PackingLimit:
     vector: np.ndarray  # the top mode in mass-normalised coordinates, (N, 6), unit norm
     seconds: float  # time the eigenvalue took
 
-    def to_dict(self) -> dict:
+    def to_dict(self, ids: np.ndarray) -> dict:
+        """The limit as `revdem dt --restart --json` gives it, each sphere of the mode by its
+        index in the arrays and its id (`ids`), which outputs carry."""
         return {
             "contacts": len(self.contacts),
             "wall_contacts": self.contacts.walls,
@@ -164,7 +166,8 @@ class PackingLimit:
                 "participation": self.mode.participation,
                 "rotation_share": self.mode.rotation,
                 "spheres": [
-                    {"index": i, "share": s, "contacts": k} for i, s, k in self.mode.spheres
+                    {"index": i, "id": int(ids[i]), "share": s, "contacts": k}
+                    for i, s, k in self.mode.spheres
                 ],
                 "centre": list(self.mode.centre),
             },
@@ -500,7 +503,7 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
         "stage": restart.stage,
         "step": state.step,
         "spheres": len(state.particles.x),
-        "assembly": limit.to_dict(),
+        "assembly": limit.to_dict(state.ids),
         "estimates": {
             key: {"label": label, "dt": _finite(dt), "ratio": _finite(dt / reference)}
             for key, (label, dt) in estimates.items()

@@ -198,6 +198,14 @@ def test_dt_restart_reports_the_assembly_beside_the_single_contact_estimates(fcc
     engine = report["engine_integrated"]
     assert engine["stable"] < dt * 1.001 < engine["unstable"] * 1.001
     assert engine["ratio"] == pytest.approx(1.0, abs=1e-2)
+    # the mode's spheres by their ids, as every output names them, not by array index
+    from revdem_cli.io.restart import read_restart
+
+    ids = read_restart(fcc_restart).state.ids
+    spheres = report["assembly"]["mode"]["spheres"]
+    assert [s["id"] for s in spheres] == [int(ids[s["index"]]) for s in spheres]
+    shown = " ".join(invoke("dt", "--restart", fcc_restart).output.split())
+    assert f"largest shares: id {spheres[0]['id']} ({spheres[0]['share']:.2%}" in shown
 
 
 def test_dt_restart_tells_what_it_is_doing_as_it_goes(fcc_restart):
