@@ -456,8 +456,10 @@ def export(
     }[format]
     with nullcontext() if quiet else _progress_of("frames", False) as shown:
         written = exporter(trajectory, target, shown)
-    if format == "vtk":
-        typer.echo(f"wrote {written[0]} and {len(written) - 1} frame files")
+    if format == "vtk":  # each series and its frames: the spheres', and the force chains'
+        for series in (path for path in written if path.suffix == ".pvd"):
+            count = sum(path.stem.rsplit(".", 1)[0] == series.stem for path in written)
+            typer.echo(f"wrote {series} and its {count} frame files")
     else:
         typer.echo(f"wrote {written}")
 

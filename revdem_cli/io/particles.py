@@ -79,8 +79,8 @@ def frames(
                 yield Frame(int(steps[k]), float(times[k]), lower, upper, periodic, ids,
                             species + 1, radius, mass, position, velocity, spin,
                             read_contacts(f, k))  # fmt: skip
-                if progress is not None:
-                    progress(Path(trajectory).name, int(k) + 1, len(steps))
+                if progress is not None:  # of the frames exported: the last alone, 1 of 1
+                    progress(Path(trajectory).name, int(k) + 1 - first, len(steps) - first)
 
 
 def _bounding_box(f, radius: np.ndarray, exported: range) -> tuple[np.ndarray, np.ndarray]:

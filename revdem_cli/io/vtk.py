@@ -1,7 +1,8 @@
 """VTK XML files of a trajectory, for ParaView: one PolyData (.vtp) file a frame and a .pvd
 series that names them with their times.
 
-Each particle is a point (and a vertex cell) carrying its radius, id, velocity, angular
+Each particle is a point (and a vertex cell) carrying its radius, id, type (its material,
+numbered from 1 in the order of [materials]), velocity, angular
 velocity and force as point data, so a Glyph filter with spheres scaled by `radius` draws
 the particles. A trajectory with contacts ([output] contacts) also gets the force chains,
 STEM.contacts.NNNNN.vtp and STEM.contacts.pvd: a line a contact, from the sphere's centre
@@ -49,7 +50,7 @@ def _polydata(position: np.ndarray, point_data: dict[str, np.ndarray]) -> ET.Ele
     _data_array(verts, "offsets", np.arange(1, n + 1), "Int64")
     data = ET.SubElement(piece, "PointData", Scalars="radius", Vectors="velocity")
     for name, values in point_data.items():
-        _data_array(data, name, values, "Int64" if name == "id" else "Float64")
+        _data_array(data, name, values, "Int64" if name in ("id", "type") else "Float64")
     return ET.ElementTree(root)
 
 
@@ -109,6 +110,8 @@ def export_vtk(
         out_dir.mkdir(parents=True, exist_ok=True)
         particles = f["particles/all"]
         constant = {"radius": particles["radius"][:], "id": particles["id"][:]}
+        if "species" in particles:  # the material, numbered from 1 as the other exports do
+            constant["type"] = particles["species"][:] + 1
         periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
         width = max(5, len(str(len(times) - 1)))

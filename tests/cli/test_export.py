@@ -26,7 +26,7 @@ def arrays(piece):
 
 def test_vtk_export_writes_every_frame_with_particle_data(smoke_run, tmp_path):
     trajectory = smoke_run / "collision_smoke.reverse.h5"
-    result = runner.invoke(app, ["export", "--vtk", str(trajectory), "--out", str(tmp_path)])
+    result = runner.invoke(app, ["export", "--vtk", str(trajectory), "--out", str(tmp_path), "-q"])
     assert result.exit_code == 0, result.output
 
     series = ET.parse(tmp_path / "collision_smoke.reverse.pvd").getroot()
@@ -49,7 +49,10 @@ def test_vtk_export_writes_every_frame_with_particle_data(smoke_run, tmp_path):
         np.testing.assert_array_equal(data["velocity"], velocity[frame])
         np.testing.assert_array_equal(data["angular_velocity"], omega[frame])
         np.testing.assert_array_equal(data["radius"].ravel(), [0.005, 0.005])
+        np.testing.assert_array_equal(data["type"].ravel(), [1, 1])  # the one material
         np.testing.assert_array_equal(data["connectivity"].ravel(), [0, 1])
+    series = tmp_path / "collision_smoke.reverse.pvd"
+    assert result.output.splitlines()[-1] == f"wrote {series} and its 21 frame files"
 
 
 def test_export_needs_a_format_and_a_trajectory(smoke_run):
