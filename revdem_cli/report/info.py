@@ -103,6 +103,9 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
         "first_step": int(steps[0]) if len(steps) else None,
         "last_step": int(steps[-1]) if len(steps) else None,
     }
+    if info["cell"] is not None and len(steps):  # the cell's edges at the first and last frame
+        edges = f["particles/all/box/edges/value"]
+        info["cell_frames"] = [[float(e) for e in edges[0]], [float(e) for e in edges[-1]]]
     if info["arithmetic"] == "fixed" and "fixed_grid" in attrs:
         info["grids"] = [float(step) for step in attrs["fixed_grid"]]
     checkpoint = checkpoint_path(path.parent, info["scenario"])
@@ -187,11 +190,14 @@ def _restart(path: Path) -> dict:
 
     restart = read_restart(path, checkpoint=None)
     resumption = restart.resumption
+    run = _scenario(restart.scenario_json)
+    if run["cell"] is not None:  # the cell as the state has it, not where it started
+        run["cell"] = [float(edge) for edge in restart.state.cell.length]
     return {
         "file": str(path),
         "kind": "restart" if resumption is None else "checkpoint",
         "direction": "forward" if resumption is None else resumption.phase,
-        **_scenario(restart.scenario_json),
+        **run,
         "particles": int(restart.state.particles.x.shape[0]),
         "step": int(restart.state.step),
         "stage": restart.stage,
@@ -259,7 +265,11 @@ def info_lines(info: dict) -> list[str]:
     ]
     if "grids" in info:
         lines.append(f"grids:      {_grids(info['grids'])}")
-    if info["cell"] is not None:
+    if "cell_frames" in info:  # a trajectory's cell, which may move: at its ends
+        first, last = (" x ".join(f"{e:.6g}" for e in edges) for edges in info["cell_frames"])
+        at = f" at step {info['first_step']}, {last} m at step {info['last_step']}"
+        lines.append(f"cell:       periodic, {first} m" + (at if last != first else ""))
+    elif info["cell"] is not None:
         lines.append(f"cell:       periodic, {' x '.join(f'{e:.6g}' for e in info['cell'])} m")
     if info["kind"] == "trajectory":
         lines.append(

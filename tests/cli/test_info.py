@@ -163,3 +163,33 @@ def test_a_fixed_point_trajectory_shows_its_grids(tmp_path, smoke_run):
     ) in shown
     assert json.loads(info(path, "--json").output)["grids"][3] == v
     assert "grids:" not in info(smoke_run / "collision_smoke.forward.h5").output
+
+
+def test_a_moving_cell_is_shown_where_each_file_has_it(tmp_path):
+    """`info` of a trajectory or restart gave the cell the scenario starts with, though the
+    servo had moved it (0.06 m against the frames' 0.046 m): a trajectory's at its first
+    and last frames, a restart's as its state has it."""
+    from tests.conftest import CONFIGS
+
+    out = tmp_path / "shear"
+    args = ["run", str(CONFIGS / "smoke" / "critical_state.toml"), "--out", str(out), "-q"]
+    sets = [f"stages.{k}.steps=400" for k in range(3)] + ["stages.2.output_every=200"]
+    ran = runner.invoke(app, [*args, *(part for item in sets for part in ("--set", item))])
+    assert ran.exit_code == 0, ran.output
+    name = "critical_state_smoke"
+    with h5py.File(out / f"{name}.reverse.h5") as f:
+        edges = f["particles/all/box/edges/value"][:]
+        steps = f["particles/all/position/step"][:]
+    assert not np.array_equal(edges[0], edges[-1])  # the cell moved in the reversed stage
+
+    def shown(values):
+        return " x ".join(f"{e:.6g}" for e in values)
+
+    line = f"cell:       periodic, {shown(edges[0])} m at step {steps[0]}, {shown(edges[-1])} m "
+    assert line + f"at step {steps[-1]}" in info(out / f"{name}.reverse.h5").output
+    from revdem_cli.io.restart import read_restart
+
+    state = read_restart(out / f"{name}.restart.h5").state
+    restart = info(out / f"{name}.restart.h5").output
+    assert f"cell:       periodic, {shown(state.cell.length)} m\n" in restart
+    assert np.array_equal(state.cell.length, edges[0])  # the reversal starts from it
