@@ -38,6 +38,9 @@ class _Commands(TyperGroup):
         except UsageError as exc:
             where = exc.ctx.command_path if exc.ctx else "revdem"
             message = " ".join(exc.format_message().split())
+            param = getattr(exc, "param", None)
+            if param is not None and (param.nargs or 1) > 1:  # too few values took the next
+                message += f" ({param.opts[0]} takes {param.nargs} values)"  # option as one
             typer.echo(f"error: {where}: {message} (see {where} --help)", err=True)
             sys.exit(2)
         except typer.Abort:

@@ -259,3 +259,10 @@ def test_a_field_set_twice_on_the_command_line_is_refused_not_cut_to_its_last_va
     assert_one_line_error(
         result, f"--set {second}: integrator.dt is given twice (also --set {first})"
     )
+
+
+def test_too_few_values_of_a_vector_option_say_how_many_it_takes():
+    """`--semi-axes 3 2 --density 1000` took `--density` as the third semi-axis and said
+    only that it is not a number."""
+    result = invoke("dt", "--shape", "ellipsoid", "--semi-axes", "3", "2", "--density", "1000")
+    assert_one_line_error(result, "'--semi-axes'", "(--semi-axes takes 3 values)")
