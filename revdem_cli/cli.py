@@ -544,7 +544,7 @@ def sweep(
     for path in tables:
         typer.echo(f"wrote {path}")
     if not signum:  # stopped, the line below counts each status
-        typer.echo(f"{len(rows)} variants, {count[FAILED]} failed")
+        typer.echo(f"{len(rows)} variant{'s' * (len(rows) != 1)}, {count[FAILED]} failed")
     for row in rows:
         if row["status"] == FAILED:
             typer.echo(f"failed: {row['folder']}: {row['error']}", err=True)
