@@ -272,6 +272,7 @@ def _forward(
                 stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
                 restart = run.restart(state, clock, paths["forward"], files=files)
                 write_restart(stage_restart["restart"], restart)
+        writer.end()
     reversal_history(state, run.model, clock)  # a velocity predictor's, for the reversal
     last = _stage_files(run, len(scenario.stages) - 1)
     write_restart(paths["restart"], run.restart(state, clock, paths["forward"], files=last))
@@ -383,6 +384,7 @@ def _reverse(
             start, source = _stage_before(start, source)
             clock = _reverse_clock(scenario, start, start.state.step)
             stop, events = clock.first_step, None
+        writer.end()
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(start.trajectory)
     run.checkpoints.finish("its comparison and figures were written")

@@ -223,6 +223,7 @@ class TrajectoryWriter:
         revdem.attrs["schema_version"] = SCHEMA_VERSION
         for key, value in parameters.items():
             revdem.attrs[key] = value
+        self.ended = revdem.create_dataset(ENDED, data=np.int8(0))  # `ended`: 1
         self.last_step: int | None = None
         self.last_observable: int | None = None
         self.file.swmr_mode = True  # everything is created: from here on only appended to
@@ -358,6 +359,11 @@ class TrajectoryWriter:
             STUCK.append(self)  # its objects kept: each would fail again as it is freed
         raise WriteFailed(self.path, exc) from None
 
+    def end(self) -> None:
+        """Mark the trajectory whole: its run reached the step it was to end at (a dataset, as
+        SWMR lets no attribute change). One stopped, failed or killed keeps 0 there."""
+        self.ended[()] = 1
+
     def close(self) -> None:
         if self.closed:
             return
@@ -373,6 +379,17 @@ class TrajectoryWriter:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+ENDED = "ended"
+"""parameters/revdem/ENDED of a trajectory: 1 once its run reached its end, 0 before
+(`TrajectoryWriter.end`); absent in one written before it existed."""
+
+
+def ended(f: h5py.File) -> bool | None:
+    """Whether a trajectory's run reached its end; None where the file does not say."""
+    marker = f["parameters/revdem"].get(ENDED)
+    return None if marker is None else bool(marker[()])
 
 
 def open_trajectory(path: str | Path) -> h5py.File:

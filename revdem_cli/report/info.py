@@ -90,6 +90,7 @@ def stop_condition(condition: dict | None) -> str:
 def _trajectory(path: Path, f: h5py.File) -> dict:
     from revdem_cli.checkpoint import checkpoint_path
     from revdem_cli.compare import read_verdict
+    from revdem_cli.io.h5md import ended
 
     attrs = f["parameters/revdem"].attrs
     steps = f["particles/all/position/step"][:]
@@ -108,6 +109,7 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
         info["cell_frames"] = [[float(e) for e in edges[0]], [float(e) for e in edges[-1]]]
     if info["arithmetic"] == "fixed" and "fixed_grid" in attrs:
         info["grids"] = [float(step) for step in attrs["fixed_grid"]]
+    info["ended"] = ended(f)  # None: written before trajectories said
     checkpoint = checkpoint_path(path.parent, info["scenario"])
     if checkpoint.exists():  # the run stopped, or is going on
         info["checkpoint"] = str(checkpoint)
@@ -279,6 +281,11 @@ def info_lines(info: dict) -> list[str]:
             lines.append(
                 f"unfinished: {info['checkpoint']} is beside it (the run stopped, or goes on); "
                 f"continue with revdem run --resume {Path(info['file']).parent}"
+            )
+        elif info.get("ended") is False:
+            lines.append(
+                "unfinished: its run did not reach its end and left no checkpoint (it failed, "
+                "or was stopped at once): the frames are those it wrote"
             )
     elif info["kind"] == "checkpoint":
         lines.append(

@@ -193,3 +193,18 @@ def test_a_moving_cell_is_shown_where_each_file_has_it(tmp_path):
     restart = info(out / f"{name}.restart.h5").output
     assert f"cell:       periodic, {shown(state.cell.length)} m\n" in restart
     assert np.array_equal(state.cell.length, edges[0])  # the reversal starts from it
+
+
+def test_a_trajectory_whose_run_did_not_end_says_so(tmp_path):
+    """A reversal that blew up (the damped settle stage reversed without a tape) left a
+    trajectory that `info` showed as a whole run's: its frames, no word that the run
+    failed. The forward run, which ended, is not called unfinished."""
+    from tests.conftest import CONFIGS
+
+    args = ["run", str(CONFIGS / "trvp" / "oedometer_settle.toml"), "--out", str(tmp_path), "-q"]
+    assert runner.invoke(app, args).exit_code == 1
+    reverse = info(tmp_path / "oedometer_settle.reverse.h5").output
+    assert "unfinished: its run did not reach its end and left no checkpoint" in reverse
+    assert "unfinished" not in info(tmp_path / "oedometer_settle.forward.h5").output
+    summary = json.loads(info(tmp_path / "oedometer_settle.forward.h5", "--json").output)
+    assert summary["ended"] is True
