@@ -165,21 +165,21 @@ class Result:
 
     def observable(self, name: str, run: str = "forward") -> tuple[np.ndarray, np.ndarray]:
         """(time in s, values) of an observable of the forward or the reversed run."""
-        from revdem_cli.io.h5md import open_trajectory, read_observable
+        from revdem_cli.io.h5md import observable_names, open_trajectory, read_observable
 
         with open_trajectory(self.trajectory(run)) as f:
-            if f"observables/{name}" not in f:
-                known = ", ".join(sorted(f["observables"]))
-                raise InputError(f"no observable '{name}' (the run has: {known})")
+            known = observable_names(f)
+            if name not in known:
+                raise InputError(f"no observable '{name}' (the run has: {', '.join(known)})")
             return read_observable(f, name)
 
     def observables(self, run: str = "forward") -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Every observable of a run by name, as `observable` gives it, read from the
         trajectory opened (and checked) once."""
-        from revdem_cli.io.h5md import open_trajectory, read_observable
+        from revdem_cli.io.h5md import observable_names, open_trajectory, read_observable
 
         with open_trajectory(self.trajectory(run)) as f:
-            return {name: read_observable(f, name) for name in f["observables"] if name != "events"}
+            return {name: read_observable(f, name) for name in observable_names(f)}
 
     def frames(self, field: str = "position", run: str = "forward") -> tuple[np.ndarray, ...]:
         """(steps, times in s, values [F, N, 3]) of a per-sphere field at every frame:

@@ -460,6 +460,19 @@ def read_frames(f: h5py.File, field: str, indices: np.ndarray) -> np.ndarray:
     return rows[np.searchsorted(ascending, indices)]
 
 
+def observable_names(f: h5py.File) -> list[str]:
+    """The observables a trajectory holds, as `read_observable` takes them: each group with
+    a value under /observables, by its path there ("kinetic_energy", "wall_force/top": one
+    group a wall), but for the event log."""
+    names = set()
+    f["observables"].visit(lambda name: names.add(name.removesuffix("/value")))
+    return sorted(
+        name
+        for name in names
+        if f"observables/{name}/value" in f and f"observables/{name}/step" in f and name != "events"
+    )
+
+
 def read_observable(f: h5py.File, name: str) -> tuple[np.ndarray, np.ndarray]:
     """(time, value) of an observable."""
     rows = slice(len(_read(f, f"observables/{name}/step")))

@@ -116,6 +116,22 @@ def test_paths_and_arguments_of_the_wrong_kind_are_input_errors(tmp_path):
     assert faster.scenario.integrator.dt == 5e-8
 
 
+def test_a_run_with_walls_gives_each_walls_observables(tmp_path):
+    """`observables()` of any run with walls raised "damaged revdem trajectory": wall_force
+    and wall_position are a group a wall, with no series of their own. Each wall's series
+    is now one observable by its path, and an unknown name lists those."""
+    drop = revdem.load(CONFIGS / "drop_A.toml", {"stages.0.steps": 2000})
+    result = revdem.run(drop, tmp_path, reverse=False)
+    observables = result.observables()
+    assert {"wall_force/plane", "wall_position/plane", "kinetic_energy"} <= set(observables)
+    assert "events" not in observables and "wall_force" not in observables
+    time, force = result.observable("wall_force/plane")
+    assert force.shape == (len(time), 3)
+    with pytest.raises(InputError, match=r"no observable 'wall_force' \(the run has: .*"
+                       r"wall_force/plane, wall_position/plane"):  # fmt: skip
+        result.observable("wall_force")
+
+
 def test_an_earlier_run_is_read_back_as_the_result_it_gave(tmp_path):
     """`revdem.read(folder)` gives the Result of a run written before (there was no way to
     open one): its paths, its verdict as compare.json holds it, its arrays; a folder of no
