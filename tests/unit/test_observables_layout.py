@@ -37,3 +37,14 @@ def test_observe_writes_every_column_it_owns(config):
     assert at == model.layout.width
     assert {"kinetic_energy", "coordination_number", "fabric"} <= set(owned)
     assert any(name.startswith("wall_force/") for name in owned) or "stress" in owned
+
+
+def test_every_figure_a_scenario_can_name_is_one_that_is_drawn():
+    """A figure is named in two places, the scenario's choices (`config.schema.FIGURE_KINDS`,
+    what validation takes) and the functions that draw them (`report.figures.FIGURES`): one
+    added to the second alone was refused by validation, one in the first alone would fail
+    after the run."""
+    from revdem_cli.config.schema import FIGURE_KINDS
+    from revdem_cli.report.figures import FIGURES
+
+    assert sorted(FIGURE_KINDS) == sorted(FIGURES)
