@@ -260,41 +260,47 @@ def stress_ratios_figure(forward: Path, reverse: Path | None, png: Path) -> Path
     return _panels(forward, reverse, png, panels, f"compression along {'xyz'[axis]} (mm)")
 
 
-def _last_contacts(path: Path) -> dict[str, np.ndarray]:
-    """The contacts between spheres (walls left out) of a trajectory's last frame."""
+def _sphere_contacts(path: Path, step: int | None = None) -> dict[str, np.ndarray]:
+    """The contacts between spheres (walls left out) of a trajectory's frame at `step` (its
+    last where None)."""
     from revdem_cli.io.h5md import frame_steps, open_trajectory, read_contacts
 
     with open_trajectory(path) as f:
-        contacts = read_contacts(f, len(frame_steps(f)) - 1)
+        steps = frame_steps(f)
+        frame = len(steps) - 1 if step is None else int(np.nonzero(steps == step)[0][0])
+        contacts = read_contacts(f, frame)
     pairs = contacts["value"][:, 1] >= 0
     return {name: values[pairs] for name, values in contacts.items()}
 
 
-def _normalised_forces(path: Path) -> np.ndarray:
-    """|f_n| / <|f_n|> of the last frame's sphere contacts."""
-    normal = _last_contacts(path)["normal_force"]
+def _normalised_forces(path: Path, step: int | None = None) -> np.ndarray:
+    """|f_n| / <|f_n|> of the sphere contacts of the frame at `step` (the last where None)."""
+    normal = _sphere_contacts(path, step)["normal_force"]
     magnitude = np.sqrt((normal**2).sum(axis=1))
     return magnitude / magnitude.mean() if len(magnitude) else magnitude
 
 
 def contact_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
-    """The distribution of normal contact forces normalised by their mean, semi-log, at the
-    end of the forward run and at the end of its reversal: the exponential tail of strong
-    forces (Radjai et al. 1996) and how the reversal brings back the starting network."""
+    """The distribution of normal contact forces normalised by their mean, semi-log: at the
+    end of the forward run (the exponential tail of strong forces, Radjai et al. 1996) and,
+    with a reversal, at the step it returned to, forward and reversed: where the reversal
+    brings back the network the forward run had there, the two lie on each other."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from revdem_cli.io.h5md import frame_steps, open_trajectory
+
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
-    runs = [
-        (run, _normalised_forces(path), style)
-        for run, path, style in (
-            ("forward end", forward, {"lw": 2.5, "alpha": 0.5}),
-            ("reversed end", reverse, {"lw": 1.2, "ls": "--"}),
+    runs = [("forward end", _normalised_forces(forward), {"lw": 2.5, "alpha": 0.35})]
+    if reverse is not None:
+        with open_trajectory(reverse) as f:
+            back = int(frame_steps(f)[-1])  # the step the reversal returned to
+        runs.append((f"forward at step {back}", _normalised_forces(forward, back), {"lw": 2.0}))
+        runs.append(
+            (f"reversed, at step {back}", _normalised_forces(reverse), {"lw": 1.2, "ls": "--"})
         )
-        if path is not None
-    ]
     runs = [(run, forces, style) for run, forces, style in runs if len(forces)]
     # the axis to 4 means or the 99.9th percentile: one force of 32 means in a few hundred
     # squeezed the rest against the left edge; those beyond are counted in the legend
@@ -330,7 +336,7 @@ def contact_normals_figure(forward: Path, reverse: Path | None, png: Path) -> Pa
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MaxNLocator
 
-    contacts = _last_contacts(forward)
+    contacts = _sphere_contacts(forward)
     normal = contacts["normal_force"]
     length = np.sqrt((normal**2).sum(axis=1))
     n = normal[length > 0] / length[length > 0, None]

@@ -271,6 +271,29 @@ def test_contact_figures_are_drawn(packings, kind):
         assert png.stat().st_size > 10_000, png
 
 
+def test_the_contact_forces_figure_sets_the_reversal_beside_the_state_it_returned_to(tmp_path):
+    """The figure set the reversal's end beside the forward run's end, two other states
+    (806 against 801 contacts in the oedometer), and said it showed the reversal bringing
+    back the starting network. It now draws the forward run at the step the reversal
+    returned to too; a reversible run's two lie on each other."""
+    from revdem_cli.io.h5md import frame_steps, open_trajectory
+    from revdem_cli.report.figures import _normalised_forces
+
+    sets = ["stages.0.steps=400", "stages.1.steps=400", "stages.1.output_every=100"]
+    sets += ["output.contacts=true", "output.figures=['contact_forces']"]
+    args = ["run", str(CONFIGS / "fcc_triaxial.toml"), "--out", str(tmp_path), "-q"]
+    ran = runner.invoke(app, [*args, *(part for item in sets for part in ("--set", item))])
+    assert ran.exit_code == 0, ran.output
+    forward, reverse = (tmp_path / f"fcc_triaxial.{run}.h5" for run in ("forward", "reverse"))
+    with open_trajectory(reverse) as f:
+        back = int(frame_steps(f)[-1])
+    assert back == 400  # the reversed stage's first step
+    there, returned = _normalised_forces(forward, back), _normalised_forces(reverse)
+    assert len(there) == len(returned) > 100
+    np.testing.assert_allclose(returned, there, rtol=1e-9)
+    assert (tmp_path / "fcc_triaxial.contact_forces.png").stat().st_size > 10_000
+
+
 def test_gsd_keeps_hoomds_box_convention_in_a_cell_and_for_an_open_system(tmp_path):
     """A sphere that crossed a periodic cell's face lay outside the GSD box, its image flag
     0 (HOOMD-blue refuses such a frame); and an open system's box, periodic to every GSD
