@@ -96,7 +96,8 @@ def _legend(ax, named: dict, title: str | None = None) -> None:
 def _limits(forward: list[float], reversed: list[float]) -> tuple[float, float]:
     """y limits that show the forward run and the reversed run where it strays up to the
     forward run's range beyond it (a reversal that parts from the forward run), with a margin
-    of 15 %: a runaway reversal goes off scale, not the forward run into a line."""
+    of 15 % that does not cross zero: a runaway reversal goes off scale, not the forward run
+    into a line."""
     low, high = (min(forward), max(forward)) if forward else (0.0, 1.0)
     reach = high - low
     if reversed:
@@ -105,7 +106,12 @@ def _limits(forward: list[float], reversed: list[float]) -> tuple[float, float]:
             max(high, min(max(reversed), high + reach)),
         )
     margin = 0.15 * (high - low) or 1.0
-    return low - margin, high + margin
+    bottom, top = low - margin, high + margin
+    if low >= 0.0:  # no margin across zero: values never negative (a force's magnitude)
+        bottom = max(bottom, 0.0)
+    elif high <= 0.0:  # nor never positive
+        top = min(top, 0.0)
+    return bottom, top
 
 
 def _save(fig, png: Path) -> Path:

@@ -157,3 +157,16 @@ def test_report_keeps_a_file_where_it_would_copy_a_figure_and_makes_its_folder(s
     forced = runner.invoke(app, [*args, str(other / "r.md"), "--force"])
     assert forced.exit_code == 0, forced.output
     assert (other / "collision_smoke.speed.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_figures_axis_keeps_its_margin_on_its_side_of_zero():
+    """The shear collision's largest contact forces, never negative, were drawn on an axis
+    down to -0.12 N. The 15 % margin stops at zero for values of one sign; values on both
+    sides, or a reversal straying off scale, keep it."""
+    from revdem_cli.report.figures import _limits
+
+    assert _limits([0.0, 0.88], [0.0, 0.87]) == (0.0, pytest.approx(1.012))
+    assert _limits([-1.0, -0.2], []) == (pytest.approx(-1.12), pytest.approx(-0.08))
+    assert _limits([0.2, 1.0], []) == (pytest.approx(0.08), pytest.approx(1.12))
+    assert _limits([-0.5, 0.5], []) == (pytest.approx(-0.65), pytest.approx(0.65))
+    assert _limits([0.0, 0.0], []) == (0.0, 1.0)
