@@ -360,6 +360,8 @@ def contact_normals_figure(forward: Path, reverse: Path | None, png: Path) -> Pa
         ax.tick_params(axis="y", labelsize=7)
         ax.set_xticks(np.radians([0, 90, 180, 270]), [plane[0], plane[1], f"-{plane[0]}",
                                                       f"-{plane[1]}"])  # fmt: skip
+    fig.supxlabel("radius: the sector's share of the contacts, weighted by the square of each "
+                  "normal's projection", fontsize=8)  # fmt: skip
     return _save(fig, png)
 
 
