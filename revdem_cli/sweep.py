@@ -99,7 +99,7 @@ def parse_sets(sets: list[str], origin: str = "") -> dict[str, list[str]]:
     value is (`config.read_value`); a key given twice is refused. `origin` is the sweep file
     whose `set` list the strings are, named with the entry in errors (FILE: set[1]), or ""
     for the command line's --set options."""
-    from revdem_cli.config import read_value
+    from revdem_cli.config import dotted, read_value
 
     grid: dict[str, list[str]] = {}
     given: dict[str, str] = {}  # key -> the string that set it
@@ -107,7 +107,7 @@ def parse_sets(sets: list[str], origin: str = "") -> dict[str, list[str]]:
         entry = f"set[{index}] = {item!r}" if origin else f"--set {item}"
         where = f"{origin}: {entry}" if origin else entry
         key, sep, raw = item.partition("=")
-        key, values = key.strip(), split_values(raw)
+        key, values = dotted(key), split_values(raw)
         if not sep or not key or "" in values:
             raise InputError(f"{where}: expected key=value or key=value1,value2,...")
         twice = next((value for k, value in enumerate(values) if value in values[:k]), None)

@@ -9,6 +9,7 @@ Validating a stored scenario (`Scenario.model_validate_json`) runs the first two
 from revdem_cli.config.loader import (
     apply_overrides,
     describe_validation_error,
+    dotted,
     load_scenario,
     parse_text,
     read_value,
@@ -61,6 +62,7 @@ __all__ = [
     "StopWhen",
     "Wall",
     "apply_overrides",
+    "dotted",
     "describe_validation_error",
     "load_scenario",
     "parse_text",

@@ -158,11 +158,11 @@ def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise InputError(f"--set {item}: expected key=value")
-        name = key.strip()
+        name = dotted(key)
         if name in given:
             raise InputError(f"--set {item}: {name} is given twice (also --set {given[name]})")
         given[name] = item
-        set_field(data, key, read_value(raw, f"--set {item}"), "--set ")
+        set_field(data, name, read_value(raw, f"--set {item}"), "--set ")
     return data
 
 
@@ -181,10 +181,18 @@ def read_value(raw: str, where: str):
         return raw
 
 
+def dotted(key: str) -> str:
+    """A field's path as `--set` takes it, `stages.1.steps`, from that or from the path an
+    error names, `stages[1].steps`."""
+    return re.sub(r"\[(\d+)\]", r".\1", key.strip())
+
+
 def set_field(data: dict, key: str, value, label: str = "") -> None:
     """Set the field at the dotted path `key` (`stages.0.steps`: list items by index) of a
     scenario's fields to `value`, making tables on the way; InputError naming `label` + key
-    where the path goes through a value or past a list's end."""
+    where the path goes through a value or past a list's end. `stages[0].steps`, as errors
+    name a field, is taken too (`dotted`)."""
+    key = dotted(key)
     node = data
     parts = key.split(".")
     for part in parts[:-1]:

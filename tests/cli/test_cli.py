@@ -263,3 +263,15 @@ def test_more_threads_than_the_pool_is_refused_naming_the_option(tmp_path):
     )
     assert_one_line_error(result, "--threads 999", "NUMBA_NUM_THREADS")
     assert not list(tmp_path.iterdir())
+
+
+def test_a_field_path_as_an_error_names_it_is_taken_by_set(tmp_path):
+    """Errors name a field `stages[0].steps`, --set took only `stages.0.steps`: the path
+    copied from an error into --set was "not a table or a list". Both are taken, as one."""
+    path = CONFIGS / "collision.toml"
+    assert invoke("validate", path, "--set", "stages[0].steps=100").exit_code == 0
+    twice = invoke("validate", path, "--set", "stages[0].steps=100", "--set", "stages.0.steps=2")
+    assert_one_line_error(twice, "stages.0.steps is given twice (also --set stages[0].steps=100)")
+    sweep = invoke("sweep", path, "--set", "stages[0].steps=10,20", "--set", "stages.0.steps=3",
+                   "--out", tmp_path)  # fmt: skip
+    assert_one_line_error(sweep, "stages.0.steps is given twice")
