@@ -598,6 +598,19 @@ def report(
 app.command("dt")(_dt)
 
 
+def _reflowed(doc: str) -> str:
+    """A command's docstring as its --help shows it: each paragraph's lines joined, so that
+    the help wraps at the terminal's width, not where the source's lines end."""
+    import inspect
+
+    return "\n\n".join(" ".join(part.split()) for part in inspect.cleandoc(doc).split("\n\n"))
+
+
+for _command in app.registered_commands:
+    if _command.help is None and _command.callback.__doc__:
+        _command.help = _reflowed(_command.callback.__doc__)
+
+
 def main() -> None:
     try:
         app()

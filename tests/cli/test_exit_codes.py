@@ -57,6 +57,11 @@ def test_every_command_shows_an_example(command):
     assert result.exit_code == 0
     assert f"Example: revdem {command}" in result.output
     assert "[]" not in result.output  # no [bracketed] word taken for rich markup and dropped
+    # each paragraph one line, which the help wraps at the terminal's width: it broke
+    # lines where the docstring's source lines end ("hold each / variant's values")
+    (help_text,) = (c.help for c in app.registered_commands
+                    if (c.name or c.callback.__name__) == command)  # fmt: skip
+    assert all("\n" not in paragraph for paragraph in help_text.split("\n\n"))
 
 
 def test_shell_completion_is_offered():
