@@ -17,7 +17,7 @@ from revdem_cli.compare import compare_trajectories, refuse_nothing_to_compare
 from revdem_cli.config import Scenario
 from revdem_cli.errors import InputError, RunFailed, whole_number
 from revdem_cli.io import open_hdf5, write_text
-from revdem_cli.io.h5md import TrajectoryWriter
+from revdem_cli.io.h5md import TrajectoryWriter, open_trajectory
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
 from revdem_cli.io.tape import Recorder, Replayer, combined, recorded
 from revdem_cli.io.tape import summary as tape_summary
@@ -365,20 +365,21 @@ def _reverse(
         stop = clock.first_step if steps is None else start.state.step - steps
         if Path(start.trajectory).exists():
             refuse_nothing_to_compare(Path(start.trajectory), start.state.step, stop)
-        events = None
+        events, tapes = None, []
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:
         stop, events = resumption.stop_step, resumption.events
         clock = _reverse_clock(scenario, start, resumption.end_step)
-        writer = _continued_writer(
-            paths["reverse"], resumption, start.state, run.model, text, "reverse", source
+        first = _source_restart(paths["reverse"])  # where the reversal began: `source` is
+        writer = _continued_writer(  # the restart of the stage it goes on in
+            paths["reverse"], resumption, start.state, run.model, text, "reverse", first
         )
-    tapes = []
+        tapes = _tapes_before(scenario, first, clock)
     with writer:
         while True:
             tape = _replayer(scenario, start, source, clock)
             _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress)
-            tapes += [tape] if tape else []
+            tapes += [tape.path] if tape else []
             if not start.previous or stop != clock.first_step:
                 break
             start, source = _stage_before(start, source)
@@ -391,7 +392,7 @@ def _reverse(
     if forward.exists():
         outputs.forward = forward
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
-        summaries = [tape_summary(tape.path) for tape in tapes]
+        summaries = [tape_summary(tape) for tape in tapes]
         if summaries:  # several: a reversal of every stage, the last stage's first
             verdict["information_tape"] = combined(summaries)
         if len(summaries) > 1:
@@ -401,6 +402,27 @@ def _reverse(
         outputs.figures = _figures(scenario, forward, paths["reverse"], run.out_dir)
     run.checkpoints.discard()
     return outputs
+
+
+def _source_restart(reversed_trajectory: Path) -> str:
+    """The restart a reversed run began from (its trajectory's `source_restart`), which a
+    reversal of every stage, resumed in an earlier stage, keeps naming."""
+    with open_trajectory(reversed_trajectory) as f:
+        return str(f["parameters/revdem"].attrs["source_restart"])
+
+
+def _tapes_before(scenario: Scenario, first: str, clock: StageClock) -> list[Path]:
+    """The information tapes of the stages a reversal of every stage went back through
+    before the checkpoint it resumes from: from the stage its first restart `first` ended
+    down to the one after the stage it goes on in (`clock`'s), the later first; none where
+    the run has no tape."""
+    if not scenario.reversal.tape:
+        return []
+    folder, count = Path(first).parent, len(scenario.stages)
+    paths = [stage_paths(folder, scenario.name, k, scenario) for k in range(count)]
+    top = next(k for k in range(count) if paths[k]["restart"] == Path(first))
+    now = [stage.name for stage in scenario.stages].index(clock.stage.name)
+    return [paths[k]["tape"] for k in range(top, now, -1)]
 
 
 def _replayer(
@@ -475,7 +497,7 @@ def resume_run(
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
         outputs = _reverse(run, resume, place.source_restart, None, progress)
-        outputs.restart = Path(place.source_restart)
+        outputs.restart = Path(_source_restart(run.paths["reverse"]))
         return outputs
 
 

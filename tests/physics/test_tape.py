@@ -4,6 +4,7 @@ starting integers with it, and not without; a tape altered in one entry, or with
 entries of one mechanism, parts the reversal; the bits it recorded by mechanism."""
 
 import math
+from pathlib import Path
 
 import h5py
 import numba
@@ -526,12 +527,24 @@ def test_a_reversal_of_every_stage_resumes_in_an_earlier_stage(tmp_path):
     """Stopped while reversing the middle stage (frame 45 of 60), the run resumes from its
     checkpoint there and goes on through the first stage to the same exact end."""
     experiment = _three_stages().changed({"output.checkpoint_interval": 0.0})
-    shown = crashed_after(experiment, tmp_path, 45)
+    shown = crashed_after(experiment, tmp_path / "cut", 45)
     assert shown[-1] == "free (reversed)"
-    resumed = revdem.resume(tmp_path)
+    resumed = revdem.resume(tmp_path / "cut")
     assert resumed.comparison["bitwise_identical"]
     assert resumed.comparison["frames_compared"] == 31
-    _assert_reversed_rows_are_the_forward_ones(tmp_path, "resting")
+    _assert_reversed_rows_are_the_forward_ones(tmp_path / "cut", "resting")
+    # the verdict and the reversed trajectory are the uninterrupted run's: they counted only
+    # the tapes reversed after the checkpoint, and named the middle stage's restart as the
+    # one the reversal began from
+    whole = revdem.run(experiment, tmp_path / "whole")
+    assert resumed.comparison == whole.comparison
+    assert len(resumed.comparison["information_tapes"]) == 3
+    for run in (resumed, whole):
+        with h5py.File(run.trajectory("reverse")) as f:
+            assert Path(str(f["parameters/revdem"].attrs["source_restart"])).name == (
+                "resting.restart.h5"
+            )
+    assert resumed.outputs.restart.name == "resting.restart.h5"
 
 
 def test_the_information_figure_averages_each_stage_apart():
