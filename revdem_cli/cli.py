@@ -242,11 +242,7 @@ def _interruptible(command, *args):
         typer.echo(f"stopped: {exc}; continue with revdem run --resume {exc.path.parent}", err=True)
         raise typer.Exit(exc.exit_code) from None
     except Unfinished as exc:
-        typer.echo(
-            f"stopped: {exc}; its trajectories and restart are whole (revdem compare FORWARD "
-            "REVERSE gives the verdict)",
-            err=True,
-        )
+        typer.echo(f"stopped: {exc}", err=True)
         raise typer.Exit(exc.exit_code) from None
 
 

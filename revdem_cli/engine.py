@@ -287,7 +287,7 @@ def _forward(
         return reversed_outputs
     outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
     run.checkpoints.discard()
-    run.checkpoints.finish("its figures were drawn")
+    run.checkpoints.finish("its figures were drawn; its trajectory and restart are whole")
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
     return outputs
 
@@ -388,7 +388,10 @@ def _reverse(
         writer.end()
     outputs = Outputs(reverse=paths["reverse"])
     forward = Path(start.trajectory)
-    run.checkpoints.finish("its comparison and figures were written")
+    run.checkpoints.finish(
+        "its comparison and figures were written; its trajectories and restart are whole "
+        "(revdem compare FORWARD REVERSE gives the verdict)"
+    )
     if forward.exists():
         outputs.forward = forward
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
@@ -399,6 +402,10 @@ def _reverse(
             verdict["information_tapes"] = summaries
         write_text(paths["compare"], json.dumps(verdict, indent=2) + "\n")
         outputs.comparison, outputs.verdict = paths["compare"], verdict
+        run.checkpoints.finish(
+            f"its figures were drawn; its trajectories, restart and comparison "
+            f"{paths['compare'].name} are whole"
+        )
         outputs.figures = _figures(scenario, forward, paths["reverse"], run.out_dir)
     run.checkpoints.discard()
     return outputs

@@ -119,12 +119,16 @@ def _save(fig, png: Path) -> Path:
     import matplotlib.pyplot as plt
 
     fig.tight_layout()
-    try:
-        fig.savefig(png)
+    png = Path(png)
+    tmp = png.with_name(png.name + ".tmp")  # renamed into place: a figure is whole or absent,
+    try:  # even where a signal stops the run while it is drawn (`checkpoint.Unfinished`)
+        fig.savefig(tmp, format="png")
+        tmp.replace(png)
     except OSError as exc:
-        Path(png).unlink(missing_ok=True)
+        png.unlink(missing_ok=True)
         raise WriteFailed(png, exc) from None
     finally:
+        tmp.unlink(missing_ok=True)
         plt.close(fig)
     return png
 

@@ -582,3 +582,30 @@ def test_a_signal_while_the_sweeps_cluster_starts_stops_it_before_any_variant_be
     )
     assert [row["status"] for row in _sweep_rows(tmp_path)] == ["not started"] * 4
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.csv", "sweep.h5"]
+
+
+def test_a_signal_while_the_figures_are_drawn_says_what_is_whole(tmp_path, monkeypatch):
+    """A signal after the comparison was written said the run stopped "before its
+    comparison and figures were written", though compare.json was there. The line now says
+    what is whole, and a figure is whole or absent (drawn under a temporary name)."""
+    from revdem_cli import engine
+    from revdem_cli.report import figures
+
+    drawing = figures._save
+
+    def signalled(fig, png):  # the signal comes while the figure is saved
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5.0)
+        return drawing(fig, png)
+
+    monkeypatch.setattr(figures, "_save", signalled)
+    args = ["run", str(CONFIGS / "smoke" / "collision.yaml"), "--out", str(tmp_path), "-q"]
+    result = CliRunner().invoke(app, [*args, "--set", "output.figures=['speed']"])
+    assert result.exit_code == 143, result.output
+    assert result.output.strip().splitlines()[-1] == (
+        "stopped: SIGTERM after the last step, before its figures were drawn; its "
+        "trajectories, restart and comparison collision_smoke.compare.json are whole"
+    )
+    assert (tmp_path / "collision_smoke.compare.json").exists()
+    assert not list(tmp_path.glob("*.png*"))  # no figure cut short
+    assert engine.read_restart(tmp_path / "collision_smoke.restart.h5").state.step == 5000
