@@ -31,7 +31,15 @@ if os.environ.get("NUMBA_THREADING_LAYER", "default").lower() == "default" and n
     "NUMBA_THREADING_LAYER_PRIORITY"
 ):
     numba.config.THREADING_LAYER_PRIORITY = list(LAYERS)
-numba.get_num_threads()  # loads the layer now: compiled code (`threads_here`) links to it
+try:  # loads the layer now: compiled code (`threads_here`) links to it
+    numba.get_num_threads()
+except ValueError as exc:  # a layer numba does not know, or cannot load
+    from revdem_cli.errors import InputError
+
+    chosen = os.environ.get("NUMBA_THREADING_LAYER") or os.environ.get(
+        "NUMBA_THREADING_LAYER_PRIORITY"
+    )
+    raise InputError(f"NUMBA_THREADING_LAYER {chosen}: {' '.join(str(exc).split())}") from None
 
 jit = partial(numba.njit, cache=True, fastmath=False, error_model="numpy", nogil=True)
 """Serial compiled function. It runs without the GIL, so that while the main thread steps,

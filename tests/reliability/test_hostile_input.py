@@ -266,3 +266,19 @@ def test_too_few_values_of_a_vector_option_say_how_many_it_takes():
     only that it is not a number."""
     result = invoke("dt", "--shape", "ellipsoid", "--semi-axes", "3", "2", "--density", "1000")
     assert_one_line_error(result, "'--semi-axes'", "(--semi-axes takes 3 values)")
+
+
+def test_a_threading_layer_numba_does_not_know_is_one_line():
+    """NUMBA_THREADING_LAYER=bogus printed numba's 54-line traceback, exit 1."""
+    import os
+    import subprocess
+    import sys
+
+    env = os.environ | {"NUMBA_THREADING_LAYER": "bogus"}
+    command = [sys.executable, "-m", "revdem_cli.cli", "info", "--system"]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().splitlines() == [
+        "error: NUMBA_THREADING_LAYER bogus: The threading layer requested 'bogus' is unknown "
+        "to Numba."
+    ]
