@@ -246,6 +246,8 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
         (_cause(k, log[k], walls, ids, velocity_read) for k in window),
         key=lambda cause: -cause["step"],
     )
+    if scenario is not None and _steered_back(scenario):
+        causes.insert(0, _proportional_servo(int(steps[-1]), divergence_step))
     if causes or scenario is None:
         return causes
     if scenario.damping.drag < 1.0:
@@ -285,6 +287,36 @@ def _of_the_run(mechanism: str, step: int, amount: float, steps: int, why: str) 
         "amount": amount,
         "occurrences": steps,
         "message": f"no mechanism destroyed information here, but {why}",
+    }
+
+
+def _steered_back(scenario: Scenario) -> bool:
+    """Whether the reversed stage holds a stress on some edge of the cell by the
+    proportional servo, which reversed still steers towards its target."""
+    stage = scenario.reversed_stage
+    if scenario.cell is None or scenario.cell.servo != "proportional" or stage is None:
+        return False
+    motion = stage.cell
+    return motion is not None and any(
+        axis is not None and axis.stress is not None for axis in motion.axes()
+    )
+
+
+def _proportional_servo(restart_step: int, step: int) -> dict:
+    """The proportional servo sets dL/dt from the stress error at the start of each step
+    (Hanley 2020 §3.2.3): reversed it still steers towards its target, where the time
+    reverse of a relaxation would steer away from it, so the reversal follows the forward
+    run only as closely as the servo tracks its target."""
+    return {
+        "mechanism": "proportional_servo",
+        "step": step,
+        **dict.fromkeys(("particle", "partner", "particle_id", "partner_id", "partner_wall")),
+        "amount": None,
+        "occurrences": restart_step - step,
+        "message": "the proportional servo sets the cell's strain rate from its stress error "
+        "at each step, and reversed still steers towards its target, where the time reverse "
+        "of that relaxation would steer away from it (Hanley 2020 §3.2.3): the reversal "
+        "follows the forward run only as closely as the servo tracks its target",
     }
 
 
