@@ -48,6 +48,9 @@ class Outputs:
     stopped: dict[str, tuple[int, int, int]] = field(default_factory=dict)
     # stages that ran all their steps with their stop condition never met: the condition
     unmet: dict[str, dict] = field(default_factory=dict)
+    # what else the forward run wrote: its stages' information tapes and, where every stage
+    # is reversed, their restarts, each (what it is, path)
+    stage_files: tuple[tuple[str, Path], ...] = ()
 
 
 def output_paths(out_dir: Path, name: str) -> dict[str, Path]:
@@ -226,7 +229,7 @@ def _forward(
     scenario, paths = run.scenario, run.paths
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
-    chosen, stopped, unmet = {}, {}, {}
+    chosen, stopped, unmet, stage_files = {}, {}, {}, []
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
             stage = scenario.stages[index]
@@ -250,6 +253,7 @@ def _forward(
             tape = None  # the stages a reversal reverses: the last, or with all_stages every one
             if files[0]:
                 resumed_at = state.step if events is not None else None
+                stage_files.append(("information tape", run.out_dir / files[0]))
                 tape = Recorder(
                     run.out_dir / files[0], stage.name,
                     (clock.first_step, clock.first_time, clock.dt), state, resumed_at,
@@ -272,18 +276,20 @@ def _forward(
                 stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
                 restart = run.restart(state, clock, paths["forward"], files=files)
                 write_restart(stage_restart["restart"], restart)
+                stage_files.append((f"restart of {stage.name}", stage_restart["restart"]))
         writer.end()
     reversal_history(state, run.model, clock)  # a velocity predictor's, for the reversal
     last = _stage_files(run, len(scenario.stages) - 1)
     write_restart(paths["restart"], run.restart(state, clock, paths["forward"], files=last))
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
+    outputs.stage_files = tuple(stage_files)
     if reverse:
         restart = read_restart(paths["restart"])
         source = str(paths["restart"].resolve())
         reversed_outputs = _reverse(run, restart, source, None, progress)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
         reversed_outputs.chosen_dt, reversed_outputs.stopped = chosen, stopped
-        reversed_outputs.unmet = unmet
+        reversed_outputs.unmet, reversed_outputs.stage_files = unmet, outputs.stage_files
         return reversed_outputs
     outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
     run.checkpoints.discard()

@@ -79,7 +79,7 @@ def print_summary(outputs, console: Console | None = None) -> None:
         ("reversed trajectory", outputs.reverse),
         ("comparison", outputs.comparison),
     ]
-    written += [("figure", path) for path in outputs.figures]
+    written += [*outputs.stage_files, *(("figure", path) for path in outputs.figures)]
     for label, path in written:
         if path is not None:
             console.print(f"  {label:<20} {path}")

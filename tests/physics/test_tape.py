@@ -519,6 +519,14 @@ def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
     assert verdict["information_tape"]["bits_destroyed"] == pytest.approx(total)
     reverse = _assert_reversed_rows_are_the_forward_ones(tmp_path, "resting")  # a stage's end,
     assert reverse[1000].sum() > 0.0  # where the row is the stage's that ended there
+    # the summary lists every file the run wrote: the stages' tapes and restarts too
+    assert [(what, path.name) for what, path in result.outputs.stage_files] == [
+        ("information tape", "resting.stage-0.tape.h5"),
+        ("restart of press", "resting.stage-0.restart.h5"),
+        ("information tape", "resting.stage-1.tape.h5"),
+        ("restart of free", "resting.stage-1.restart.h5"),
+        ("information tape", "resting.tape.h5"),
+    ]
     with pytest.raises(InputError, match="reversal.all_stages: needs reversal.tape = true"):
         experiment.changed({"reversal.tape": False})
 
