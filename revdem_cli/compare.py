@@ -278,15 +278,22 @@ def _drag_amplification(drag: float, restart_step: int, step: int) -> dict:
 
 
 def _of_the_run(mechanism: str, step: int, amount: float, steps: int, why: str) -> dict:
-    """A cause of the whole run, where no mechanism destroyed information: no particle or
-    partner, acting at each of the `steps` back from the restart."""
+    """A cause of the whole run, where no mechanism destroyed information (`_run_cause`)."""
+    return _run_cause(
+        mechanism, step, amount, steps, f"no mechanism destroyed information here, but {why}"
+    )
+
+
+def _run_cause(mechanism: str, step: int, amount, steps: int, message: str) -> dict:
+    """A cause of the whole run, not of a contact or a particle: no particle or partner,
+    acting at each of the `steps` back from the restart."""
     return {
         "mechanism": mechanism,
         "step": step,
         **dict.fromkeys(("particle", "partner", "particle_id", "partner_id", "partner_wall")),
         "amount": amount,
         "occurrences": steps,
-        "message": f"no mechanism destroyed information here, but {why}",
+        "message": message,
     }
 
 
@@ -307,17 +314,13 @@ def _proportional_servo(restart_step: int, step: int) -> dict:
     (Hanley 2020 §3.2.3): reversed it still steers towards its target, where the time
     reverse of a relaxation would steer away from it, so the reversal follows the forward
     run only as closely as the servo tracks its target."""
-    return {
-        "mechanism": "proportional_servo",
-        "step": step,
-        **dict.fromkeys(("particle", "partner", "particle_id", "partner_id", "partner_wall")),
-        "amount": None,
-        "occurrences": restart_step - step,
-        "message": "the proportional servo sets the cell's strain rate from its stress error "
-        "at each step, and reversed still steers towards its target, where the time reverse "
-        "of that relaxation would steer away from it (Hanley 2020 §3.2.3): the reversal "
-        "follows the forward run only as closely as the servo tracks its target",
-    }
+    return _run_cause(
+        "proportional_servo", step, None, restart_step - step,
+        "the proportional servo sets the cell's strain rate from its stress error at each "
+        "step, and reversed still steers towards its target, where the time reverse of that "
+        "relaxation would steer away from it (Hanley 2020 §3.2.3): the reversal follows the "
+        "forward run only as closely as the servo tracks its target",
+    )  # fmt: skip
 
 
 def _unstable_time_step(excess, restart_step: int, step: int) -> dict:

@@ -371,16 +371,16 @@ def _reverse(
         stop = clock.first_step if steps is None else start.state.step - steps
         if Path(start.trajectory).exists():
             refuse_nothing_to_compare(Path(start.trajectory), start.state.step, stop)
-        events, tapes = None, []
+        events, tapes, began = None, [], None
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:
         stop, events = resumption.stop_step, resumption.events
         clock = _reverse_clock(scenario, start, resumption.end_step)
-        first = _source_restart(paths["reverse"])  # where the reversal began: `source` is
+        began = _source_restart(paths["reverse"])  # where the reversal began: `source` is
         writer = _continued_writer(  # the restart of the stage it goes on in
-            paths["reverse"], resumption, start.state, run.model, text, "reverse", first
+            paths["reverse"], resumption, start.state, run.model, text, "reverse", began
         )
-        tapes = _tapes_before(scenario, first, clock)
+        tapes = _tapes_before(scenario, began, clock)
     with writer:
         while True:
             tape = _replayer(scenario, start, source, clock)
@@ -392,7 +392,8 @@ def _reverse(
             clock = _reverse_clock(scenario, start, start.state.step)
             stop, events = clock.first_step, None
         writer.end()
-    outputs = Outputs(reverse=paths["reverse"])
+    # resumed, the restart the reversal began from (`resume_run` reports it)
+    outputs = Outputs(reverse=paths["reverse"], restart=Path(began) if began else None)
     forward = Path(start.trajectory)
     run.checkpoints.finish(
         "its comparison and figures were written; its trajectories and restart are whole "
@@ -509,9 +510,7 @@ def resume_run(
                 run.paths["forward"], place, resume.state, run.model, text, "forward"
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
-        outputs = _reverse(run, resume, place.source_restart, None, progress)
-        outputs.restart = Path(_source_restart(run.paths["reverse"]))
-        return outputs
+        return _reverse(run, resume, place.source_restart, None, progress)
 
 
 def _figures(

@@ -438,13 +438,11 @@ def _keep_earlier(out_dir: Path, loaded: list[tuple], folders: list[str], force:
     """Refuse an earlier sweep's tables and its variants' outputs and checkpoints in
     `out_dir` unless `force`; forced, remove them, and the runs of the earlier sweep's other
     variants (`_runs_left`)."""
-    from revdem_cli.api import keep_outputs, output_paths_of
-    from revdem_cli.checkpoint import checkpoint_path
+    from revdem_cli.api import keep_outputs
 
     earlier = [out_dir / "sweep.csv", out_dir / "sweep.h5"]
     for (scenario, _), folder in zip(loaded, folders, strict=True):
-        earlier += output_paths_of(scenario, out_dir / folder, reverse=True)
-        earlier.append(checkpoint_path(out_dir / folder, scenario.name))
+        earlier += _run_files(scenario, out_dir / folder)
     left = _runs_left(out_dir, folders) if force else {}
     keep_outputs(earlier + [path for paths in left.values() for path in paths], force, "sweep")
     for folder in left:
@@ -457,8 +455,7 @@ def _runs_left(out_dir: Path, folders: list[str]) -> dict[Path, list[Path]]:
     table's) that is not one of `folders`, those of another sweep forced over it: each
     run's outputs and checkpoint, from the scenario its forward trajectory or checkpoint
     stores."""
-    from revdem_cli.api import output_paths_of
-    from revdem_cli.checkpoint import checkpoint_path, find_checkpoints
+    from revdem_cli.checkpoint import find_checkpoints
     from revdem_cli.config import Scenario
 
     table = out_dir / "sweep.h5"
@@ -466,12 +463,22 @@ def _runs_left(out_dir: Path, folders: list[str]) -> dict[Path, list[Path]]:
     for name in sorted(read_table(table).keys() - set(folders)) if table.exists() else []:
         folder = out_dir / name
         runs = [*find_checkpoints(folder), *sorted(folder.glob("*.forward.h5"))]
-        left[folder] = []
-        for path in runs:
-            spec = Scenario.model_validate_json(_stored_scenario(path))
-            left[folder] += output_paths_of(spec, folder, reverse=True)
-            left[folder].append(checkpoint_path(folder, spec.name))
+        left[folder] = [
+            path
+            for run in runs
+            for path in _run_files(Scenario.model_validate_json(_stored_scenario(run)), folder)
+        ]
     return left
+
+
+def _run_files(scenario, folder: Path) -> list[Path]:
+    """Every file a variant's run of `scenario` writes into `folder`, reversed, its
+    checkpoint too."""
+    from revdem_cli.api import output_paths_of
+    from revdem_cli.checkpoint import checkpoint_path
+
+    outputs = output_paths_of(scenario, folder, reverse=True)
+    return [*outputs, checkpoint_path(folder, scenario.name)]
 
 
 def _stored_scenario(path: Path) -> str:
