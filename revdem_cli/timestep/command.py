@@ -331,7 +331,7 @@ def _print_packing(report: dict) -> None:
             "1",
         )
     engine = report.get("engine_integrated")
-    if engine is not None:
+    if engine is not None and engine["measured"]:
         steps.add_row(
             "engine_integrated",
             f"bisection on the stepping loop: stable {engine['stable']:.6e}, "
@@ -339,6 +339,8 @@ def _print_packing(report: dict) -> None:
             _seconds(engine["dt"]),
             f"{engine['ratio']:.4g}",
         )
+    elif engine is not None:
+        steps.add_row("engine_integrated", "not measured: the packing moves (below)", "–", "")
     steps.add_section()
     for key, estimate in report["estimates"].items():
         dt, ratio = estimate["dt"], estimate["ratio"]
@@ -354,6 +356,16 @@ def _print_packing(report: dict) -> None:
         f"largest shares: {top}",
         highlight=False,
     )
+    if engine is not None and not engine["measured"]:
+        console.print(
+            f"• the engine's limit was not measured: two copies of this state a kick apart "
+            f"parted {engine['divergence']:.3g} times in {engine['divergence_seconds']:.3g} s at "
+            "half the step (at rest: about 1). The packing still moves, or has motions "
+            "unstable of themselves, and their parting, the same at any step, hides the "
+            "integrator's. Let the stage come to rest (stop_when.kinetic_energy_below) and "
+            "check again.",
+            highlight=False,
+        )
 
 
 def dt(

@@ -336,9 +336,17 @@ def _at_rest_copy(state: State, model: Model) -> State:
 
 
 GROWTH = 1e3
-"""A perturbation grown this many times is unstable: below the limit a mode's velocity
-amplitude grows at most 1/√(1 - (ωΔt/2)²) times (10 at 0.5 % below), above it by
-(1 + √(8ε))^steps at (1 + ε) times the limit."""
+"""A perturbation grown this many times (times the packing's own divergence, `PARTED`) is
+unstable: below the limit a mode's velocity amplitude grows at most 1/√(1 - (ωΔt/2)²) times
+(10 at 0.5 % below), above it by (1 + √(8ε))^steps at (1 + ε) times the limit."""
+
+PARTED = 10.0
+"""Two copies of a packing at rest in a stable equilibrium, a kick along its top mode apart,
+part at most 1/√(1 - (ωΔt/4)²) times at half a stable step (1.15 at the limit). Ten times is
+a packing that still moves (a stage ended on its step limit) or has motions unstable of
+themselves: they part at a rate per second that no step changes, and a kick grown GROWTH
+times that leaves the linear range (it is 1e-6 of the overlap), so the engine's limit cannot
+be told from them."""
 
 
 def _advance(state: State, model: Model, dyn: Dynamics, dt: float, steps: int) -> bool:
@@ -370,12 +378,20 @@ def _advance(state: State, model: Model, dyn: Dynamics, dt: float, steps: int) -
 
 @dataclass(frozen=True)
 class EngineCheck:
-    """The bracket [stable, unstable] of the stepping loop's own limit."""
+    """The bracket [stable, unstable] of the stepping loop's own limit (NaN, not measured,
+    where the packing parts copies of itself more than PARTED times), and `divergence`, how
+    many times two copies a kick apart parted over the first trial's time at half its step."""
 
     stable: float
     unstable: float
     steps: int
     trials: int
+    divergence: float
+    seconds: float  # the time over which `divergence` was measured, s
+
+    @property
+    def measured(self) -> bool:
+        return self.divergence <= PARTED
 
     @property
     def dt(self) -> float:
@@ -393,10 +409,11 @@ def engine_bracket(
     """Bisect the engine's stability limit from `state`: a copy at rest and one kicked along
     the top mode, each stepped `steps` steps at a trial Δt by the real stepping loop (viscous
     contact damping as the model's law has it; local damping and drag off, walls and cell
-    held);
-    Δt is unstable where their difference grows GROWTH times. The bracket starts at 3 % either
-    side of the damped assembly limit and narrows to a relative `width`; `status` is told of
-    each trial."""
+    held); Δt is unstable where their difference grows GROWTH times more than the copies
+    part by themselves, measured first over the first trial's time at half its step (the
+    packing's own divergence, `PARTED`; none is bracketed above it). The bracket starts at 3 %
+    either side of the damped assembly limit and narrows to a relative `width`; `status` is
+    told of each trial."""
     model = float_model(model)
     dyn = Dynamics(np.array(model.scenario.gravity, dtype=float), 0.0, 1.0)
     scale = _mass_scale(state)
@@ -404,7 +421,27 @@ def engine_bracket(
     size = 1e-6 * float(np.median(limit.contacts.overlap)) * limit.omega_max / np.abs(shape).max()
     kick = size * shape
     weight = 1.0 / scale**2  # M, so that the difference is measured in kinetic energy's norm
+    spheres = len(state.particles.x)
 
+    def parted(dt: float, steps: int) -> float:
+        """How many times the copies' difference has grown after `steps` steps at dt."""
+        base, kicked = _at_rest_copy(state, model), _at_rest_copy(state, model)
+        kicked.particles.v[:] += kick[:, :3]
+        kicked.particles.omega[:] += kick[:, 3:]
+        if not (_advance(base, model, dyn, dt, steps) and _advance(kicked, model, dyn, dt, steps)):
+            return math.inf
+        dv = np.hstack(
+            [kicked.particles.v - base.particles.v, kicked.particles.omega - base.particles.omega]
+        )
+        grown = math.sqrt((weight * dv * dv).sum() / (weight * kick * kick).sum())
+        return grown if math.isfinite(grown) else math.inf
+
+    stable, unstable = 0.97 * limit.damped_dt, 1.03 * limit.damped_dt
+    status(f"the packing's own motion: {4 * steps} steps of {spheres:,} spheres at Δt/2")
+    divergence, seconds = parted(0.5 * stable, 2 * steps), steps * stable
+    if divergence > PARTED:
+        return EngineCheck(math.nan, math.nan, steps, 0, divergence, seconds)
+    threshold = GROWTH * max(1.0, divergence)
     trials = 0
 
     def grows(dt: float) -> bool:
@@ -412,20 +449,10 @@ def engine_bracket(
         trials += 1
         status(
             f"the engine's limit: trial {trials} at Δt = {dt:.6g} s, {2 * steps} steps of "
-            f"{len(state.particles.x):,} spheres"
+            f"{spheres:,} spheres"
         )
-        base, kicked = _at_rest_copy(state, model), _at_rest_copy(state, model)
-        kicked.particles.v[:] += kick[:, :3]
-        kicked.particles.omega[:] += kick[:, 3:]
-        if not (_advance(base, model, dyn, dt, steps) and _advance(kicked, model, dyn, dt, steps)):
-            return True
-        dv = np.hstack(
-            [kicked.particles.v - base.particles.v, kicked.particles.omega - base.particles.omega]
-        )
-        grown = math.sqrt((weight * dv * dv).sum() / (weight * kick * kick).sum())
-        return not math.isfinite(grown) or grown > GROWTH
+        return parted(dt, steps) > threshold
 
-    stable, unstable = 0.97 * limit.damped_dt, 1.03 * limit.damped_dt
     while True:
         low, high = grows(stable), grows(unstable)
         if high and not low:
@@ -444,7 +471,7 @@ def engine_bracket(
             unstable = middle
         else:
             stable = middle
-    return EngineCheck(stable, unstable, steps, trials)
+    return EngineCheck(stable, unstable, steps, trials, divergence, seconds)
 
 
 # ---------------------------------------------------------------- `revdem dt --restart`
@@ -511,14 +538,21 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
     }
     if verify and math.isfinite(reference):
         check = engine_bracket(state, model, limit, status=status)
-        report["engine_integrated"] = {
-            "stable": check.stable,
-            "unstable": check.unstable,
-            "dt": check.dt,
-            "ratio": check.dt / reference,
+        engine = {
+            "measured": check.measured,
+            "divergence": check.divergence,
+            "divergence_seconds": check.seconds,
             "steps": check.steps,
             "trials": check.trials,
         }
+        if check.measured:
+            engine |= {
+                "stable": check.stable,
+                "unstable": check.unstable,
+                "dt": check.dt,
+                "ratio": check.dt / reference,
+            }
+        report["engine_integrated"] = engine
     return report
 
 
