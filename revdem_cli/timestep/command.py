@@ -363,7 +363,7 @@ def _print_packing(report: dict) -> None:
             "half the step (at rest: about 1). The packing still moves, or has motions "
             "unstable of themselves, and their parting, the same at any step, hides the "
             "integrator's. Let the stage come to rest (stop_when.kinetic_energy_below) and "
-            "check again.",
+            "check again; where it parts even at rest, the assembly's limit is the estimate.",
             highlight=False,
         )
 
