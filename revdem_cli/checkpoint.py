@@ -123,20 +123,32 @@ SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """The signals that stop a run, or a sweep, with a checkpoint."""
 
 
+SAME_SIGNAL = 1.0
+"""Seconds within which a second signal is the first one delivered again, not a second
+request: GNU `timeout` signals its child, then its whole process group (the child again),
+and a terminal's Ctrl-C reaches every process of the foreground group."""
+
+
 @contextmanager
 def first_signal(act) -> Iterator[None]:
     """While inside, in the main thread (the only one Python gives signals to): the first
-    of SIGNALS puts back the handlers there were, so that a second one does what it did
-    before (stops at once), and calls `act(signum)`, which may raise; nothing elsewhere."""
+    of SIGNALS calls `act(signum)`, which may raise; one more than SAME_SIGNAL seconds later
+    puts back the handlers there were and does what they did (stops at once); nothing
+    elsewhere."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     before = {kind: signal.getsignal(kind) for kind in SIGNALS}
+    first: list[float] = []  # when the first signal came
 
     def handler(signum, frame):
-        for kind in SIGNALS:
-            signal.signal(kind, before[kind])
-        act(signum)
+        if not first:
+            first.append(time.monotonic())
+            act(signum)
+        elif time.monotonic() - first[0] > SAME_SIGNAL:
+            for kind in SIGNALS:
+                signal.signal(kind, before[kind])
+            signal.raise_signal(signum)
 
     for kind in SIGNALS:
         signal.signal(kind, handler)

@@ -435,17 +435,21 @@ def _sweep_rows(out: Path) -> list[dict]:
         return [row | {"seconds": ""} for row in csv.DictReader(f)]
 
 
-def _stopped_sweep(out: Path, signum: int) -> str:
+def _stopped_sweep(out: Path, signum: int, twice: bool = False) -> str:
     """Run SWEEP into `out` as a job of its own process group, and send `signum` to the
     whole group (as Ctrl-C does SIGINT, and SLURM's scancel or systemd SIGTERM) once the
-    third variant has begun; its standard error, once it has exited with 128 + signum
-    within 10 s."""
+    third variant has begun, `twice` to the sweep first and 0.1 s later to the group, as
+    GNU `timeout` does (the sweep then gets it twice); its standard error, once it has
+    exited with 128 + signum within 10 s."""
     command = [sys.executable, "-m", "revdem_cli.cli", *SWEEP, "--out", str(out)]
     process = subprocess.Popen(command, start_new_session=True, stderr=subprocess.PIPE, text=True)
     third = out / "002_steps=400000_velocity=0.9+0.1+0.0" / "collision_smoke.forward.h5"
     while not third.exists():
         assert process.poll() is None, process.communicate()[1]
         time.sleep(0.01)
+    if twice:
+        os.kill(process.pid, signum)
+        time.sleep(0.1)  # past the sweep's handler, which ran for the first at once
     os.killpg(process.pid, signum)
     started = time.monotonic()
     try:
@@ -489,10 +493,12 @@ def test_ctrl_c_stops_a_sweep_with_its_table_and_resume_ends_it_as_an_uninterrup
 
 def test_sigterm_to_the_whole_job_stops_a_sweep_as_ctrl_c_does(tmp_path):
     """SLURM's scancel and systemd send SIGTERM to every process of the job: the workers
-    died of it, their variants unsaved, and dask restarted them. A variant then finished on
-    its own (`revdem run --resume FOLDER`, as `revdem info` of its checkpoint says) is kept
-    by `sweep --resume`, its row read from its files; it was run again from its start."""
-    err = _stopped_sweep(tmp_path, signal.SIGTERM)
+    died of it, their variants unsaved, and dask restarted them. GNU `timeout` sends it to
+    the sweep, then to its group: the second, taken as a second request, killed the sweep
+    with no table. A variant then finished on its own (`revdem run --resume FOLDER`, as
+    `revdem info` of its checkpoint says) is kept by `sweep --resume`, its row read from
+    its files; it was run again from its start."""
+    err = _stopped_sweep(tmp_path, signal.SIGTERM, twice=True)
     assert "Restarting worker" not in err
     third = tmp_path / _sweep_rows(tmp_path)[2]["folder"]
     assert CliRunner().invoke(app, ["run", "--resume", str(third), "-q"]).exit_code == 0
@@ -503,6 +509,26 @@ def test_sigterm_to_the_whole_job_stops_a_sweep_as_ctrl_c_does(tmp_path):
     rows = _sweep_rows(tmp_path)
     assert [row["status"] for row in rows] == ["done"] * 4
     assert rows[2]["reversible"] == "True" and rows[2]["kinetic_energy"]
+
+
+def test_a_signal_delivered_twice_is_one_request_and_a_later_one_stops_at_once(monkeypatch):
+    """GNU `timeout` signals its child and then the child's group, so one request arrives
+    twice: the second within SAME_SIGNAL is the same request. One after that does what the
+    handlers before did (here Python's: KeyboardInterrupt)."""
+    from revdem_cli import checkpoint
+
+    taken = []
+    with checkpoint.first_signal(taken.append):
+        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
+        assert taken == [signal.SIGINT]
+        monkeypatch.setattr(checkpoint, "SAME_SIGNAL", 0.0)
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+    assert taken == [signal.SIGINT]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 def snapshot_files(folder: Path) -> dict[str, int]:
