@@ -61,7 +61,8 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
     `first_divergence_step` is the first step, in the order the second run went through
     them, at which an error exceeds its tolerance (None if none does). `bitwise_identical`:
     every common frame holds the same bits, in fixed-point arithmetic the same integer
-    state, so the round trip returned exactly the state it started from.
+    state, and the same box (a periodic cell's edges, which positions in it are fractions
+    of), so the round trip returned exactly the state it started from.
     """
     with open_trajectory(first) as a, open_trajectory(second) as b:
         pairing = check_pairing(a, b, Path(first), Path(second))
@@ -95,7 +96,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
                 if not on_grids:
                     identical &= bool(np.array_equal(va, vb))
                 errors.append(_max_norms(va, vb))
-            for field in GRID_FIELDS if on_grids else ():
+            for field in (*GRID_FIELDS, "box/edges") if on_grids else ("box/edges",):
                 identical &= bool(
                     np.array_equal(
                         read_frames(a, field, index_a[ks]), read_frames(b, field, index_b[ks])
@@ -173,11 +174,13 @@ def _energy_back(forward, reverse) -> dict | None:
 def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     """That `second` reverses `first`: a forward trajectory and a reversed one, in that order,
     of one scenario, the reversal from a restart that ends `first` (when that restart is
-    still there: else said so). InputError naming what does not fit; returns one line on
-    what was checked."""
+    still there: else said so). The restart is looked for beside `second` first, then where
+    it was written, and it ends `first` where it names it or where its state is `first`'s
+    last frame (a run's folder copied or moved keeps the paths it was written with).
+    InputError naming what does not fit; returns one line on what was checked."""
     import json
 
-    from revdem_cli.io.restart import restart_scenario
+    from revdem_cli.io.restart import restart_positions, restart_scenario
 
     if first.resolve() == second.resolve():
         raise InputError(f"{first}: compared with itself; give its reversed trajectory second")
@@ -194,15 +197,24 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     ]
     if scenarios[0] != scenarios[1]:
         raise InputError(f"{first} and {second}: runs of different scenarios (or of other --set)")
-    source = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
-    if not source.is_file():  # names only: the same words wherever the runs were made
-        return f"one scenario; the reversal's restart {source.name} is not there to say more"
+    written = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
+    source = next((p for p in (second.parent / written.name, written) if p.is_file()), None)
+    if source is None:  # names only: the same words wherever the runs were made
+        return f"one scenario; the reversal's restart {written.name} is not there to say more"
     ends = restart_scenario(source)[1]
     if ends.resolve() != first.resolve():
-        raise InputError(
-            f"{first}: not the forward run that {second} reverses: its restart {source} ends "
-            f"the forward run {ends}"
-        )
+        step, positions = restart_positions(source)
+        last = frame_steps(forward)
+        if not (
+            len(last)
+            and last[-1] == step
+            and np.array_equal(read_frames(forward, "position", [len(last) - 1])[0], positions)
+        ):
+            raise InputError(
+                f"{first}: not the forward run that {second} reverses: its restart {source} "
+                f"ends the forward run {ends}, whose last frame (step {step}) {first} does not "
+                "hold"
+            )
     return f"{second.name} reverses {source.name}, the restart that ends {first.name}"
 
 

@@ -344,6 +344,16 @@ def _check_state(path, scenario, particles, ids, pairs, walls, step, stage_first
         refuse("pairs/x_built is not finite")
 
 
+def restart_positions(path: str | Path) -> tuple[int, np.ndarray]:
+    """(step, positions) of the state a restart file holds, checked as `read_restart`
+    checks them: what the last frame of the forward run it ends holds, wherever its files
+    were moved or copied."""
+    path = Path(path)
+    with open_hdf5(path) as f:
+        meta = _meta(f, path, checkpoint=False)
+        return int(meta.attrs["step"]), _verified(f, path, "particles/x")
+
+
 def restart_scenario(path: str | Path):
     """The scenario a restart file stores and the forward trajectory it names, checked as
     `read_restart` checks them, without reading its arrays."""

@@ -180,16 +180,29 @@ def two_runs(tmp_path_factory):
 
 def test_a_comparison_takes_a_forward_run_and_its_own_reversal(two_runs, tmp_path):
     """Once a file compared with itself was "reversible, bitwise identical", and two unrelated
-    runs were diagnosed as round-off growth."""
+    runs were diagnosed as round-off growth. A reversal is the forward run's whose restart
+    holds its last frame: the same run made twice (revdem is deterministic) or its folder
+    copied or moved (which keeps the paths it was written with, and was refused)."""
+    import shutil
+
+    import h5py
+
     a, b = two_runs
     forward, reverse = a / "collision.forward.h5", a / "collision.reverse.h5"
     assert_one_line_error(invoke("compare", forward, forward), "compared with itself")
     assert_one_line_error(invoke("compare", reverse, forward), "these are reverse and forward")
-    other = b / "collision.reverse.h5"
+    assert invoke("compare", forward, b / "collision.reverse.h5").exit_code == 0
+    copy = tmp_path / "copied"
+    shutil.copytree(a, copy)
+    result = invoke("compare", copy / "collision.forward.h5", copy / "collision.reverse.h5")
+    assert result.exit_code == 0, result.output
+    with h5py.File(copy / "collision.forward.h5", "r+") as f:  # another last frame
+        f["particles/all/position/value"][-1, 0, 0] += 1e-9
+    other = copy / "collision.forward.h5"
     assert_one_line_error(
-        invoke("compare", forward, other),
-        f"{forward}: not the forward run that {other} reverses",
-        f"ends the forward run {b / 'collision.forward.h5'}",
+        invoke("compare", other, reverse),
+        f"{other}: not the forward run that {reverse} reverses",
+        f"ends the forward run {forward}, whose last frame (step 200) {other} does not hold",
     )
     result = invoke("compare", forward, reverse, "--json")
     assert result.exit_code == 0
