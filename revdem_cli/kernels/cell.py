@@ -8,10 +8,12 @@ back with the new edge lengths, x = s L. Across a contact the cell's affine moti
 
 Servos, for an axis a holding the stress target s*_a:
 - PROPORTIONAL (Hanley 2020 §3.2.3): dL_a/dt = gain (sigma_aa - s*_a) / s*_a L_a, from the
-  stress at the start of the step. Reversed, it still steers the stress towards its target
-  (the exact time reverse of a relaxation diverges), from the later stress: the reversed
-  run follows the forward one only as closely as the servo tracks its target, closer the
-  larger the gain (the paper's observation).
+  stress at the start of the step. A reversed step moves the edge back with the rate its
+  state holds, the exact inverse of the forward step that moved with it, and then takes the
+  rate for the next one from the stress there, steering it towards its target (the exact
+  time reverse of a relaxation diverges; `steer_back`): the reversed run follows the
+  forward one only as closely as the servo tracks its target, closer the larger the gain
+  (the paper's observation).
 - INERTIAL: the edge is a degree of freedom of mass M driven by (sigma_aa - s*_a) A_a, A_a the
   area of the face normal to a (Andersen's barostat, J. Chem. Phys. 72, 2384 (1980), per
   axis, as Parrinello and Rahman's; the stress of Hanley 2020 Eq 23), integrated with the
@@ -134,26 +136,56 @@ def kick_cell(cell, fixed, h):
                 cell.rate[a] += h * cell.force[a] / cell.mass
 
 
+@inline
+def proportional_rate(cell, a, gain):
+    """dL_a/dt = gain (sigma_aa - s*_a) / s*_a L_a (Hanley 2020 §3.2.3), from the stress now."""
+    error = (cell.stress[a, a] - cell.target[a]) / cell.target[a]
+    return gain * error * cell.length[a]
+
+
+@jit
+def steer_back(cell):
+    """Proportional servo, reversed: the rate the next reversed step moves an edge back with,
+    dL/dt of forward time, which the forward step before took from a stress the reversal has
+    not reached yet. It takes the one that steers the stress towards its target in reversed
+    time, -gain (sigma - s*) / s* L from the stress now (the exact time reverse of a
+    relaxation diverges): the reversed run follows the forward one only as closely as the
+    servo tracks its target, closer the larger the gain (the paper's observation), and the
+    information tape records the difference (`tape`, the cell's rate)."""
+    if cell.servo != PROPORTIONAL:
+        return
+    for a in range(3):
+        if cell.control[a] == STRESS:
+            cell.rate[a] = proportional_rate(cell, a, -cell.gain)
+
+
 @jit
 def move_cell(cell, fixed, dt, elapsed):
     """The edges after a step of dt (< 0 reversed), `elapsed` seconds into the stage at its
     end; cell.mid gets the edges at the middle of the step, the ones a drift divides by.
 
     Strain-rate edges: L = L_start + rate elapsed, a function of the step as walls are.
-    Proportional servo: the rate from the stress now, then L += dt rate. Inertial: L += dt rate,
-    on its grid in fixed-point arithmetic.
+    Proportional servo: forward, the rate from the stress now, then L += dt rate; reversed,
+    L += dt rate with the rate the cell holds, the forward step's (`steer_back` the rest of
+    the way). Inertial: L += dt rate.
+    In fixed-point arithmetic every edge lies on its grid, whatever moves it: the integer
+    state then holds the whole cell, and a stage that starts (`stage.set_cell_motion`, which
+    puts the edges on their grid) starts from the edges the last one ended with, bit for bit.
     """
-    on_grid = fixed.v.shape[0] > 0 and cell.servo == INERTIAL
+    on_grid = fixed.v.shape[0] > 0
+    step = fixed.grid[EDGE] if on_grid else 0.0
     for a in range(3):
         before = cell.length[a]
         if cell.control[a] == STRAIN_RATE:
-            cell.length[a] = cell.start[a] + cell.rate[a] * elapsed
-        elif cell.control[a] == STRESS:
-            if cell.servo == PROPORTIONAL:  # dL/dt of forward time; reversed, L -= |dt| dL/dt
-                error = (cell.stress[a, a] - cell.target[a]) / cell.target[a]
-                cell.rate[a] = (cell.gain if dt > 0.0 else -cell.gain) * error * before
+            length = cell.start[a] + cell.rate[a] * elapsed
             if on_grid:
-                step = fixed.grid[EDGE]
+                fixed.length[a] = edge_on_grid(fixed, 0, length, step)
+                length = fixed.length[a] * step
+            cell.length[a] = length
+        elif cell.control[a] == STRESS:
+            if cell.servo == PROPORTIONAL and dt > 0.0:  # reversed: the rate it moved with
+                cell.rate[a] = proportional_rate(cell, a, cell.gain)
+            if on_grid:
                 fixed.length[a] = edge_on_grid(fixed, fixed.length[a], dt * cell.rate[a], step)
                 cell.length[a] = fixed.length[a] * step
             else:

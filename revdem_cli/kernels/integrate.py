@@ -17,7 +17,7 @@ import numpy as np
 from revdem_cli.kernels import LIGHT, by_size, inline_arrays, jit
 from revdem_cli.kernels import fixed as fx
 from revdem_cli.kernels import tape as tp
-from revdem_cli.kernels.cell import kick_cell, move_cell
+from revdem_cli.kernels.cell import kick_cell, move_cell, steer_back
 from revdem_cli.kernels.contact import FORWARD, NO_SHEAR, REVERSE, SETTLED
 from revdem_cli.kernels.events import (
     COLUMNS,
@@ -233,6 +233,7 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
                    events, step - 1, keep)  # fmt: skip
     note_damping(events, step - 1, law, dyn)
     kick_cell(cell, fixed, h)
+    steer_back(cell)
 
 
 @inline_arrays

@@ -32,6 +32,16 @@ CONSERVATIVE = {
         "stages.1.cell.y={strain_rate=5e-7}",
     ),
     "undamped drop": ("drop_A.toml", "damping.drag=1.0", "stages.0.steps=300000"),
+    # the cell's edges on their grid whatever moves them: a stage began from edges put on it
+    # after the frame that ended the stage before, 2.8e-14 m from it, and was called bitwise
+    "fcc, a strain-rate stage then the servo's, each reversed, the tape for the damping": (
+        "fcc_triaxial.toml",
+        "stages.0.cell.z={strain_rate=-1e-6}",
+        "stages.0.steps=2000",
+        "stages.1.steps=2000",
+        "reversal.all_stages=true",
+        "reversal.tape=true",
+    ),
 }
 
 
