@@ -115,7 +115,7 @@ class Model:
     def stage_wall_velocities(self, stage: Stage) -> np.ndarray:
         """Velocity of each wall during a stage, m/s, (W, 3)."""
         return np.array(
-            [stage.wall_velocities.get(w.name, w.velocity) for w in self.scenario.walls],
+            [stage.wall_velocity(w) for w in self.scenario.walls],
             dtype=np.float64,
         ).reshape(-1, 3)
 

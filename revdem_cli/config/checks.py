@@ -18,8 +18,9 @@ class FieldError(ValueError):
 
 def check_consistency(scenario) -> None:
     """How the fields of a scenario fit together: names that refer to materials, walls and
-    stages exist and are unique, one reversed stage and the last, the cell and its
-    servo, the container of [solid_fraction]; FieldError at the first that does not."""
+    stages exist and are unique, one reversed stage and the last, stop conditions that can
+    be met, the cell and its servo, the container of [solid_fraction]; FieldError at the
+    first that does not."""
     for path, material in _materials_named(scenario):
         if material not in scenario.materials:
             raise FieldError(
@@ -29,18 +30,8 @@ def check_consistency(scenario) -> None:
     check_wall_materials(scenario)
     wall_names = [w.name for w in scenario.walls]
     check_solid_fraction(scenario)
+    check_stop_conditions(scenario)
     for i, stage in enumerate(scenario.stages):
-        stop = stage.stop_when
-        if stop and stop.wall is not None and stop.wall not in wall_names:
-            condition = "wall_force_above" if stop.wall_force_above else "wall_travel_above"
-            raise FieldError(
-                f"stages[{i}].stop_when.{condition}.wall", f"no wall is named '{stop.wall}'"
-            )
-        if stop and stop.solid_fraction_above and scenario.solid_fraction is None:
-            raise FieldError(
-                f"stages[{i}].stop_when.solid_fraction_above",
-                "needs a [solid_fraction] table saying which walls close the container",
-            )
         if stage.contact and stage.contact.friction is not None:
             if scenario.contact.tangential == "none":
                 raise FieldError(
@@ -79,6 +70,41 @@ def check_consistency(scenario) -> None:
     check_scheme(scenario)
     check_tape(scenario)
     check_figures(scenario)
+
+
+def check_stop_conditions(scenario) -> None:
+    """Each stage's stop condition can be met: it is first checked before the stage ends, the
+    wall it watches exists, a wall whose travel it waits for moves in that stage (walls move
+    only at their velocity, `Stage.wall_velocity`; a static wall's force may still rise), and
+    a solid fraction has the container of [solid_fraction]."""
+    names = [wall.name for wall in scenario.walls]
+    for i, stage in enumerate(scenario.stages):
+        stop = stage.stop_when
+        if stop is None:
+            continue
+        path = f"stages[{i}].stop_when"
+        if stop.after_steps is not None and stop.after_steps >= stage.steps:
+            raise FieldError(
+                f"{path}.after_steps",
+                f"{stop.after_steps} must be below the stage's steps, {stage.steps}: the "
+                "condition is first checked that many steps into the stage",
+            )
+        condition = "wall_force_above" if stop.wall_force_above else "wall_travel_above"
+        if stop.wall is not None and stop.wall not in names:
+            raise FieldError(f"{path}.{condition}.wall", f"no wall is named '{stop.wall}'")
+        if stop.wall_travel_above:
+            k = names.index(stop.wall)
+            if not any(stage.wall_velocity(scenario.walls[k])):
+                raise FieldError(
+                    f"{path}.wall_travel_above.wall",
+                    f"wall '{stop.wall}' does not move in this stage: its velocity here is "
+                    f"zero (stages[{i}].wall_velocities.{stop.wall}, else walls[{k}].velocity)",
+                )
+        if stop.solid_fraction_above and scenario.solid_fraction is None:
+            raise FieldError(
+                f"{path}.solid_fraction_above",
+                "needs a [solid_fraction] table saying which walls close the container",
+            )
 
 
 def check_figures(scenario) -> None:

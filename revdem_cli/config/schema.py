@@ -494,7 +494,9 @@ class StopWhen(_Model):
         default=None, description="the force on a wall above a magnitude"
     )
     wall_travel_above: WallTravel | None = Field(
-        default=None, description="a wall has moved further than a distance since the stage began"
+        default=None,
+        description="a wall has moved further than a distance since the stage began (one "
+        "the stage moves: walls move at their velocity alone)",
     )
     solid_fraction_above: Float | None = Field(
         default=None, gt=0, lt=1, description="the solid fraction of [solid_fraction] above this"
@@ -502,8 +504,8 @@ class StopWhen(_Model):
     after_steps: Int | None = Field(
         default=None,
         gt=0,
-        description="steps of the stage before the condition is first checked, -: a pour from "
-        "rest meets kinetic_energy_below at once without it",
+        description="steps of the stage before the condition is first checked, fewer than its "
+        "steps, -: a pour from rest meets kinetic_energy_below at once without it",
     )
 
     @model_validator(mode="after")
@@ -659,6 +661,11 @@ class Stage(_Model):
     @property
     def observable_interval(self) -> int:
         return self.observables_every or self.output_every
+
+    def wall_velocity(self, wall: Wall) -> Vector3:
+        """The velocity of `wall` during this stage, m/s: its own in `wall_velocities`, else
+        the one of [[walls]]. Walls move at it alone (from where the stage finds them)."""
+        return self.wall_velocities.get(wall.name, wall.velocity)
 
 
 class Reversal(_Model):

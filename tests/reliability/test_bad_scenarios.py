@@ -502,6 +502,70 @@ def test_no_stages_is_refused(tried, data):
     refused(tried, "no stages", scenario, suffix, expected)
 
 
+STOP = ("stages", 0, "stop_when")
+TRAVEL = {"wall_travel_above": {"wall": "floor", "distance": 0.001}}
+"""A stop condition of `contained.yaml` (walls floor and side): the floor has travelled."""
+VELOCITIES = ("stages", 0, "wall_velocities")
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        (  # the stage ran to its end, "not met ... (from step 500 of the stage)"
+            {STOP: {"kinetic_energy_below": 1e-7, "after_steps": 500}},
+            "stages[0].stop_when.after_steps: 500 must be below the stage's steps, 200",
+        ),
+        (
+            {STOP: {"kinetic_energy_below": 1e-7, "after_steps": 200}},
+            "stages[0].stop_when.after_steps: 200 must be below the stage's steps, 200",
+        ),
+        (
+            {STOP: TRAVEL},
+            "stages[0].stop_when.wall_travel_above.wall: wall 'floor' does not move in this "
+            "stage: its velocity here is zero (stages[0].wall_velocities.floor, else "
+            "walls[0].velocity)",
+        ),
+        (  # another wall's motion does not move it
+            {STOP: TRAVEL, VELOCITIES: {"side": [0.0, 0.0, 0.1]}},
+            "wall 'floor' does not move in this stage",
+        ),
+        (  # the stage stops the wall that [[walls]] moves
+            {
+                STOP: TRAVEL,
+                ("walls", 0, "velocity"): [0.0, 0.0, 0.1],
+                VELOCITIES: {"floor": [0] * 3},
+            },
+            "wall 'floor' does not move in this stage",
+        ),
+    ],
+)
+def test_a_stop_condition_that_cannot_be_met_is_refused(changes, message):
+    """Each was accepted, and its stage ran all its steps."""
+    scenario = copy.deepcopy(CONTAINED)
+    for path, value in changes.items():
+        _set(scenario, path, value)
+    refused({}, "written by hand", scenario, ".yaml", message)
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {STOP: {"kinetic_energy_below": 1e-7, "after_steps": 199}},
+        {STOP: TRAVEL, VELOCITIES: {"floor": [0.0, 0.0, 0.1]}},
+        {STOP: TRAVEL, ("walls", 0, "velocity"): [0.1, 0.0, 0.0]},  # along its plane: it travels
+        {STOP: {"wall_force_above": {"wall": "floor", "force": 1.0}}},  # a still wall is loaded
+    ],
+)
+def test_a_stop_condition_that_can_be_met_is_accepted(tmp_path, changes):
+    scenario = copy.deepcopy(CONTAINED)
+    for path, value in changes.items():
+        _set(scenario, path, value)
+    path = tmp_path / "stops.yaml"
+    path.write_text(text_of(scenario, ".yaml"))
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 0, result.output
+
+
 @SETTINGS
 @given(st.data())
 def test_an_unknown_material_is_named(tried, data):

@@ -60,6 +60,10 @@ def test_overrides_reach_nested_fields_and_list_items():
             "materials.sphere.densty=1",
             "materials.sphere.densty: unknown field (did you mean density?)",
         ),
+        (  # was run to its end, the condition never checked
+            "stages.0.stop_when={kinetic_energy_below=1e-7, after_steps=10}",
+            "stages[0].stop_when.after_steps: 10 must be below the stage's steps, 10",
+        ),
         ("output.figures=['speed','speed']", "output: figure 'speed' is listed twice"),
         # was silently ignored, where the same in a stage's [contact] is refused
         ("contact.friction=0.5", "contact: friction needs a tangential law"),
