@@ -8,7 +8,7 @@ import re
 import tomllib
 from pathlib import Path
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from revdem_cli.config.checks import FieldError
 from revdem_cli.config.geometry import check_spheres
@@ -27,10 +27,17 @@ def _field_path(location: tuple) -> str:
     return path
 
 
-def describe_validation_error(error: ValidationError) -> str:
-    """The first problem of a validation error as `field.path: message`, and how many more."""
+def describe_validation_error(error: ValidationError, model: type[BaseModel] = Scenario) -> str:
+    """The most useful problem of a validation error of `model` as `field.path: message`,
+    and how many more: an unknown field whose name is close to one of its table's (a
+    misspelling, whose hint says what was meant) before any other, and a required field it
+    stands for not counted again as missing."""
     errors = error.errors()
-    first = errors[0]
+    meant = {e["loc"]: _meant(model, e["loc"]) for e in errors if e["type"] == "extra_forbidden"}
+    stands_for = {location[:-1] + (name,) for location, name in meant.items() if name}
+    errors = [e for e in errors if not (e["type"] == "missing" and e["loc"] in stands_for)]
+    first = next((e for e in errors if meant.get(e["loc"])), errors[0])
+    errors = [first] + [e for e in errors if e is not first]
     message = first["msg"].removeprefix("Value error, ")
     path = _field_path(first["loc"])
     if first["type"] == "missing" and isinstance(first["loc"][-1], int):  # a short tuple
@@ -41,38 +48,36 @@ def describe_validation_error(error: ValidationError) -> str:
     elif first["type"] == "missing":
         message = "missing required field"
     elif first["type"] == "extra_forbidden":
-        message = "unknown field" + _did_you_mean(first["loc"])
+        name = meant[first["loc"]]
+        message = "unknown field" + (f" (did you mean {name}?)" if name else "")
     text = f"{path}: {message}" if path else message
     more = len(errors) - 1
     return text + (f" (and {more} more problem{'s' * (more > 1)})" if more else "")
 
 
-def _did_you_mean(location: tuple) -> str:
-    """' (did you mean NAME?)' for the field of the model at `location` whose name is
-    closest to the unknown one there; '' where none is close."""
+def _meant(model: type[BaseModel], location: tuple) -> str | None:
+    """The field of the table of `model` at `location` whose name is closest to the unknown
+    one there; None where none is close."""
     import difflib
     import typing
 
-    from pydantic import BaseModel
-
-    model, *parents = Scenario, *location[:-1]
-    for part in parents:
+    for part in location[:-1]:
         fields = getattr(model, "model_fields", None)
         if fields is not None and isinstance(part, str) and part in fields:
             model = fields[part].annotation
         elif typing.get_origin(model) in (list, tuple, dict):
             model = typing.get_args(model)[-1]
         else:
-            return ""
+            return None
         while typing.get_origin(model) is typing.Union or type(model).__name__ == "UnionType":
             options = [a for a in typing.get_args(model) if a is not type(None)]
             if len(options) != 1:
-                return ""
+                return None
             model = options[0]
     if not (isinstance(model, type) and issubclass(model, BaseModel)):
-        return ""
+        return None
     close = difflib.get_close_matches(str(location[-1]), list(model.model_fields), n=1)
-    return f" (did you mean {close[0]}?)" if close else ""
+    return close[0] if close else None
 
 
 _YAML_FLOAT = re.compile(r"^(?:[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+|[-+]?inf)$", re.I)

@@ -235,7 +235,7 @@ def _validated(data: dict, origin: str, overrides: list[str]) -> TimestepStudy:
     try:
         return TimestepStudy.model_validate(data)
     except ValidationError as exc:
-        raise InputError(f"{origin}: {describe_validation_error(exc)}") from None
+        raise InputError(f"{origin}: {describe_validation_error(exc, TimestepStudy)}") from None
 
 
 def study_from_text(

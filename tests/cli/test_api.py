@@ -3,6 +3,7 @@ as the one line the command line prints."""
 
 from __future__ import annotations
 
+import copy
 import os
 import re
 from pathlib import Path
@@ -52,6 +53,15 @@ def test_a_changed_field_is_checked_as_a_file_is():
         revdem.from_dict(collision.fields, changes={"particles.0.radius": "big"})
     with pytest.raises(InputError, match="stages.5.steps: '5' is not an index of a list of 1"):
         collision.changed({"stages.5.steps": 10})
+    fields = copy.deepcopy(collision.fields)
+    fields["materials"]["sphere"]["poisson_ration"] = fields["materials"]["sphere"].pop(
+        "poisson_ratio"
+    )
+    with pytest.raises(InputError) as misspelt:  # was missing poisson_ratio, one more problem
+        revdem.from_dict(fields)
+    assert str(misspelt.value) == (
+        "<dict>: materials.sphere.poisson_ration: unknown field (did you mean poisson_ratio?)"
+    )
 
 
 def test_results_name_what_they_do_not_have(tmp_path):

@@ -165,9 +165,9 @@ def field(path: tuple) -> str:
     return text
 
 
-def refused(tried: dict, what: str, data: dict, suffix: str, *fragments: str) -> None:
+def refused(tried: dict, what: str, data: dict, suffix: str, *fragments: str) -> str:
     """`revdem run` on the scenario: exit 2, one line naming the file and the fragments,
-    and nothing written into the output directory."""
+    and nothing written into the output directory; the line, after the file's name."""
     tried[what] = tried.get(what, 0) + 1
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / f"broken{suffix}"
@@ -176,6 +176,7 @@ def refused(tried: dict, what: str, data: dict, suffix: str, *fragments: str) ->
         result = runner.invoke(app, ["run", str(path), "--out", str(out), "-q"])
         assert_one_line_error(result, f"error: {path}: ", *fragments)
         assert not out.exists() or not any(out.iterdir()), sorted(out.iterdir())
+        return result.output.strip().removeprefix(f"error: {path}: ")
 
 
 # Finding places to break --------------------------------------------------------------
@@ -337,6 +338,22 @@ def test_a_missing_required_field_is_named(tried, data):
     else:
         expected = [f"{field(path)}: missing required field"]
     refused(tried, "missing field", scenario, suffix, *expected)
+
+
+@SETTINGS
+@given(st.data())
+def test_a_misspelt_required_field_is_named_with_the_field_meant(tried, data):
+    """A required field under a name one letter off: the line names the misspelling and the
+    field meant, whose absence is the same problem, not counted again (it was the missing
+    field, the misspelling hidden behind "(and 1 more problem)")."""
+    scenario, suffix = data.draw(base())
+    path = data.draw(st.sampled_from([p for p, _ in _walk(scenario) if _matches(p, REQUIRED)]))
+    name = path[-1]
+    typo = data.draw(st.sampled_from([name[:-1], name + "s", name[0] + name[2:]]))
+    table = _get(scenario, path[:-1])
+    table[typo] = table.pop(name)
+    line = refused(tried, "misspelt field", scenario, suffix)
+    assert line == f"{field(path[:-1] + (typo,))}: unknown field (did you mean {name}?)"
 
 
 @SETTINGS

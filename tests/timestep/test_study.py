@@ -196,6 +196,8 @@ def test_superquadric_with_unit_exponents_is_the_ellipsoid():
     ("old", "new", "fragments"),
     [
         ("[particle]", "[particle]\ncolour = 'red'", ["particle.colour: unknown field"]),
+        # the hint was a scenario's field of that name: a scenario's contact has ks
+        ("kn = 1e10 ", "k = 1e10 ", ["contact.k: unknown field (did you mean kn?)"]),
         ("density = 1000.0", "density = -1000.0", ["particle.density:", "greater than 0"]),
         ("figures = [3, 4, 5, 6]", "figures = [3, 7]", ["figures[1]:", "3, 4, 5 or 6"]),
         ("figures = [3, 4, 5, 6]", "figures = [3, 3]", ["figures [3, 3]: name each figure once"]),
