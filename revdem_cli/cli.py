@@ -456,9 +456,8 @@ def export(
     with nullcontext() if quiet else _progress_of("frames", False) as shown:
         written = exporter(trajectory, target, shown)
     if format == "vtk":  # each series and its frames: the spheres', and the force chains'
-        for series in (path for path in written if path.suffix == ".pvd"):
-            count = sum(path.stem.rsplit(".", 1)[0] == series.stem for path in written)
-            typer.echo(f"wrote {series} and its {count} frame files")
+        for series, frames in written.items():
+            typer.echo(f"wrote {series} and its {len(frames)} frame files")
     else:
         typer.echo(f"wrote {written}")
 

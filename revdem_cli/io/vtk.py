@@ -98,11 +98,11 @@ def _series(frames: list[tuple[float, Path]], path: Path) -> None:
 
 def export_vtk(
     trajectory: str | Path, out_dir: str | Path, progress: FrameProgress | None = None
-) -> list[Path]:
+) -> dict[Path, list[Path]]:
     """Write every frame of `trajectory` as out_dir/STEM.NNNNN.vtp and the series
     out_dir/STEM.pvd (STEM: the trajectory's name without .h5), and with contacts the force
     chains STEM.contacts.NNNNN.vtp and STEM.contacts.pvd, telling `progress` of each frame;
-    returns the .pvd first."""
+    returns each series written, the spheres' first, with its frame files."""
     trajectory, out_dir = Path(trajectory), Path(out_dir)
     stem = trajectory.stem
     spheres, chains = [], []
@@ -129,10 +129,9 @@ def export_vtk(
                 chains.append((float(times[frame]), path))
             if progress is not None:
                 progress(trajectory.name, frame + 1, len(times))
-    series = out_dir / f"{stem}.pvd"
-    _series(spheres, series)
-    written = [series, *(path for _, path in spheres)]
+    written = {out_dir / f"{stem}.pvd": spheres}
     if chains:
-        _series(chains, out_dir / f"{stem}.contacts.pvd")
-        written += [out_dir / f"{stem}.contacts.pvd", *(path for _, path in chains)]
-    return written
+        written[out_dir / f"{stem}.contacts.pvd"] = chains
+    for series, frames in written.items():
+        _series(frames, series)
+    return {series: [path for _, path in frames] for series, frames in written.items()}

@@ -214,6 +214,21 @@ def test_the_contacts_of_a_frame_sum_to_each_sphere_s_net_force(packings, kind):
     assert 2 * (~on_wall).sum() / len(mass) == pytest.approx(coordination, rel=1e-12)
 
 
+def test_a_vtk_export_counts_the_frames_of_each_series(packings, tmp_path):
+    """With contacts it said the spheres' series had a frame more than it wrote (the force
+    chains' .pvd counted as one): each series now with the frames written for it."""
+    trajectory = packings["oedometer"]
+    result = runner.invoke(app, ["export", str(trajectory), "--vtk", "--out", str(tmp_path), "-q"])
+    assert result.exit_code == 0, result.output
+    with h5py.File(trajectory, "r") as f:
+        frames = len(f["particles/all/position/step"])
+    assert result.output.splitlines() == [
+        f"wrote {tmp_path / series}.pvd and its {frames} frame files"
+        for series in (trajectory.stem, f"{trajectory.stem}.contacts")
+    ]
+    assert len(list(tmp_path.glob("*.vtp"))) == 2 * frames
+
+
 @pytest.mark.parametrize("kind", ["oedometer", "fcc"])
 def test_force_chains_open_in_vtk_and_bonds_in_ovito(packings, kind, tmp_path):
     """The force-chain VTK series, read by VTK's own XML reader (ParaView's): a line a
