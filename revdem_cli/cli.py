@@ -419,7 +419,12 @@ def export(
         ),
     ] = None,
     force: Annotated[
-        bool, typer.Option("--force", help="Write over a file that --out names and exists.")
+        bool,
+        typer.Option(
+            "--force",
+            help="Write over a file that --out names and exists (vtk: the series and frames "
+            "of an earlier export of TRAJECTORY in the --out folder).",
+        ),
     ] = False,
 ) -> None:
     """Export a trajectory: VTK for ParaView, GSD or a LAMMPS dump for OVITO, a LAMMPS data
@@ -442,11 +447,17 @@ def export(
     from contextlib import nullcontext
 
     from revdem_cli.io import particles, refuse_overwriting
+    from revdem_cli.io.vtk import export_vtk, own_files
 
-    if format != "vtk":  # its --out is a folder
-        refuse_overwriting("export", target, out is not None and not force, trajectory)
-    from revdem_cli.io.vtk import export_vtk
-
+    keep = out is not None and not force
+    if format != "vtk":
+        refuse_overwriting("export", target, keep, trajectory)
+    elif keep and (earlier := own_files(target, trajectory.stem)):  # its --out is a folder
+        more = f" and {len(earlier) - 1} more" if len(earlier) > 1 else ""
+        raise InputError(
+            f"export: --out {target}: holds {earlier[0].name}{more} of an earlier export of "
+            f"{trajectory.name}; use --force to overwrite"
+        )
     exporter = {
         "vtk": export_vtk,
         "gsd": particles.export_gsd,

@@ -14,6 +14,7 @@ needed to write or read them.
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -27,6 +28,25 @@ from revdem_cli.io.h5md import (
     read_frame,
 )
 from revdem_cli.io.particles import FrameProgress
+
+CHAINS = ".contacts"
+"""What the force chains' names add to the spheres': STEM.contacts.pvd and its frames."""
+
+DIGITS = 5
+"""The fewest digits of a frame's number in its file's name (more where the frames need)."""
+
+
+def own_files(out_dir: str | Path, stem: str) -> list[Path]:
+    """The files in `out_dir` named as the export of the trajectory STEM.h5 names its own:
+    STEM.pvd and STEM.NNNNN.vtp, the force chains' STEM.contacts.pvd and
+    STEM.contacts.NNNNN.vtp; nothing else (another trajectory's export, a file of the user's
+    own), sorted by name."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return []
+    series = rf"{re.escape(stem)}(?:{re.escape(CHAINS)})?"
+    pattern = re.compile(rf"{series}\.(?:pvd|\d{{{DIGITS},}}\.vtp)")
+    return sorted(p for p in out_dir.iterdir() if pattern.fullmatch(p.name) and not p.is_dir())
 
 
 def _data_array(parent: ET.Element, name: str, values: np.ndarray, kind: str) -> None:
@@ -102,19 +122,27 @@ def export_vtk(
     """Write every frame of `trajectory` as out_dir/STEM.NNNNN.vtp and the series
     out_dir/STEM.pvd (STEM: the trajectory's name without .h5), and with contacts the force
     chains STEM.contacts.NNNNN.vtp and STEM.contacts.pvd, telling `progress` of each frame;
-    returns each series written, the spheres' first, with its frame files."""
+    returns each series written, the spheres' first, with its frame files.
+
+    The files an earlier export of STEM left in `out_dir` (`own_files`) are removed first:
+    one of more frames, or with contacts, would leave frames its series no longer lists,
+    and ParaView, opening the .vtp files as a group, would show two runs' frames as one.
+    The caller decides whether they may go (`revdem export`: in the trajectory's own
+    folder, STEM.vtk, always; in one --out names, only with --force)."""
     trajectory, out_dir = Path(trajectory), Path(out_dir)
     stem = trajectory.stem
     spheres, chains = [], []
     with open_trajectory(trajectory) as f:  # checked before anything is written
         out_dir.mkdir(parents=True, exist_ok=True)
+        for path in own_files(out_dir, stem):
+            path.unlink()
         particles = f["particles/all"]
         constant = {"radius": particles["radius"][:], "id": particles["id"][:]}
         if "species" in particles:  # the material, numbered from 1 as the other exports do
             constant["type"] = particles["species"][:] + 1
         periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
-        width = max(5, len(str(len(times) - 1)))
+        width = max(DIGITS, len(str(len(times) - 1)))
         for frame in range(len(frame_steps(f))):
             fields = {name: read_frame(f, name, frame) for name in FRAME_FIELDS}
             position = fields.pop("position")
@@ -124,14 +152,14 @@ def export_vtk(
             contacts = read_contacts(f, frame)
             if contacts is not None:
                 box = particles["box/edges/value"][frame] if periodic else None
-                path = out_dir / f"{stem}.contacts.{frame:0{width}d}.vtp"
+                path = out_dir / f"{stem}{CHAINS}.{frame:0{width}d}.vtp"
                 _force_chains(position, box, contacts).write(path, xml_declaration=True)
                 chains.append((float(times[frame]), path))
             if progress is not None:
                 progress(trajectory.name, frame + 1, len(times))
     written = {out_dir / f"{stem}.pvd": spheres}
     if chains:
-        written[out_dir / f"{stem}.contacts.pvd"] = chains
+        written[out_dir / f"{stem}{CHAINS}.pvd"] = chains
     for series, frames in written.items():
         _series(frames, series)
     return {series: [path for _, path in frames] for series, frames in written.items()}

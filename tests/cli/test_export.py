@@ -105,6 +105,44 @@ def test_an_export_writes_over_a_file_it_names_only_with_force(smoke_run, tmp_pa
     assert (tmp_path / "forward.dump").read_text().startswith("ITEM: TIMESTEP")
 
 
+def test_a_vtk_export_removes_its_earlier_frames_and_nothing_else(smoke_run, tmp_path):
+    """An export over an earlier one of more frames, or with force chains, left their files:
+    ParaView, opening the .vtp files as a group, showed the frames of two runs. The folder
+    now holds the frames its series lists: the export's earlier files go, in a folder --out
+    names with --force (refused without), in its own folder always; no other file goes."""
+    trajectory = smoke_run / "collision_smoke.forward.h5"
+    stem = trajectory.stem
+    folder = tmp_path / "vtk"
+    folder.mkdir()
+    earlier = [f"{stem}.00021.vtp", f"{stem}.00030.vtp", f"{stem}.contacts.pvd",
+               f"{stem}.contacts.00003.vtp"]  # fmt: skip
+    others = ["notes.txt", "collision_smoke.reverse.00030.vtp", f"{stem}.0003.vtp",
+              f"{stem}.00003.vtp.bak", "other.forward.pvd"]  # fmt: skip
+    for name in earlier + others:
+        (folder / name).write_text("earlier")
+    args = ["export", str(trajectory), "--vtk", "--out", str(folder), "-q"]
+    assert_one_line_error(
+        runner.invoke(app, args),
+        f"--out {folder}: holds {stem}.00021.vtp and 3 more of an earlier export of "
+        f"{trajectory.name}; use --force",
+    )
+    assert sorted(p.name for p in folder.iterdir()) == sorted(earlier + others)
+    result = runner.invoke(app, [*args, "--force"])
+    assert result.exit_code == 0, result.output
+    series = ET.parse(folder / f"{stem}.pvd").getroot()
+    listed = [d.get("file") for d in series.findall("Collection/DataSet")]
+    assert len(listed) == 21
+    assert sorted(p.name for p in folder.iterdir()) == sorted([*listed, f"{stem}.pvd", *others])
+
+    local = tmp_path / "forward.h5"
+    local.symlink_to(trajectory)
+    (tmp_path / "forward.vtk").mkdir()
+    (tmp_path / "forward.vtk" / "forward.00030.vtp").write_text("earlier")
+    result = runner.invoke(app, ["export", str(local), "--vtk", "-q"])
+    assert result.exit_code == 0, result.output
+    assert not (tmp_path / "forward.vtk" / "forward.00030.vtp").exists()
+
+
 @pytest.fixture(scope="module")
 def packings(tmp_path_factory) -> dict[str, Path]:
     """Runs of the smoke oedometer (walls, open boundaries; its compression short) and of
