@@ -242,6 +242,23 @@ def keep_outputs(paths: list[Path], force: bool, of: str = "run") -> None:
         path.unlink()
 
 
+def stale_exports(written: list[Path], out: Path, name: str) -> tuple[Path, ...]:
+    """The exports (`revdem export`'s default targets) of the trajectories among `written`
+    that are there before a run writes those trajectories: made from an earlier run's.
+
+    They are kept, and the run's summary lists them. An export is not an output of the run:
+    the run never writes one, and the user made it, perhaps for a ParaView or OVITO session
+    that still opens it; removed by --force, which names only the run's outputs, it would be
+    lost unasked. Kept unmentioned, carrying the run's name, it would pass for an export of
+    the new trajectory."""
+    from revdem_cli.engine import output_paths
+    from revdem_cli.io import exports_of
+
+    paths = output_paths(out, name)
+    trajectories = [paths[kind] for kind in ("forward", "reverse") if paths[kind] in written]
+    return tuple(export for path in trajectories for export in exports_of(path))
+
+
 def keep_checkpoint(out: Path, name: str, force: bool) -> None:
     """Refuse to start over an unfinished run unless forced: its checkpoint names it."""
     from revdem_cli.checkpoint import checkpoint_path, find_checkpoints
@@ -298,10 +315,13 @@ def run(
     keep_checkpoint(out, experiment.name, force)
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
         check_time_step(experiment.scenario, experiment.origin)
-    keep_outputs(output_paths_of(experiment.scenario, out, reverse), force)
+    written = output_paths_of(experiment.scenario, out, reverse)
+    keep_outputs(written, force)
+    stale = stale_exports(written, out, experiment.name)
     with _progress(progress) as shown:
         outputs = run_scenario(experiment.scenario, experiment.text, experiment.suffix, out,
                                reverse, shown, allow_unstable_dt)  # fmt: skip
+    outputs.stale_exports = stale
     return Result(outputs)
 
 
@@ -334,8 +354,11 @@ def reverse(
     # with none, the figures are the forward run's (`run --no-reverse`), drawn again with
     # the reversed run beside it
     keep_outputs(figures, True)
+    stale = stale_exports(written, folder, spec.name)
     with _progress(progress) as shown:
-        return Result(reverse_run(restart, out, steps, shown))
+        outputs = reverse_run(restart, out, steps, shown)
+    outputs.stale_exports = stale
+    return Result(outputs)
 
 
 @_paths_checked

@@ -436,19 +436,20 @@ def export(
 
     Example: revdem export out/collision.forward.h5 --format gsd
     """
-    formats = {"vtk": ".vtk", "gsd": ".gsd", "lammps-dump": ".dump", "lammps-data": ".data"}
+    from revdem_cli.io import EXPORT_SUFFIXES, export_target
+
     if vtk and format not in (None, "vtk"):
         raise InputError(f"export: --vtk and --format {format} ask for two formats; give one")
     format = "vtk" if vtk else format
-    if format not in formats:
+    if format not in EXPORT_SUFFIXES:
         given = "give one" if format is None else f"got {format!r}"
-        raise InputError(f"export: --format must be one of {', '.join(formats)}; {given}")
-    target = out or trajectory.with_suffix(formats[format])
+        raise InputError(f"export: --format must be one of {', '.join(EXPORT_SUFFIXES)}; {given}")
     from contextlib import nullcontext
 
     from revdem_cli.io import particles, refuse_overwriting
     from revdem_cli.io.vtk import export_vtk, own_files
 
+    target = out or export_target(trajectory, format)
     keep = out is not None and not force
     if format != "vtk":
         refuse_overwriting("export", target, keep, trajectory)

@@ -51,6 +51,8 @@ class Outputs:
     # what else the forward run wrote: its stages' information tapes and, where every stage
     # is reversed, their restarts, each (what it is, path)
     stage_files: tuple[tuple[str, Path], ...] = ()
+    # exports of its trajectories already there when it started: made from another run's
+    stale_exports: tuple[Path, ...] = ()
 
 
 def output_paths(out_dir: Path, name: str) -> dict[str, Path]:

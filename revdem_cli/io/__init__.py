@@ -24,6 +24,25 @@ DAMAGE = (KeyError, OSError, RuntimeError, ValueError, TypeError, IndexError, At
 """What h5py raises when it reads a damaged file."""
 
 
+EXPORT_SUFFIXES = {"vtk": ".vtk", "gsd": ".gsd", "lammps-dump": ".dump", "lammps-data": ".data"}
+"""`revdem export`'s formats, each with the suffix of its default target: the trajectory's
+path with it in place of .h5 (a folder for vtk, its series and frames inside)."""
+
+
+def export_target(trajectory, format: str):
+    """Where `revdem export` writes `trajectory` in `format` unless --out says."""
+    from pathlib import Path
+
+    return Path(trajectory).with_suffix(EXPORT_SUFFIXES[format])
+
+
+def exports_of(trajectory) -> list:
+    """The default targets of `revdem export` of `trajectory` that are there (files, or
+    the vtk folder), in the order of EXPORT_SUFFIXES."""
+    targets = (export_target(trajectory, format) for format in EXPORT_SUFFIXES)
+    return [target for target in targets if target.exists() or target.is_symlink()]
+
+
 def write_text(path, text: str) -> None:
     """`write_file` of a text."""
     write_file(path, text.encode())

@@ -66,6 +66,33 @@ def test_force_overwrites(out):
     assert after[f"{NAME}.forward.h5"][1] != before[f"{NAME}.forward.h5"][1]
 
 
+def test_a_forced_run_keeps_the_exports_of_the_run_it_replaces_and_lists_each(out):
+    """`run --force` replaced the trajectories and left their exports beside them without a
+    word, carrying the run's name while showing the run replaced. A run writes no export,
+    so they are kept, and its summary lists each one to export again."""
+    forward, reverse = (out / f"{NAME}.{kind}.h5" for kind in ("forward", "reverse"))
+    for trajectory, fmt in ((forward, "lammps-dump"), (forward, "vtk"), (reverse, "gsd")):
+        assert invoke("export", trajectory, "--format", fmt, "-q").exit_code == 0
+    exports = [
+        out / f"{NAME}.forward.vtk",
+        out / f"{NAME}.forward.dump",
+        out / f"{NAME}.reverse.gsd",
+    ]
+    result = invoke("run", SMOKE, "--out", out, *SHORT, "--force")
+    assert result.exit_code == 0, result.output
+    stale = [line.split(None, 2)[2] for line in result.output.splitlines() if "stale" in line]
+    assert stale == [f"{path} (made from an earlier run; export again)" for path in exports]
+    assert all(path.exists() for path in exports)
+
+    gsd = out / f"{NAME}.reverse.gsd"  # a reversal alone replaces the reversed trajectory
+    reversed_again = invoke("reverse", out / f"{NAME}.restart.h5", "-q", "--force")
+    assert reversed_again.exit_code == 0, reversed_again.output
+    stale = [
+        line.split(None, 2)[2] for line in reversed_again.output.splitlines() if "stale" in line
+    ]
+    assert stale == [f"{gsd} (made from an earlier run; export again)"]
+
+
 @pytest.mark.parametrize("kept", OUTPUTS)
 def test_any_one_output_left_is_kept(out, kept):
     for name in OUTPUTS:
