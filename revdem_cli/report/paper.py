@@ -164,6 +164,44 @@ class _Run:
         return self._path("forward.h5").exists() or self._path("compare.json").exists()
 
 
+def _flat(value, path: str = "") -> dict[str, object]:
+    """A scenario's fields as {dotted path: value}, lists by index."""
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, list):
+        items = ((f"{k}", v) for k, v in enumerate(value))
+    else:
+        return {path: value}
+    flat = {}
+    for key, inner in items:
+        flat |= _flat(inner, f"{path}.{key}" if path else str(key))
+    return flat
+
+
+def differences(run_path: Path, config: str) -> list[str] | None:
+    """Where the scenario a run stores differs from the case's config (read from the working
+    folder, else from the project's root, as `config` names it): 'field: run's (config's)'
+    for each field, [] where none does, None where the config is not there to say."""
+    import json
+
+    from revdem_cli.config import Scenario, load_scenario
+
+    path = next(
+        (p for p in (Path(config), Path(__file__).parents[2] / config) if p.is_file()), None
+    )
+    if path is None:
+        return None
+    with open_trajectory(run_path) as f:
+        stored = json.loads(str(f["parameters/revdem"].attrs["scenario_json"]))
+    ran = _flat(Scenario.model_validate(stored).model_dump(mode="json"))
+    given = _flat(load_scenario(path)[0].model_dump(mode="json"))
+    return [
+        f"{key} = {ran.get(key, '-')} ({given.get(key, '-')} in {config})"
+        for key in sorted(set(ran) | set(given))
+        if ran.get(key) != given.get(key)
+    ]
+
+
 def _judge(how: str, paper, ours, tolerance: float | None) -> bool:
     if how == "at most":
         return ours <= paper
@@ -266,10 +304,26 @@ def write_report(directory: Path, paper_path: Path, out: Path, keep: bool = Fals
     for name, case in paper.items():
         title = f"## {name}" + (f" ({case['section']})" if "section" in case else "")
         lines += ["", title, ""]
+        rows = case_rows(name, case, Path(directory))
         if "config" in case:
             lines += [f"`{case['config']}`" + (f": {case['claim']}" if "claim" in case else ""), ""]
+            forward = Path(directory) / f"{name}.forward.h5"
+            changed = differences(forward, case["config"]) if forward.exists() else []
+            if changed:
+                lines += [
+                    f"**Not the paper's case**: the run differs from `{case['config']}` in "
+                    + "; ".join(f"`{change}`" for change in changed)
+                    + ". Its numbers are shown, not judged.",
+                    "",
+                ]
+                rows = [
+                    (key, paper, ours, "not the case" if agrees else "")
+                    for key, paper, ours, agrees in rows
+                ]
+            elif changed is None:
+                lines += [f"(`{case['config']}` is not there to check the run against.)", ""]
         lines += ["| quantity | paper | revdem | agrees |", "|---|---|---|---|"]
-        lines += [f"| {' | '.join(row)} |" for row in case_rows(name, case, Path(directory))]
+        lines += [f"| {' | '.join(row)} |" for row in rows]
         figures = sorted(Path(directory).glob(f"{name}.*.png"))
         lines += [f"\n![{figure.stem}]({figure.name})" for figure in figures]
         copies += [(figure, Path(out).parent / figure.name) for figure in figures]

@@ -10,7 +10,7 @@ runner = CliRunner()
 
 PAPER = """
 [collision_smoke]
-config = "configs/smoke/collision.yaml"
+config = "CONFIG"
 section = "§0"
 max_position_error_rel = 1e-10
 reversible = false
@@ -23,9 +23,17 @@ reversible = true
 """
 
 
+def smoke_config(folder) -> str:
+    """The smoke collision as `smoke_run` ran it (1000 steps each way), a file in `folder`."""
+    text = (ROOT / "configs/smoke/collision.yaml").read_text()
+    path = folder / "collision.yaml"
+    path.write_text(text.replace("steps: 5000", "steps: 1000"))
+    return str(path)
+
+
 def test_report_judges_each_number_against_the_run(smoke_run, tmp_path):
     paper = tmp_path / "paper.toml"
-    paper.write_text(PAPER)
+    paper.write_text(PAPER.replace("CONFIG", smoke_config(tmp_path)))
     page = tmp_path / "page.md"
     args = ["report", str(smoke_run), "--paper", str(paper), "--out", str(page)]
     result = runner.invoke(app, args)
@@ -39,6 +47,26 @@ def test_report_judges_each_number_against_the_run(smoke_run, tmp_path):
     assert "| 0.066 ± 10% | 0 | **no** |" in rows["max_shear_force"]  # no shear law
     assert "not measured" in rows["coefficient_of_restitution"]
     assert drop.splitlines()[-1] == "| reversible | yes | no drop_A.compare.json |  |"
+
+
+def test_a_run_of_other_settings_than_the_cases_is_shown_not_judged(smoke_run, tmp_path):
+    """A run made with --set (here 1000 steps each way, the config's 5000) was judged
+    against the paper's numbers as if it were the paper's case: revdem then seemed to
+    disagree with the paper."""
+    paper = tmp_path / "paper.toml"
+    paper.write_text(PAPER.replace("CONFIG", "configs/smoke/collision.yaml"))
+    page = tmp_path / "page.md"
+    args = ["report", str(smoke_run), "--paper", str(paper), "--out", str(page)]
+    assert runner.invoke(app, args).exit_code == 0
+    smoke = page.read_text().split("## drop_A")[0]
+    assert (
+        "**Not the paper's case**: the run differs from `configs/smoke/collision.yaml` in "
+        "`stages.0.steps = 1000 (5000 in configs/smoke/collision.yaml)`. Its numbers are "
+        "shown, not judged." in smoke
+    )
+    rows = [line for line in smoke.splitlines() if line.startswith("| ") and "quantity" not in line]
+    assert "| no | yes | not the case |" in "".join(rows)
+    assert not any("**no**" in row or row.endswith("| yes |") for row in rows)
 
 
 def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypatch):
