@@ -31,16 +31,21 @@ def _figure(
     series,
     ylabel: str,
     xlabel: str = "time (ms)",
+    over_reversal: bool = False,
 ) -> Path:
     """Plot series(path) -> [(label, x, values)] for both runs: forward solid, reversed
     dashed, same colour per series; an entry (note, None, None) titles the legend instead
-    (what was left out)."""
-    return _panels(forward, reverse, png, [(series, ylabel)], xlabel)
+    (what was left out). `over_reversal`: as `_panels`'."""
+    return _panels(forward, reverse, png, [(series, ylabel)], xlabel, over_reversal)
 
 
-def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str) -> Path:
+def _panels(
+    forward: Path, reverse: Path | None, png: Path, panels, xlabel: str, over_reversal=False
+) -> Path:
     """Panels one above the other over a shared x axis, each (series, ylabel) as in
-    `_figure`."""
+    `_figure`; `over_reversal` (x the time, the same at a step in both runs): beside a
+    reversal, the forward run over the span it covers, which the axis says (a reversed last
+    stage of a long run was a few pixels at the right edge)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -54,17 +59,26 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     runs = [("forward", forward, {"lw": 2.5, "alpha": 0.5}), ("reversed", reverse,
             {"lw": 1.2, "ls": "--"})]  # fmt: skip
+    clipped = False
     for ax, (series, ylabel) in zip(axes[:, 0], panels, strict=True):
         spans = {"forward": [], "reversed": []}
         named = {}  # each series by its colour, once for both runs
         notes = set()
+        drawn = {run: series(path) for run, path, _ in runs if path is not None}
+        reversed_runs = drawn.get("reversed", []) if over_reversal else []
+        covered = [x for _, x, _ in reversed_runs if x is not None and len(x)]
+        low = min(float(np.min(x)) for x in covered) if covered else -np.inf
+        high = max(float(np.max(x)) for x in covered) if covered else np.inf
         for run, path, style in runs:
             if path is None:
                 continue
-            for k, (label, x, values) in enumerate(series(path)):
+            for k, (label, x, values) in enumerate(drawn[run]):
                 if x is None:
                     notes.add(label)
                     continue
+                inside = (x >= low) & (x <= high)
+                clipped |= not inside.all()
+                x, values = x[inside], values[inside]
                 colour = colours[k % len(colours)]
                 ax.plot(x, values, color=colour, **style)
                 named[label] = Line2D([], [], color=colour, lw=2.0)
@@ -78,7 +92,8 @@ def _panels(forward: Path, reverse: Path | None, png: Path, panels, xlabel: str)
         ax.set_ylabel(ylabel)
         _legend(ax, named, "; ".join(sorted(notes)) or None)
         ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel(xlabel)
+    over = ", over the reversed stage"
+    axes[-1, 0].set_xlabel(xlabel + (over if clipped and over not in xlabel else ""))
     return _save(fig, png)
 
 
@@ -160,13 +175,13 @@ def _each_sphere(component):
 def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     """|v| of each particle against time (Hanley 2020 Figure 1)."""
     speed = _each_sphere(lambda v: np.linalg.norm(v, axis=2))
-    return _figure(forward, reverse, png, speed, "|v| (m/s)")
+    return _figure(forward, reverse, png, speed, "|v| (m/s)", over_reversal=True)
 
 
 def velocity_z_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     """Vertical velocity of each particle against time (Hanley 2020 Figure 6)."""
     vertical = _each_sphere(lambda v: v[:, :, 2])
-    return _figure(forward, reverse, png, vertical, "v_z (m/s)")
+    return _figure(forward, reverse, png, vertical, "v_z (m/s)", over_reversal=True)
 
 
 def forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
@@ -179,7 +194,7 @@ def forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
             for time, values in [_observable(path, name)]
         ]
 
-    return _figure(forward, reverse, png, series, "largest contact force (N)")
+    return _figure(forward, reverse, png, series, "largest contact force (N)", over_reversal=True)
 
 
 def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:

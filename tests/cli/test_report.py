@@ -144,6 +144,34 @@ def test_a_figure_shows_a_reversal_that_parts_but_not_one_that_runs_away():
     assert _limits([2.0, 2.0], [2.0, 2.0]) == (1.0, 3.0)  # a constant: a unit either side
 
 
+def test_a_time_figure_shows_the_forward_run_over_the_reversed_stage(tmp_path, monkeypatch):
+    """A long first stage and a short reversed one: the figures against time drew the whole
+    forward run, the reversal a few pixels at the right edge (a pour of 2.7 s and a reversed
+    stage of 87 ms); they draw the forward run over the span of the reversal, and say so."""
+    from revdem_cli import api
+    from revdem_cli.report import figures
+
+    stages = [
+        {"name": "approach", "steps": 4000, "output_every": 50},
+        {"name": "collide", "steps": 1000, "output_every": 50, "reverse": True},
+    ]
+    experiment = api.load(ROOT / "configs/smoke/collision.yaml").changed({"stages": stages})
+    run = api.run(experiment, tmp_path / "run").outputs
+    drawn = []
+    monkeypatch.setattr(figures, "_save", lambda fig, png: drawn.append(fig) or png)
+    for figure in (figures.speed_figure, figures.forces_figure):
+        figure(run.forward, run.reverse, tmp_path / "f.png")
+        ax = drawn[-1].axes[0]
+        spans = {
+            line.get_linestyle(): (min(line.get_xdata()), max(line.get_xdata()))
+            for line in ax.get_lines()
+            if len(line.get_xdata())
+        }
+        assert spans["-"] == pytest.approx(spans["--"]), spans  # forward over the reversal's
+        assert spans["--"][1] - spans["--"][0] < 0.25 * spans["--"][1]
+        assert ax.get_xlabel() == "time (ms), over the reversed stage"
+
+
 def test_a_sphere_is_named_in_a_figure_as_in_messages(smoke_run):
     """By index and id (`state.particle_named`): a LAMMPS data file's spheres carry their
     atom ids, which the legends lacked."""
