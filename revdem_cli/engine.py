@@ -231,7 +231,8 @@ def _forward(
     scenario, paths = run.scenario, run.paths
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
-    chosen, stopped, unmet, stage_files = {}, {}, {}, []
+    so_far = "{}" if resume is None else resume.resumption.so_far
+    chosen, stopped, unmet, stage_files = carried_summary(run, so_far)
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
             stage = scenario.stages[index]
@@ -246,20 +247,22 @@ def _forward(
                 )
             if stage_dt(scenario, stage) == "auto":
                 chosen[stage.name] = clock.dt
-            place = dict(
-                phase="forward", stage_index=index, reverse=reverse, source_restart="",
-                stop_step=-1, end_step=-1,
-            )  # fmt: skip
-
             files = _stage_files(run, index)
             tape = None  # the stages a reversal reverses: the last, or with all_stages every one
             if files[0]:
                 resumed_at = state.step if events is not None else None
-                stage_files.append(("information tape", run.out_dir / files[0]))
+                if ("information tape", run.out_dir / files[0]) not in stage_files:
+                    stage_files.append(("information tape", run.out_dir / files[0]))
                 tape = Recorder(
                     run.out_dir / files[0], stage.name,
                     (clock.first_step, clock.first_time, clock.dt), state, resumed_at,
                 )  # fmt: skip
+
+            place = dict(
+                phase="forward", stage_index=index, reverse=reverse, source_restart="",
+                stop_step=-1, end_step=-1,
+                so_far=summary_so_far(chosen, stopped, unmet, stage_files),
+            )  # fmt: skip
 
             def checkpoint(state, clock, events, place=place, tape=tape, files=files):
                 run.checkpoint(state, clock, events, writer, paths["forward"], place, tape, files)
@@ -288,7 +291,8 @@ def _forward(
     if reverse:
         restart = read_restart(paths["restart"])
         source = str(paths["restart"].resolve())
-        reversed_outputs = _reverse(run, restart, source, None, progress)
+        so_far = summary_so_far(chosen, stopped, unmet, stage_files)
+        reversed_outputs = _reverse(run, restart, source, None, progress, so_far)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
         reversed_outputs.chosen_dt, reversed_outputs.stopped = chosen, stopped
         reversed_outputs.unmet, reversed_outputs.stage_files = unmet, outputs.stage_files
@@ -298,6 +302,25 @@ def _forward(
     run.checkpoints.finish("its figures were drawn; its trajectory and restart are whole")
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
     return outputs
+
+
+def summary_so_far(chosen: dict, stopped: dict, unmet: dict, stage_files: list) -> str:
+    """What a run's summary says of the stages run so far (`Outputs`' chosen_dt, stopped,
+    unmet and stage_files, the files by name), as JSON, which a checkpoint keeps so that the
+    run resumed says it too."""
+    files = [[label, Path(path).name] for label, path in stage_files]
+    return json.dumps(
+        {"chosen_dt": chosen, "stopped": stopped, "unmet": unmet, "stage_files": files}
+    )
+
+
+def carried_summary(run: Run, so_far: str) -> tuple[dict, dict, dict, list]:
+    """`summary_so_far` read back: (chosen_dt, stopped, unmet, stage_files), the files in
+    the run's folder as it is named now."""
+    said = json.loads(so_far)
+    stopped = {name: tuple(counts) for name, counts in said.get("stopped", {}).items()}
+    files = [(label, run.out_dir / name) for label, name in said.get("stage_files", [])]
+    return dict(said.get("chosen_dt", {})), stopped, dict(said.get("unmet", {})), files
 
 
 def _stage_files(run: Run, index: int) -> tuple[str, str]:
@@ -354,11 +377,13 @@ def _reverse(
     source: str,
     steps: int | None,
     progress: Progress | None,
+    so_far: str = "{}",
 ) -> Outputs:
     """The stage that ended at the restart `start` backwards, or on from `start` when it is
     a checkpoint of this reversal; on through the stages before it where the restart names
     the one before (`[reversal] all_stages`); then the comparison with the forward run and
-    the figures. `source`: the restart file's path."""
+    the figures. `source`: the restart file's path; `so_far`: what the summary says of the
+    forward run, which its checkpoints keep (`summary_so_far`)."""
     scenario, paths = run.scenario, run.paths
     resumption = start.resumption
     text = start.scenario_text
@@ -386,7 +411,7 @@ def _reverse(
     with writer:
         while True:
             tape = _replayer(scenario, start, source, clock)
-            _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress)
+            _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress, so_far)
             tapes += [tape.path] if tape else []
             if not start.previous or stop != clock.first_step:
                 break
@@ -461,11 +486,11 @@ def _replayer(
     return Replayer(path, clock.stage.name, clock.first_step, particles, before)
 
 
-def _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress) -> None:
+def _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress, so_far) -> None:
     """One stage of a reversal, from the state of `start` back to `stop`, into `writer`."""
     place = dict(
         phase="reverse", stage_index=-1, reverse=False, source_restart=source, stop_step=stop,
-        end_step=clock.last_step,
+        end_step=clock.last_step, so_far=so_far,
     )  # fmt: skip
     files = (start.tape, start.previous)
 
@@ -512,7 +537,15 @@ def resume_run(
                 run.paths["forward"], place, resume.state, run.model, text, "forward"
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
-        return _reverse(run, resume, place.source_restart, None, progress)
+        outputs = _reverse(run, resume, place.source_restart, None, progress, place.so_far)
+    chosen, stopped, unmet, stage_files = carried_summary(run, place.so_far)
+    outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
+    outputs.stage_files = tuple(stage_files)
+    for kind in ("forward", "restart"):  # named as the run's folder is named now
+        path = getattr(outputs, kind)
+        if path is not None and path.resolve() == run.paths[kind].resolve():
+            setattr(outputs, kind, run.paths[kind])
+    return outputs
 
 
 def _figures(

@@ -64,6 +64,8 @@ class Resumption:
     source_restart: str  # reverse phase: the restart file it reverses from
     stop_step: int  # reverse phase: the step it reverses back to
     end_step: int  # reverse phase: the step the reversed stage ended at, going forward
+    so_far: str = "{}"  # what the run's summary says of the stages before, JSON
+    # (`engine.summary_so_far`); a checkpoint written before it held none: {}
 
 
 @dataclass
@@ -191,6 +193,7 @@ def _read_resumption(f: h5py.File, path: Path) -> Resumption:
         source_restart=str(attrs["source_restart"]),
         stop_step=int(attrs["stop_step"]),
         end_step=int(attrs["end_step"]),
+        so_far=str(attrs.get("so_far", "{}")),
     )
 
 

@@ -531,6 +531,38 @@ def test_a_signal_delivered_twice_is_one_request_and_a_later_one_stops_at_once(m
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+def test_a_resumed_run_says_what_the_stages_before_its_checkpoint_did(tmp_path):
+    """The smoke oedometer, every stage reversed with the tape, stopped once its pour has
+    ended: resumed, its summary listed only the stages after the checkpoint (not the pour's
+    stop, tape and restart), and named the forward run and restart by absolute paths."""
+    out = tmp_path / "cut"
+    args = [
+        "run", str(CONFIGS / "smoke" / "oedometer.toml"), "--out", str(out), "-q",
+        "--set", "reversal.all_stages=true", "--set", "reversal.tape=true",
+        "--set", "integrator.arithmetic=fixed",
+    ]  # fmt: skip
+    command = [sys.executable, "-m", "revdem_cli.cli", *args]
+    process = subprocess.Popen(command, start_new_session=True, stderr=subprocess.PIPE)
+    poured = out / "oedometer_smoke.stage-0.restart.h5"
+    while not poured.exists():
+        assert process.poll() is None, process.communicate()[1]
+        time.sleep(0.01)
+    time.sleep(0.5)
+    os.killpg(process.pid, signal.SIGINT)
+    assert process.wait(timeout=60) == 130, process.communicate()[1]
+    resumed = CliRunner().invoke(app, ["run", "--resume", str(out)], env={"COLUMNS": "500"})
+    assert resumed.exit_code == 0, resumed.output
+    said = [" ".join(line.split()) for line in resumed.output.splitlines()]
+    for line in (
+        "stopped stage pour after 140000 of 200000 steps",
+        f"information tape {out / 'oedometer_smoke.stage-0.tape.h5'}",
+        f"restart of pour {poured}",
+        f"forward trajectory {out / 'oedometer_smoke.forward.h5'}",
+        f"restart {out / 'oedometer_smoke.restart.h5'}",
+    ):
+        assert line in said, resumed.output
+
+
 def snapshot_files(folder: Path) -> dict[str, int]:
     """Each file in `folder` and the time it was last written (ns)."""
     return {p.name: p.stat().st_mtime_ns for p in sorted(folder.iterdir())}
