@@ -275,7 +275,8 @@ def _forward(
                 ran = state.step - clock.first_step
                 stopped[stage.name] = (ran, stage.steps, stage.observable_interval)
             elif stage.stop_when is not None:
-                unmet[stage.name] = stage.stop_when.model_dump(exclude_none=True)
+                condition = stage.stop_when.model_dump(exclude_none=True)
+                unmet[stage.name] = condition | _motion_left(state, stage.stop_when)
             time = float(clock.time(state.step))
             if index < len(scenario.stages) - 1 and scenario.reversal.all_stages:
                 stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
@@ -302,6 +303,20 @@ def _forward(
     run.checkpoints.finish("its figures were drawn; its trajectory and restart are whole")
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
     return outputs
+
+
+def _motion_left(state: State, stop) -> dict:
+    """Where a stage ran all its steps short of kinetic_energy_below: the spheres' kinetic
+    energy at its end and the share of it in their rotation (Hanley 2020 Eq 2-3's terms),
+    which says why: a sphere spinning about its contact normal meets no moment (no law
+    resists twisting) and local damping leaves a spin no moment drives."""
+    if stop.kinetic_energy_below is None:
+        return {}
+    p = state.particles
+    moving = 0.5 * float((p.mass[:, None] * p.v**2).sum())
+    spinning = 0.5 * float((p.inertia[:, None] * p.omega**2).sum())
+    total = moving + spinning
+    return {"kinetic_energy_at_end": total, "rotation_share": spinning / total if total else 0.0}
 
 
 def summary_so_far(chosen: dict, stopped: dict, unmet: dict, stage_files: list) -> str:

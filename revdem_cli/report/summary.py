@@ -96,6 +96,11 @@ def print_summary(outputs, console: Console | None = None) -> None:
         line = (
             f"  {'not met':<20} stage {stage} ran all its steps without {stop_condition(condition)}"
         )
+        if "kinetic_energy_at_end" in condition:
+            line += (
+                f": {condition['kinetic_energy_at_end']:.3g} J at its end, "
+                f"{condition['rotation_share']:.0%} of it the spheres' rotation"
+            )
         console.print(line, soft_wrap=True)
     if outputs.verdict is not None:
         console.print(verdict_line(outputs.verdict))

@@ -156,6 +156,33 @@ def test_a_wall_pushing_down_stops_when_its_force_exceeds_the_target(tmp_path):
     assert outputs.unmet == {"press": {"wall_force_above": {"wall": "lid", "force": 0.02}}}
 
 
+def test_a_stage_short_of_rest_says_how_much_of_its_energy_is_spin(tmp_path):
+    """A sphere resting on a plane and spinning about the vertical, its contact's normal:
+    no law resists twisting and local damping leaves a spin no moment drives, so a stage
+    asking for rest runs all its steps. The summary says its kinetic energy at the end,
+    1/2 I w^2 within the settling's, and that all of it is rotation (a user waited on a
+    stage that could never end)."""
+    from rich.console import Console
+
+    from revdem_cli.report import summary
+
+    data = settle_then_push().model_dump()
+    data["particles"][0]["angular_velocity"] = (0.0, 0.0, 17.0)
+    data["stages"] = data["stages"][:1]
+    data["stages"][0]["stop_when"] = {"kinetic_energy_below": 1e-9, "after_steps": 2000}
+    outputs = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path)
+    left = outputs.unmet["settle"]
+    radius, density = data["particles"][0]["radius"], data["materials"]["sphere"]["density"]
+    inertia = 0.4 * (4 / 3 * math.pi * radius**3 * density) * radius**2
+    assert left["kinetic_energy_at_end"] == pytest.approx(0.5 * inertia * 17.0**2, rel=1e-3)
+    assert left["rotation_share"] > 0.999
+    console = Console(record=True, width=200)
+    summary.print_summary(outputs, console)
+    said = " ".join(console.export_text().split())
+    assert "without kinetic_energy_below 1e-09 (from step 2000 of the stage): " in said
+    assert "J at its end, 100% of it the spheres' rotation" in said
+
+
 def test_the_summary_says_where_a_stop_condition_ended_a_stage_and_when_at_once():
     """A pour from rest meets kinetic_energy_below at its first check: said, not silent."""
     from rich.console import Console
