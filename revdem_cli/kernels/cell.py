@@ -179,7 +179,7 @@ def move_cell(cell, fixed, dt, elapsed):
         if cell.control[a] == STRAIN_RATE:
             length = cell.start[a] + cell.rate[a] * elapsed
             if on_grid:
-                fixed.length[a] = edge_on_grid(fixed, 0, length, step)
+                fixed.length[a] = edge_on_grid(fixed, np.int64(0), length, step)
                 length = fixed.length[a] * step
             cell.length[a] = length
         elif cell.control[a] == STRESS:
