@@ -307,8 +307,8 @@ def _forward(
 
 def _motion_left(state: State, stop) -> dict:
     """Where a stage ran all its steps short of kinetic_energy_below: the spheres' kinetic
-    energy at its end and the share of it in their rotation (Hanley 2020 Eq 2-3's terms),
-    which says why: a sphere spinning about its contact normal meets no moment (no law
+    energy at its end, Σ ½ m v² + ½ I ω², and the share of it in their rotation, which says
+    why: a sphere spinning about its contact normal meets no moment (no law
     resists twisting) and local damping leaves a spin no moment drives."""
     if stop.kinetic_energy_below is None:
         return {}
