@@ -347,6 +347,15 @@ def _check_state(path, scenario, particles, ids, pairs, walls, step, stage_first
         refuse("pairs/x_built is not finite")
 
 
+def restart_stage_start(path: str | Path) -> int:
+    """The first step of the stage a restart file ends (the reversed stage, whose
+    reversal, with `[reversal] all_stages`, goes on through the stages before), checked as
+    `read_restart` checks it, without reading its arrays."""
+    path = Path(path)
+    with open_hdf5(path) as f:
+        return int(_meta(f, path, checkpoint=False).attrs["stage_first_step"])
+
+
 def restart_positions(path: str | Path) -> tuple[int, np.ndarray]:
     """(step, positions) of the state a restart file holds, checked as `read_restart`
     checks them: what the last frame of the forward run it ends holds, wherever its files

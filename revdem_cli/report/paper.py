@@ -64,14 +64,16 @@ def _velocity_before_contact(run) -> float:
 
 def _observable_at(run, moment: str, name: str) -> np.ndarray:
     """An observable of the reversed stage at `moment`: 'start' (forward run, where the
-    reversed run ends), 'end' (forward run, last row: the restart) or 'reversed' (reversed
-    run, last row)."""
-    with open_trajectory(run.reverse) as f:
-        first = int(f[f"observables/{name}/step"][:].min())
+    stage began), 'end' (forward run, last row: the restart) or 'reversed' (the reversed
+    run at the stage's start: its last row, or where every stage is reversed, its row
+    there)."""
+    first = run.stage_start
     with open_trajectory(run.reverse if moment == "reversed" else run.forward) as f:
         steps = f[f"observables/{name}/step"][:]
         values = f[f"observables/{name}/value"][:]
-    return values[-1] if moment != "start" else values[np.nonzero(steps == first)[0][0]]
+    if moment == "end":
+        return values[-1]
+    return values[np.nonzero(steps == first)[0][0]]
 
 
 def _stress_ratio(principal: np.ndarray) -> np.ndarray:
@@ -82,12 +84,10 @@ def _stress_ratio(principal: np.ndarray) -> np.ndarray:
 def _peak_stress_ratio(run) -> float:
     """Largest sigma_1 / sigma_3 of the forward run over the reversed stage (Hanley 2020
     Figure 4, the peak of Thornton's Eq 24)."""
-    with open_trajectory(run.reverse) as f:
-        first = int(f["observables/principal_stress/step"][:].min())
     with open_trajectory(run.forward) as f:
         steps = f["observables/principal_stress/step"][:]
         principal = f["observables/principal_stress/value"][:]
-    return float(_stress_ratio(principal[steps >= first]).max())
+    return float(_stress_ratio(principal[steps >= run.stage_start]).max())
 
 
 def _stage_measures() -> dict[str, tuple[str, Callable]]:
@@ -157,6 +157,13 @@ class _Run:
 
     def verdict(self) -> dict:
         return read_verdict(self._file("compare.json"))
+
+    @property
+    def stage_start(self) -> int:
+        """The first step of the reversed stage, which its restart ends."""
+        from revdem_cli.io.restart import restart_stage_start
+
+        return restart_stage_start(self._file("restart.h5"))
 
     @property
     def ran(self) -> bool:

@@ -69,6 +69,31 @@ def test_a_run_of_other_settings_than_the_cases_is_shown_not_judged(smoke_run, t
     assert not any("**no**" in row or row.endswith("| yes |") for row in rows)
 
 
+def test_a_run_reversing_every_stage_is_measured_at_its_reversed_stage(tmp_path):
+    """With `[reversal] all_stages` the reversed trajectory runs back to step 0, whose
+    lattice carries no stress: the fcc case's start and reversed values were read there
+    (sigma_1/sigma_3 nan, coordination 0), not where its reversed stage began."""
+    overrides = [
+        "--set", "stages.0.steps=3000", "--set", "stages.1.steps=2000",
+        "--set", "integrator.arithmetic=fixed", "--set", "reversal.tape=true",
+    ]  # fmt: skip
+    pages = []
+    for every in ("false", "true"):
+        out = tmp_path / every
+        args = ["run", str(ROOT / "configs/fcc_triaxial.toml"), "--out", str(out), "-q"]
+        args += [*overrides, "--set", f"reversal.all_stages={every}"]
+        assert runner.invoke(app, args).exit_code == 0
+        page = out / "r.md"
+        assert runner.invoke(app, ["report", str(out), "--out", str(page)]).exit_code == 0
+        case = page.read_text().split("## fcc_triaxial")[1].split("##")[0]
+        rows = [line for line in case.splitlines() if line.startswith("| ")]
+        pages.append([row for row in rows if not row.startswith("| quantity")])
+    assert pages[1] == pages[0]
+    rows = {row.split(" | ")[0].strip("| "): row.split(" | ")[2] for row in pages[1]}
+    assert rows["stress_ratio_start"] == rows["stress_ratio_reversed"] == "1"
+    assert rows["coordination_number_start"] == "12"
+
+
 def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # the project's paper file, wherever revdem runs from
     runs = tmp_path / "runs"  # the smoke collision's verdict as the paper's collision's
