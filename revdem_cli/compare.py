@@ -175,8 +175,9 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     """That `second` reverses `first`: a forward trajectory and a reversed one, in that order,
     of one scenario, the reversal from a restart that ends `first` (when that restart is
     still there: else said so). The restart is looked for beside `second` first, then where
-    it was written, and it ends `first` where it names it or where its state is `first`'s
-    last frame (a run's folder copied or moved keeps the paths it was written with).
+    it was written, a restart of another scenario there not taken for it, and it ends
+    `first` where it names it or where its state is `first`'s last frame (a run's folder
+    copied or moved keeps the paths it was written with).
     InputError naming what does not fit; returns one line on what was checked."""
     import json
 
@@ -198,10 +199,18 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     if scenarios[0] != scenarios[1]:
         raise InputError(f"{first} and {second}: runs of different scenarios (or of other --set)")
     written = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
-    source = next((p for p in (second.parent / written.name, written) if p.is_file()), None)
+    reversed_scenario = Scenario.model_validate(scenarios[1]).model_dump(mode="json")
+    found = (
+        (path, *restart_scenario(path))
+        for path in (second.parent / written.name, written)
+        if path.is_file()
+    )
+    source, ends = next(
+        ((p, e) for p, s, e in found if s.model_dump(mode="json") == reversed_scenario),
+        (None, None),
+    )
     if source is None:  # names only: the same words wherever the runs were made
         return f"one scenario; the reversal's restart {written.name} is not there to say more"
-    ends = restart_scenario(source)[1]
     if ends.resolve() != first.resolve():
         step, positions = restart_positions(source)
         last = frame_steps(forward)

@@ -209,6 +209,21 @@ def test_a_comparison_takes_a_forward_run_and_its_own_reversal(two_runs, tmp_pat
     assert '"pairing": ' in result.output and "the restart that ends" in result.output
 
 
+def test_a_pair_moved_away_is_not_judged_by_a_later_run_where_it_was_made(tmp_path):
+    """A forward run and its reversal copied elsewhere without their restart, and their
+    folder then reused for a run of other settings: the restart found where the reversal
+    was written belongs to that run, and refused the pair as not each other's."""
+    made, lone = tmp_path / "made", tmp_path / "lone"
+    args = ["run", COLLISION, "--out", made, "-q", "--set", "stages.0.steps=200"]
+    assert invoke(*args).exit_code == 0
+    lone.mkdir()
+    for kind in ("forward", "reverse"):
+        (lone / f"collision.{kind}.h5").write_bytes((made / f"collision.{kind}.h5").read_bytes())
+    assert invoke(*args[:-1], "stages.0.steps=300", "--force").exit_code == 0
+    result = invoke("compare", lone / "collision.forward.h5", lone / "collision.reverse.h5")
+    assert result.exit_code == 0, result.output
+
+
 def test_a_comparison_of_runs_of_other_settings_is_refused(two_runs, tmp_path):
     out = tmp_path / "c"
     args = ["run", COLLISION, "--out", out, "-q", "--set", "stages.0.steps=100"]
