@@ -37,16 +37,30 @@ DIGITS = 5
 
 
 def own_files(out_dir: str | Path, stem: str) -> list[Path]:
-    """The files in `out_dir` named as the export of the trajectory STEM.h5 names its own:
-    STEM.pvd and STEM.NNNNN.vtp, the force chains' STEM.contacts.pvd and
-    STEM.contacts.NNNNN.vtp; nothing else (another trajectory's export, a file of the user's
-    own), sorted by name."""
+    """The files an earlier export of the trajectory STEM.h5 wrote in `out_dir`: its series
+    STEM.pvd and the force chains' STEM.contacts.pvd, and the frames each lists named as
+    this export names its frames (STEM.NNNNN.vtp, STEM.contacts.NNNNN.vtp); nothing else
+    (a frame no series lists, another trajectory's export, a file of the user's own), sorted
+    by name. A series that cannot be read lists none."""
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         return []
-    series = rf"{re.escape(stem)}(?:{re.escape(CHAINS)})?"
-    pattern = re.compile(rf"{series}\.(?:pvd|\d{{{DIGITS},}}\.vtp)")
-    return sorted(p for p in out_dir.iterdir() if pattern.fullmatch(p.name) and not p.is_dir())
+    found = []
+    for series in (out_dir / f"{stem}.pvd", out_dir / f"{stem}{CHAINS}.pvd"):
+        if not series.is_file():
+            continue
+        found.append(series)
+        frame = re.compile(rf"{re.escape(series.stem)}\.\d{{{DIGITS},}}\.vtp")
+        try:
+            listed = [d.get("file", "") for d in ET.parse(series).iter("DataSet")]
+        except (ET.ParseError, OSError):
+            listed = []
+        found += [
+            out_dir / name
+            for name in listed
+            if frame.fullmatch(name) and (out_dir / name).is_file()
+        ]
+    return sorted(set(found))
 
 
 def _data_array(parent: ET.Element, name: str, values: np.ndarray, kind: str) -> None:

@@ -105,28 +105,39 @@ def test_an_export_writes_over_a_file_it_names_only_with_force(smoke_run, tmp_pa
     assert (tmp_path / "forward.dump").read_text().startswith("ITEM: TIMESTEP")
 
 
+def _earlier_series(folder, stem: str, frames: list[str]) -> None:
+    """An earlier export's series STEM.pvd in `folder`, listing `frames`, each written."""
+    listed = "".join(f'<DataSet timestep="0" part="0" file="{name}"/>' for name in frames)
+    text = f'<VTKFile type="Collection"><Collection>{listed}</Collection></VTKFile>'
+    (folder / f"{stem}.pvd").write_text(text)
+    for name in frames:
+        (folder / name).write_text("earlier")
+
+
 def test_a_vtk_export_removes_its_earlier_frames_and_nothing_else(smoke_run, tmp_path):
     """An export over an earlier one of more frames, or with force chains, left their files:
     ParaView, opening the .vtp files as a group, showed the frames of two runs. The folder
-    now holds the frames its series lists: the export's earlier files go, in a folder --out
-    names with --force (refused without), in its own folder always; no other file goes."""
+    now holds the frames its series lists: the frames the earlier series listed go, in a
+    folder --out names with --force (refused without), in its own folder always; no other
+    file goes, not even one named as a frame that no series lists."""
     trajectory = smoke_run / "collision_smoke.forward.h5"
     stem = trajectory.stem
     folder = tmp_path / "vtk"
     folder.mkdir()
-    earlier = [f"{stem}.00021.vtp", f"{stem}.00030.vtp", f"{stem}.contacts.pvd",
-               f"{stem}.contacts.00003.vtp"]  # fmt: skip
+    _earlier_series(folder, stem, [f"{stem}.00021.vtp", f"{stem}.00030.vtp"])
+    _earlier_series(folder, f"{stem}.contacts", [f"{stem}.contacts.00003.vtp"])
     others = ["notes.txt", "collision_smoke.reverse.00030.vtp", f"{stem}.0003.vtp",
-              f"{stem}.00003.vtp.bak", "other.forward.pvd"]  # fmt: skip
-    for name in earlier + others:
-        (folder / name).write_text("earlier")
+              f"{stem}.00003.vtp.bak", "other.forward.pvd", f"{stem}.00500.vtp"]  # fmt: skip
+    for name in others:
+        (folder / name).write_text("mine")
+    before = sorted(p.name for p in folder.iterdir())
     args = ["export", str(trajectory), "--vtk", "--out", str(folder), "-q"]
     assert_one_line_error(
         runner.invoke(app, args),
-        f"--out {folder}: holds {stem}.00021.vtp and 3 more of an earlier export of "
+        f"--out {folder}: holds {stem}.00021.vtp and 4 more of an earlier export of "
         f"{trajectory.name}; use --force",
     )
-    assert sorted(p.name for p in folder.iterdir()) == sorted(earlier + others)
+    assert sorted(p.name for p in folder.iterdir()) == before
     result = runner.invoke(app, [*args, "--force"])
     assert result.exit_code == 0, result.output
     series = ET.parse(folder / f"{stem}.pvd").getroot()
@@ -137,10 +148,12 @@ def test_a_vtk_export_removes_its_earlier_frames_and_nothing_else(smoke_run, tmp
     local = tmp_path / "forward.h5"
     local.symlink_to(trajectory)
     (tmp_path / "forward.vtk").mkdir()
-    (tmp_path / "forward.vtk" / "forward.00030.vtp").write_text("earlier")
+    _earlier_series(tmp_path / "forward.vtk", "forward", ["forward.00030.vtp"])
+    (tmp_path / "forward.vtk" / "forward.00777.vtp").write_text("mine")
     result = runner.invoke(app, ["export", str(local), "--vtk", "-q"])
     assert result.exit_code == 0, result.output
     assert not (tmp_path / "forward.vtk" / "forward.00030.vtp").exists()
+    assert (tmp_path / "forward.vtk" / "forward.00777.vtp").read_text() == "mine"
 
 
 @pytest.fixture(scope="module")
