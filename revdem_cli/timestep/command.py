@@ -357,15 +357,7 @@ def _print_packing(report: dict) -> None:
         highlight=False,
     )
     if engine is not None and not engine["measured"]:
-        console.print(
-            f"• the engine's limit was not measured: two copies of this state a kick apart "
-            f"parted {engine['divergence']:.3g} times in {engine['divergence_seconds']:.3g} s at "
-            "half the step (at rest: about 1). The packing still moves, or has motions "
-            "unstable of themselves, and their parting, the same at any step, hides the "
-            "integrator's. Let the stage come to rest (stop_when.kinetic_energy_below) and "
-            "check again; where it parts even at rest, the assembly's limit is the estimate.",
-            highlight=False,
-        )
+        console.print(f"• {engine['reason']}", highlight=False)
 
 
 def dt(

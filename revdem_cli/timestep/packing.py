@@ -552,6 +552,15 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
                 "dt": check.dt,
                 "ratio": check.dt / reference,
             }
+        else:
+            engine["reason"] = (
+                f"the engine's limit was not measured: two copies of this state a kick apart "
+                f"parted {check.divergence:.3g} times in {check.seconds:.3g} s at half the step "
+                "(at rest: about 1). The packing still moves, or has motions unstable of "
+                "themselves, and their parting, the same at any step, hides the integrator's. "
+                "Let the stage come to rest (stop_when.kinetic_energy_below) and check again; "
+                "where it parts even at rest, the assembly's limit is the estimate."
+            )
         report["engine_integrated"] = engine
     return report
 

@@ -278,6 +278,7 @@ def test_a_packing_that_still_moves_is_not_bracketed(tmp_path):
     assert report["assembly"]["contacts"] > 0
     assert not engine["measured"] and engine["divergence"] > 1e3 * PARTED
     assert "dt" not in engine and "ratio" not in engine and engine["trials"] == 0
+    assert engine["reason"].startswith("the engine's limit was not measured: two copies")
     shown = " ".join(invoke("dt", "--restart", restart, "--verify").output.split())
     assert "the engine's limit was not measured: two copies of this state" in shown
     assert "Let the stage come to rest (stop_when.kinetic_energy_below)" in shown
