@@ -185,10 +185,16 @@ def _flat(value, path: str = "") -> dict[str, object]:
     return flat
 
 
+UNJUDGED = ("description", "output.")
+"""Fields of a scenario that change no number a run reports."""
+
+
 def differences(run_path: Path, config: str) -> list[str] | None:
     """Where the scenario a run stores differs from the case's config (read from the working
     folder, else from the project's root, as `config` names it): 'field: run's (config's)'
-    for each field, [] where none does, None where the config is not there to say."""
+    for each field, [] where none does, None where the config is not there to say. What
+    changes no number of the run is left out: its description and [output] (figures,
+    checkpoint interval, what frames carry)."""
     import json
 
     from revdem_cli.config import Scenario, load_scenario
@@ -205,7 +211,7 @@ def differences(run_path: Path, config: str) -> list[str] | None:
     return [
         f"{key} = {ran.get(key, '-')} ({given.get(key, '-')} in {config})"
         for key in sorted(set(ran) | set(given))
-        if ran.get(key) != given.get(key)
+        if ran.get(key) != given.get(key) and not key.startswith(UNJUDGED)
     ]
 
 

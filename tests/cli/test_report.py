@@ -67,6 +67,19 @@ def test_a_run_of_other_settings_than_the_cases_is_shown_not_judged(smoke_run, t
     rows = [line for line in smoke.splitlines() if line.startswith("| ") and "quantity" not in line]
     assert "| no | yes | not the case |" in "".join(rows)
     assert not any("**no**" in row or row.endswith("| yes |") for row in rows)
+    # what changes no number, a checkpoint interval say, leaves it the case
+    out = tmp_path / "checkpointed"
+    args = ["run", str(ROOT / "configs/smoke/collision.yaml"), "--out", str(out), "-q"]
+    args += ["--set", "stages.0.steps=1000", "--set", "output.checkpoint_interval=5"]
+    assert runner.invoke(app, args).exit_code == 0
+    paper.write_text(PAPER.replace("CONFIG", smoke_config(tmp_path)))
+    assert (
+        runner.invoke(
+            app, ["report", str(out), "--paper", str(paper), "--out", str(page), "--force"]
+        ).exit_code
+        == 0
+    )
+    assert "Not the paper's case" not in page.read_text()
 
 
 def test_a_run_reversing_every_stage_is_measured_at_its_reversed_stage(tmp_path):
