@@ -197,7 +197,14 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
         json.loads(run["parameters/revdem"].attrs["scenario_json"]) for run in (forward, reverse)
     ]
     if scenarios[0] != scenarios[1]:
-        raise InputError(f"{first} and {second}: runs of different scenarios (or of other --set)")
+        from revdem_cli.config import fields_apart
+
+        apart = fields_apart(*(Scenario.model_validate(s) for s in scenarios))
+        named = "; ".join(f"{key} = {a} and {b}" for key, a, b in apart[:3])
+        more = f" and {len(apart) - 3} more" if len(apart) > 3 else ""
+        raise InputError(
+            f"{first} and {second}: runs of different scenarios (or of other --set): {named}{more}"
+        )
     written = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
     reversed_scenario = Scenario.model_validate(scenarios[1]).model_dump(mode="json")
     found = (

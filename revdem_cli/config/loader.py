@@ -192,6 +192,28 @@ def dotted(key: str) -> str:
     return re.sub(r"\[(\d+)\]", r".\1", key.strip())
 
 
+def fields_apart(first: Scenario, second: Scenario) -> list[tuple[str, object, object]]:
+    """(dotted path, first's value, second's) of each field where two scenarios differ, as
+    `--set` would name it (lists by index), in the order of the paths; '-' where one has no
+    such field."""
+
+    def flat(value, path: str = "") -> dict[str, object]:
+        if isinstance(value, dict | list):
+            items = value.items() if isinstance(value, dict) else enumerate(value)
+            fields = {}
+            for key, inner in items:
+                fields |= flat(inner, f"{path}.{key}" if path else str(key))
+            return fields
+        return {path: value}
+
+    a, b = (flat(s.model_dump(mode="json")) for s in (first, second))
+    return [
+        (key, a.get(key, "-"), b.get(key, "-"))
+        for key in sorted(set(a) | set(b))
+        if a.get(key, "-") != b.get(key, "-")
+    ]
+
+
 def set_field(data: dict, key: str, value, label: str = "") -> None:
     """Set the field at the dotted path `key` (`stages.0.steps`: list items by index) of a
     scenario's fields to `value`, making tables on the way; InputError naming `label` + key

@@ -171,20 +171,6 @@ class _Run:
         return self._path("forward.h5").exists() or self._path("compare.json").exists()
 
 
-def _flat(value, path: str = "") -> dict[str, object]:
-    """A scenario's fields as {dotted path: value}, lists by index."""
-    if isinstance(value, dict):
-        items = value.items()
-    elif isinstance(value, list):
-        items = ((f"{k}", v) for k, v in enumerate(value))
-    else:
-        return {path: value}
-    flat = {}
-    for key, inner in items:
-        flat |= _flat(inner, f"{path}.{key}" if path else str(key))
-    return flat
-
-
 UNJUDGED = ("description", "output.")
 """Fields of a scenario that change no number a run reports."""
 
@@ -195,9 +181,7 @@ def differences(run_path: Path, config: str) -> list[str] | None:
     for each field, [] where none does, None where the config is not there to say. What
     changes no number of the run is left out: its description and [output] (figures,
     checkpoint interval, what frames carry)."""
-    import json
-
-    from revdem_cli.config import Scenario, load_scenario
+    from revdem_cli.config import Scenario, fields_apart, load_scenario
 
     path = next(
         (p for p in (Path(config), Path(__file__).parents[2] / config) if p.is_file()), None
@@ -205,13 +189,11 @@ def differences(run_path: Path, config: str) -> list[str] | None:
     if path is None:
         return None
     with open_trajectory(run_path) as f:
-        stored = json.loads(str(f["parameters/revdem"].attrs["scenario_json"]))
-    ran = _flat(Scenario.model_validate(stored).model_dump(mode="json"))
-    given = _flat(load_scenario(path)[0].model_dump(mode="json"))
+        stored = Scenario.model_validate_json(str(f["parameters/revdem"].attrs["scenario_json"]))
     return [
-        f"{key} = {ran.get(key, '-')} ({given.get(key, '-')} in {config})"
-        for key in sorted(set(ran) | set(given))
-        if ran.get(key) != given.get(key) and not key.startswith(UNJUDGED)
+        f"{key} = {ran} ({given} in {config})"
+        for key, ran, given in fields_apart(stored, load_scenario(path)[0])
+        if not key.startswith(UNJUDGED)
     ]
 
 

@@ -229,7 +229,9 @@ def test_a_comparison_of_runs_of_other_settings_is_refused(two_runs, tmp_path):
     args = ["run", COLLISION, "--out", out, "-q", "--set", "stages.0.steps=100"]
     assert invoke(*args).exit_code == 0
     result = invoke("compare", two_runs[0] / "collision.forward.h5", out / "collision.reverse.h5")
-    assert_one_line_error(result, "runs of different scenarios")
+    assert_one_line_error(
+        result, "runs of different scenarios (or of other --set): stages.0.steps = 200 and 100"
+    )
 
 
 def test_a_forced_run_that_fails_leaves_none_of_the_earlier_runs_files(tmp_path):
