@@ -207,15 +207,13 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
         )
     written = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
     reversed_scenario = Scenario.model_validate(scenarios[1]).model_dump(mode="json")
-    found = (
-        (path, *restart_scenario(path))
-        for path in (second.parent / written.name, written)
-        if path.is_file()
-    )
-    source, ends = next(
-        ((p, e) for p, s, e in found if s.model_dump(mode="json") == reversed_scenario),
-        (None, None),
-    )
+    source = ends = None
+    for path in (second.parent / written.name, written):
+        if path.is_file():
+            stored, trajectory = restart_scenario(path)
+            if stored.model_dump(mode="json") == reversed_scenario:
+                source, ends = path, trajectory
+                break
     if source is None:  # names only: the same words wherever the runs were made
         return f"one scenario; the reversal's restart {written.name} is not there to say more"
     if ends.resolve() != first.resolve():
