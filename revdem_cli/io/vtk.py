@@ -121,13 +121,13 @@ def _force_chains(position: np.ndarray, box: np.ndarray | None, contacts: dict) 
     return ET.ElementTree(root)
 
 
-def _series(frames: list[tuple[float, Path]], path: Path) -> None:
+def _series(frames: list[tuple[float, Path]]) -> bytes:
     """A .pvd file naming each frame's file with its time."""
     root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
     collection = ET.SubElement(root, "Collection")
     for time, frame in frames:
         ET.SubElement(collection, "DataSet", timestep=repr(time), part="0", file=frame.name)
-    ET.ElementTree(root).write(path, xml_declaration=True)
+    return ET.tostring(root, xml_declaration=True)
 
 
 def export_vtk(
@@ -138,42 +138,78 @@ def export_vtk(
     chains STEM.contacts.NNNNN.vtp and STEM.contacts.pvd, telling `progress` of each frame;
     returns each series written, the spheres' first, with its frame files.
 
-    The files an earlier export of STEM left in `out_dir` (`own_files`) are removed first:
-    one of more frames, or with contacts, would leave frames its series no longer lists,
-    and ParaView, opening the .vtp files as a group, would show two runs' frames as one.
-    The caller decides whether they may go (`revdem export`: in the trajectory's own
-    folder, STEM.vtk, always; in one --out names, only with --force)."""
+    The frames are written into a folder of their own in `out_dir` (`writing_folder`) and
+    moved into place once every one is written, so that an export stopped or failed on the
+    way (Ctrl-C, a full disk) leaves the earlier export as it was. The files an earlier
+    export of STEM left in `out_dir` (`own_files`) are then removed: one of more frames, or
+    with contacts, would leave frames its series no longer lists, and ParaView, opening the
+    .vtp files as a group, would show two runs' frames as one. The caller decides whether
+    they may go (`revdem export`: in the trajectory's own folder, STEM.vtk, always; in one
+    --out names, only with --force)."""
+    import shutil
+
+    from revdem_cli.errors import WriteFailed
+    from revdem_cli.io import write_file
+
     trajectory, out_dir = Path(trajectory), Path(out_dir)
     stem = trajectory.stem
-    spheres, chains = [], []
+    writing = writing_folder(out_dir, stem)
     with open_trajectory(trajectory) as f:  # checked before anything is written
-        out_dir.mkdir(parents=True, exist_ok=True)
-        for path in own_files(out_dir, stem):
-            path.unlink()
-        particles = f["particles/all"]
-        constant = {"radius": particles["radius"][:], "id": particles["id"][:]}
-        if "species" in particles:  # the material, numbered from 1 as the other exports do
-            constant["type"] = particles["species"][:] + 1
-        periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
-        times = particles["position/time"][:]
-        width = max(DIGITS, len(str(len(times) - 1)))
-        for frame in range(len(frame_steps(f))):
-            fields = {name: read_frame(f, name, frame) for name in FRAME_FIELDS}
-            position = fields.pop("position")
-            path = out_dir / f"{stem}.{frame:0{width}d}.vtp"
-            _polydata(position, {**constant, **fields}).write(path, xml_declaration=True)
-            spheres.append((float(times[frame]), path))
-            contacts = read_contacts(f, frame)
-            if contacts is not None:
-                box = particles["box/edges/value"][frame] if periodic else None
-                path = out_dir / f"{stem}{CHAINS}.{frame:0{width}d}.vtp"
-                _force_chains(position, box, contacts).write(path, xml_declaration=True)
-                chains.append((float(times[frame]), path))
-            if progress is not None:
-                progress(trajectory.name, frame + 1, len(times))
+        try:
+            shutil.rmtree(writing, ignore_errors=True)  # left by an export that was killed
+            writing.mkdir(parents=True)
+            spheres, chains = _write_frames(f, trajectory, writing, progress)
+            for path in own_files(out_dir, stem):
+                path.unlink()
+            for _, frame in spheres + chains:
+                frame.replace(out_dir / frame.name)
+        except OSError as exc:  # named as the file it was to become
+            name = out_dir / Path(exc.filename).name if exc.filename else out_dir
+            raise WriteFailed(name, exc) from None
+        finally:
+            shutil.rmtree(writing, ignore_errors=True)
     written = {out_dir / f"{stem}.pvd": spheres}
     if chains:
         written[out_dir / f"{stem}{CHAINS}.pvd"] = chains
     for series, frames in written.items():
-        _series(frames, series)
-    return {series: [path for _, path in frames] for series, frames in written.items()}
+        write_file(series, _series(frames))
+    return {
+        series: [out_dir / frame.name for _, frame in frames] for series, frames in written.items()
+    }
+
+
+def writing_folder(out_dir: Path, stem: str) -> Path:
+    """The hidden folder in `out_dir` that an export of STEM writes its frames into before
+    they take the place of an earlier export's."""
+    return out_dir / f".{stem}.vtk-writing"
+
+
+def _write_frames(
+    f, trajectory: Path, folder: Path, progress: FrameProgress | None
+) -> tuple[list[tuple[float, Path]], list[tuple[float, Path]]]:
+    """Every frame of the open trajectory `f` as a .vtp file in `folder`, and with contacts
+    its force chains: (time, file) of the spheres' frames and of the chains'."""
+    stem = trajectory.stem
+    spheres, chains = [], []
+    particles = f["particles/all"]
+    constant = {"radius": particles["radius"][:], "id": particles["id"][:]}
+    if "species" in particles:  # the material, numbered from 1 as the other exports do
+        constant["type"] = particles["species"][:] + 1
+    periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
+    times = particles["position/time"][:]
+    width = max(DIGITS, len(str(len(times) - 1)))
+    for frame in range(len(frame_steps(f))):
+        fields = {name: read_frame(f, name, frame) for name in FRAME_FIELDS}
+        position = fields.pop("position")
+        path = folder / f"{stem}.{frame:0{width}d}.vtp"
+        _polydata(position, {**constant, **fields}).write(path, xml_declaration=True)
+        spheres.append((float(times[frame]), path))
+        contacts = read_contacts(f, frame)
+        if contacts is not None:
+            box = particles["box/edges/value"][frame] if periodic else None
+            path = folder / f"{stem}{CHAINS}.{frame:0{width}d}.vtp"
+            _force_chains(position, box, contacts).write(path, xml_declaration=True)
+            chains.append((float(times[frame]), path))
+        if progress is not None:
+            progress(trajectory.name, frame + 1, len(times))
+    return spheres, chains

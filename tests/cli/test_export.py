@@ -156,6 +156,29 @@ def test_a_vtk_export_removes_its_earlier_frames_and_nothing_else(smoke_run, tmp
     assert (tmp_path / "forward.vtk" / "forward.00777.vtp").read_text() == "mine"
 
 
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, OSError])
+def test_a_vtk_export_stopped_on_the_way_leaves_the_earlier_one_whole(smoke_run, tmp_path, stop):
+    """The export removed the earlier export's files and then wrote its frames in place: a
+    Ctrl-C or a full disk on the way left neither the earlier export nor a new one a .pvd
+    names. Stopped at its third frame, the folder now holds what it held before."""
+    from revdem_cli.errors import WriteFailed
+    from revdem_cli.io.vtk import export_vtk
+
+    trajectory = smoke_run / "collision_smoke.forward.h5"
+    stem = trajectory.stem
+    _earlier_series(tmp_path, stem, [f"{stem}.00000.vtp", f"{stem}.00001.vtp"])
+    before = {p.name: p.read_text() for p in tmp_path.iterdir()}
+
+    def progress(name, done, total):
+        if done == 3:
+            raise stop(28, "No space left on device", str(tmp_path / f"{stem}.00002.vtp"))
+
+    expected = KeyboardInterrupt if stop is KeyboardInterrupt else WriteFailed
+    with pytest.raises(expected):
+        export_vtk(trajectory, tmp_path, progress)
+    assert {p.name: p.read_text() for p in tmp_path.iterdir()} == before
+
+
 @pytest.fixture(scope="module")
 def packings(tmp_path_factory) -> dict[str, Path]:
     """Runs of the smoke oedometer (walls, open boundaries; its compression short) and of
