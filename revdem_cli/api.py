@@ -221,6 +221,24 @@ def output_paths_of(spec: Scenario, out: Path, reverse: bool) -> list[Path]:
     return written + figure_paths(out, spec)
 
 
+def earlier_outputs(out: Path, name: str) -> list[Path]:
+    """Every output that some run named `name` may have written into `out`, whatever its
+    settings (`output_paths_of`): a run refuses to start beside any of them unless forced,
+    and forced removes them all, so that a reversal, its verdict, a stage's restart or a
+    figure of an earlier run does not pass for its own (`revdem run --no-reverse --force`
+    kept the earlier verdict, which `revdem info` and `report` then read as the new run's)."""
+    import re
+    from glob import escape
+
+    from revdem_cli.config.schema import FIGURE_KINDS
+    from revdem_cli.engine import output_paths
+
+    stage = re.compile(rf"{re.escape(name)}\.stage-\d+\.(restart|tape)\.h5")
+    stages = [path for path in out.glob(f"{escape(name)}.stage-*.h5") if stage.fullmatch(path.name)]
+    figures = [out / f"{name}.{kind}.png" for kind in FIGURE_KINDS]
+    return [*output_paths(out, name).values(), *sorted(stages), *figures]
+
+
 def figure_paths(out: Path, spec: Scenario) -> list[Path]:
     """The figures a run of `spec` writes into `out`."""
     return [out / f"{spec.name}.{kind}.png" for kind in spec.output.figures]
@@ -235,7 +253,7 @@ def keep_outputs(paths: list[Path], force: bool, of: str = "run") -> None:
     existing = [path for path in paths if path.exists() or path.is_symlink()]
     if existing and not force:
         more = len(existing) - 1
-        others = f" (and {more} more output{'s' * (more > 1)} of this {of})" if more else ""
+        others = f" (and {more} more output{'s' * (more > 1)} of the earlier {of})" if more else ""
         link = " (a symbolic link)" if existing[0].is_symlink() else ""
         raise InputError(f"{existing[0]}: exists{link}{others}; use --force to overwrite")
     for path in existing:
@@ -316,7 +334,8 @@ def run(
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
         check_time_step(experiment.scenario, experiment.origin)
     written = output_paths_of(experiment.scenario, out, reverse)
-    keep_outputs(written, force)
+    earlier = [path for path in earlier_outputs(out, experiment.name) if path not in written]
+    keep_outputs([*written, *earlier], force)  # not left to pass for this run's
     stale = stale_exports(written, out, experiment.name)
     with _progress(progress) as shown:
         outputs = run_scenario(experiment.scenario, experiment.text, experiment.suffix, out,
@@ -350,7 +369,7 @@ def reverse(
         written.append(paths["compare"])
         figures = figure_paths(folder, spec)
     keep_checkpoint(folder, spec.name, force)
-    keep_outputs(written, force)  # an earlier reversal's
+    keep_outputs(written, force, "reversal")
     # with none, the figures are the forward run's (`run --no-reverse`), drawn again with
     # the reversed run beside it
     keep_outputs(figures, True)

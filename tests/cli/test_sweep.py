@@ -219,7 +219,8 @@ def test_an_earlier_sweep_in_the_folder_is_kept_unless_forced(tmp_path):
     table = (tmp_path / "sweep.csv").read_bytes()
     refused = runner.invoke(app, args)
     assert_one_line_error(
-        refused, f"{tmp_path / 'sweep.csv'}: exists (and 9 more outputs of this sweep); use --force"
+        refused,
+        f"{tmp_path / 'sweep.csv'}: exists (and 9 more outputs of the earlier sweep); use --force",
     )
     assert (tmp_path / "sweep.csv").read_bytes() == table
     forced = runner.invoke(app, [*args, "--force"])

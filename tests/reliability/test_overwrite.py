@@ -48,7 +48,7 @@ def test_a_second_run_into_the_same_folder_is_refused_and_keeps_the_files(out):
     result = invoke("run", SMOKE, "--out", out, *SHORT)
     assert_one_line_error(
         result,
-        f"error: {out / NAME}.forward.h5: exists (and 3 more outputs of this run); "
+        f"error: {out / NAME}.forward.h5: exists (and 3 more outputs of the earlier run); "
         "use --force to overwrite",
     )
     assert snapshot(out) == before
@@ -102,14 +102,22 @@ def test_any_one_output_left_is_kept(out, kept):
     assert_one_line_error(result, f"error: {out / NAME}.{kept}: exists; use --force")
 
 
-def test_only_what_the_run_writes_counts(out):
-    """Forward only, the run writes no reversed trajectory and no comparison: those may stay."""
+def test_an_earlier_reversal_counts_though_this_run_writes_none(out):
+    """Forward only, a run writes no reversed trajectory and no comparison. It let an earlier
+    run's stay, and `revdem info` of the new trajectory then showed their verdict as its
+    own; with --force too, which removed only what the new run writes. Now any output of an
+    earlier run of the name is refused, and removed by --force."""
     (out / f"{NAME}.forward.h5").unlink()
     (out / f"{NAME}.restart.h5").unlink()
-    result = invoke("run", SMOKE, "--out", out, *SHORT, "--no-reverse")
-    assert result.exit_code == 0, result.output
+    before = snapshot(out)
     refused = invoke("run", SMOKE, "--out", out, *SHORT, "--no-reverse")
-    assert_one_line_error(refused, f"{out / NAME}.forward.h5: exists (and 1 more output")
+    assert_one_line_error(refused, f"{out / NAME}.reverse.h5: exists (and 1 more output")
+    assert snapshot(out) == before
+    result = invoke("run", SMOKE, "--out", out, *SHORT, "--no-reverse", "--force")
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in out.iterdir()) == [f"{NAME}.forward.h5", f"{NAME}.restart.h5"]
+    shown = invoke("info", out / f"{NAME}.forward.h5")
+    assert shown.exit_code == 0 and "reversible" not in shown.output, shown.output
 
 
 def test_a_figure_is_kept(tmp_path):
@@ -139,7 +147,8 @@ def test_a_second_reversal_is_refused_unless_forced(out):
     result = invoke("reverse", restart, "-q", "--steps", "100")
     assert_one_line_error(
         result,
-        f"error: {out / NAME}.reverse.h5: exists (and 1 more output of this run); use --force",
+        f"error: {out / NAME}.reverse.h5: exists (and 1 more output of the earlier reversal); "
+        "use --force",
     )
     assert snapshot(out) == before
     forced = invoke("reverse", restart, "-q", "--steps", "100", "--force")
