@@ -94,11 +94,21 @@ def check_stop_conditions(scenario) -> None:
             raise FieldError(f"{path}.{condition}.wall", f"no wall is named '{stop.wall}'")
         if stop.wall_travel_above:
             k = names.index(stop.wall)
-            if not any(stage.wall_velocity(scenario.walls[k])):
+            speed = math.hypot(*stage.wall_velocity(scenario.walls[k]))
+            if speed == 0.0:
                 raise FieldError(
                     f"{path}.wall_travel_above.wall",
                     f"wall '{stop.wall}' does not move in this stage: its velocity here is "
                     f"zero (stages[{i}].wall_velocities.{stop.wall}, else walls[{k}].velocity)",
+                )
+            dt = stage.dt if stage.dt is not None else scenario.integrator.dt
+            distance = stop.wall_travel_above.distance
+            if dt != "auto" and distance >= speed * stage.steps * dt:
+                raise FieldError(
+                    f"{path}.wall_travel_above.distance",
+                    f"{distance:g} m is never reached: wall '{stop.wall}' moves "
+                    f"{speed * stage.steps * dt:.6g} m in this stage ({speed:g} m/s for "
+                    f"{stage.steps} steps of {dt:g} s)",
                 )
         if stop.solid_fraction_above and scenario.solid_fraction is None:
             raise FieldError(

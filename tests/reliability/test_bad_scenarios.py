@@ -520,8 +520,9 @@ def test_no_stages_is_refused(tried, data):
 
 
 STOP = ("stages", 0, "stop_when")
-TRAVEL = {"wall_travel_above": {"wall": "floor", "distance": 0.001}}
-"""A stop condition of `contained.yaml` (walls floor and side): the floor has travelled."""
+TRAVEL = {"wall_travel_above": {"wall": "floor", "distance": 1e-6}}
+"""A stop condition of `contained.yaml` (walls floor and side): the floor has travelled, half
+what it travels at 0.1 m/s in the stage's 200 steps of 1e-7 s."""
 VELOCITIES = ("stages", 0, "wall_velocities")
 
 
@@ -553,6 +554,14 @@ VELOCITIES = ("stages", 0, "wall_velocities")
                 VELOCITIES: {"floor": [0] * 3},
             },
             "wall 'floor' does not move in this stage",
+        ),
+        (  # it moves 2e-6 m in the stage
+            {
+                STOP: {"wall_travel_above": {"wall": "floor", "distance": 2e-6}},
+                VELOCITIES: {"floor": [0.0, 0.06, 0.08]},
+            },
+            "stages[0].stop_when.wall_travel_above.distance: 2e-06 m is never reached: wall "
+            "'floor' moves 2e-06 m in this stage (0.1 m/s for 200 steps of 1e-07 s)",
         ),
     ],
 )
