@@ -383,10 +383,21 @@ def reverse(
 @_paths_checked
 def resume(out: str | Path, progress=False) -> Result:
     """Continue the run whose checkpoint is in `out` to its end, as `revdem run --resume`."""
-    from revdem_cli.engine import resume_run
+    from revdem_cli.checkpoint import SUFFIX, find_checkpoint
+    from revdem_cli.engine import output_paths, resume_run
+    from revdem_cli.io import exports_of
+    from revdem_cli.io.restart import checkpoint_phase
 
+    out = _path(out, "out")
+    checkpoint = find_checkpoint(out)
+    paths = output_paths(out, checkpoint.name.removesuffix(SUFFIX))
+    # the trajectories it goes on writing: their exports were made before they ended
+    kinds = ("forward", "reverse") if checkpoint_phase(checkpoint) == "forward" else ("reverse",)
+    stale = tuple(export for kind in kinds for export in exports_of(paths[kind]))
     with _progress(progress) as shown:
-        return Result(resume_run(_path(out, "out"), shown))
+        outputs = resume_run(out, shown)
+    outputs.stale_exports = stale
+    return Result(outputs)
 
 
 @_paths_checked

@@ -356,6 +356,14 @@ def restart_stage_start(path: str | Path) -> int:
         return int(_meta(f, path, checkpoint=False).attrs["stage_first_step"])
 
 
+def checkpoint_phase(path: str | Path) -> str:
+    """The phase a checkpoint stopped in, "forward" or "reverse" (`Resumption.phase`),
+    checked as `read_restart` checks it, without reading its arrays."""
+    path = Path(path)
+    with open_hdf5(path) as f:
+        return str(_meta(f, path, checkpoint=True)["checkpoint"].attrs["phase"])
+
+
 def restart_positions(path: str | Path) -> tuple[int, np.ndarray]:
     """(step, positions) of the state a restart file holds, checked as `read_restart`
     checks them: what the last frame of the forward run it ends holds, wherever its files

@@ -84,7 +84,8 @@ def print_summary(outputs, console: Console | None = None) -> None:
         if path is not None:
             console.print(f"  {label:<20} {path}")
     for path in outputs.stale_exports:
-        line = f"  {'stale export':<20} {path} (made from an earlier run; export again)"
+        said = "made before this run wrote its trajectory; export again"
+        line = f"  {'stale export':<20} {path} ({said})"
         console.print(line, soft_wrap=True, markup=False)
     for stage, dt in outputs.chosen_dt.items():
         console.print(f"  {'time step':<20} {dt:.6g} s in stage {stage} (dt = 'auto')")

@@ -406,6 +406,22 @@ def test_a_checkpoint_shows_as_one_and_is_not_a_restart(tmp_path):
     assert_one_line_error(result, "a checkpoint of an unfinished run", "--resume")
 
 
+def test_a_resumed_run_names_the_exports_made_before_it_ended(tmp_path):
+    """An export of a stopped run's trajectory holds the frames up to its checkpoint; resumed,
+    the run wrote on and said nothing of it, as `run --force` now does of the exports of the
+    trajectories it replaces."""
+    out = _unfinished(tmp_path)
+    forward = out / "collision_smoke.forward.h5"
+    made = CliRunner().invoke(app, ["export", str(forward), "--format", "lammps-dump", "-q"])
+    assert made.exit_code == 0, made.output
+    resumed = CliRunner().invoke(app, ["run", "--resume", str(out)], env={"COLUMNS": "500"})
+    assert resumed.exit_code == 0, resumed.output
+    stale = [" ".join(line.split()) for line in resumed.output.splitlines() if "stale" in line]
+    dump = out / "collision_smoke.forward.dump"
+    said = "(made before this run wrote its trajectory; export again)"
+    assert stale == [f"stale export {dump} {said}"]
+
+
 def test_resume_needs_a_checkpoint_and_nothing_else(tmp_path):
     result = CliRunner().invoke(app, ["run", "--resume", str(tmp_path)])
     assert_one_line_error(result, "no checkpoint")

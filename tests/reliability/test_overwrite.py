@@ -81,7 +81,8 @@ def test_a_forced_run_keeps_the_exports_of_the_run_it_replaces_and_lists_each(ou
     result = invoke("run", SMOKE, "--out", out, *SHORT, "--force")
     assert result.exit_code == 0, result.output
     stale = [line.split(None, 2)[2] for line in result.output.splitlines() if "stale" in line]
-    assert stale == [f"{path} (made from an earlier run; export again)" for path in exports]
+    said = "(made before this run wrote its trajectory; export again)"
+    assert stale == [f"{path} {said}" for path in exports]
     assert all(path.exists() for path in exports)
 
     gsd = out / f"{NAME}.reverse.gsd"  # a reversal alone replaces the reversed trajectory
@@ -90,7 +91,7 @@ def test_a_forced_run_keeps_the_exports_of_the_run_it_replaces_and_lists_each(ou
     stale = [
         line.split(None, 2)[2] for line in reversed_again.output.splitlines() if "stale" in line
     ]
-    assert stale == [f"{gsd} (made from an earlier run; export again)"]
+    assert stale == [f"{gsd} {said}"]
 
 
 @pytest.mark.parametrize("kept", OUTPUTS)
