@@ -6,6 +6,7 @@ and writes the frames, at the same step numbers in both directions."""
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -409,9 +410,10 @@ def _reversed_damping(dyn: Dynamics, law: ContactLaw, backwards: bool) -> str:
 
 def _likely_cause(scenario: Scenario, dt: float, damping: str = "") -> str:
     """What the time step says about a blow-up: above the critical estimate, the likely
-    cause; well below it, unlikely to be, and where the stage's `damping` ran backwards
+    cause; above the least a sphere in many contacts may need (`guard.CROWDED`), a possible
+    one; below that, unlikely to be, and where the stage's `damping` ran backwards
     (`_reversed_damping`), that is."""
-    from revdem_cli.timestep.guard import critical_time_step
+    from revdem_cli.timestep.guard import CROWDED, critical_time_step
 
     limit, reason = critical_time_step(scenario)
     ratio = abs(dt) / limit
@@ -427,10 +429,16 @@ def _likely_cause(scenario: Scenario, dt: float, damping: str = "") -> str:
             "took it out going forward (Hanley 2020 §5.2; an information tape, reversal.tape, "
             f"reverses it exactly); {of_dt}"
         )
-    return (
-        f"{of_dt}, so the time step is an unlikely cause: look at what drives the spheres "
-        "together (walls, the cell, overlaps at the start, velocities)"
-    )
+    drives = "what drives the spheres together (walls, the cell, overlaps at the start, velocities)"
+    crowded = limit / math.sqrt(CROWDED)
+    if abs(dt) > crowded:
+        return (
+            f"{of_dt}, the limit of one contact: a sphere in several contacts has a lower one, "
+            f"down to 1/√{CROWDED} of it among {CROWDED} (half in an fcc lattice; `revdem dt "
+            f"--restart` gives a packing's own), so the time step may be the cause: try dt "
+            f"below {crowded:.3g} s, or look at {drives}"
+        )
+    return f"{of_dt}, so the time step is an unlikely cause: look at {drives}"
 
 
 def _stop_reached(state: State, model: Model, dyn: Dynamics, stop, ran: int) -> bool:

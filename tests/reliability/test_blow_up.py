@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import h5py
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
@@ -60,6 +61,22 @@ def test_a_time_step_above_the_critical_one_is_named_as_the_likely_cause(tmp_pat
     frames, _ = _steps_written(tmp_path / "oedometer_smoke.forward.h5")
     assert frames[-1] < step
     assert f"holds the frames up to step {frames[-1]}" in line
+
+
+def test_a_time_step_below_one_contacts_limit_but_not_a_lattices_is_a_possible_cause(tmp_path):
+    """The fcc lattice at dt = 0.03 s, 0.71 of one contact's limit (0.0421 s) and 1.42 of the
+    lattice's (0.0211 s, `revdem dt --restart`: twelve contacts a sphere), blows up in 21
+    steps. The line called the time step an unlikely cause; it is a possible one below one
+    contact's limit and above 1/√12 of it, where a sphere in many contacts may be unstable."""
+    from revdem_cli.timestep.guard import CROWDED
+
+    args = ["run", str(CONFIGS / "fcc_triaxial.toml"), "--out", str(tmp_path), "-q"]
+    sets = ["integrator.dt=0.03", "stages.0.steps=3000", "stages.1.steps=100"]
+    line = _failed(CliRunner().invoke(app, [*args, "--no-reverse", *(f"--set={s}" for s in sets)]))
+    assert "blown up at step" in line and "unlikely cause" not in line
+    limit = float(line.split("of the critical time step ")[1].split(" s")[0])
+    assert 0.03 / limit == pytest.approx(0.71, abs=0.01)
+    assert f"so the time step may be the cause: try dt below {limit / CROWDED**0.5:.3g} s" in line
 
 
 def test_a_damped_stage_blown_up_backwards_names_its_damping(tmp_path):
