@@ -136,6 +136,15 @@ def dt_velocity_predictor(k: float, c: float, inverse_mass: float, order: int) -
     return stable
 
 
+def dt_damped(k: float, c: float, inverse_mass: float, order: int) -> float:
+    """Stability limit of Eq 30 as the engine integrates it: velocity Verlet whose damping
+    reads the half-step velocity (order 0, `dt_velocity_verlet`) or the velocity predictor
+    of `order` (`integrator.scheme = "trvp"`, `dt_velocity_predictor`)."""
+    if order and c > 0.0:
+        return dt_velocity_predictor(k, c, inverse_mass, order)
+    return dt_velocity_verlet(k, c, inverse_mass)
+
+
 def b_max(body: Body) -> float:
     """Largest gyroscopic coefficient of a particle's principal moments."""
     i1, i2, i3 = body.moments

@@ -32,7 +32,7 @@ from revdem_cli import laws
 from revdem_cli.config import Material, Scenario
 from revdem_cli.kernels.contact import reduced, viscous_coefficient
 from revdem_cli.state import pair_moduli, sphere_masses
-from revdem_cli.timestep.criteria import dt_velocity_predictor, dt_velocity_verlet
+from revdem_cli.timestep.criteria import dt_damped
 
 SHEAR_LEVER = 3.5  # A_t / A_n of a sphere contact: 1 + r²/(2/5 r²) (Peng 2020 Eq 26)
 
@@ -187,9 +187,7 @@ def _limit(
     if stiffness == 0.0:
         return math.inf
     damping = viscous_coefficient(beta, reduced_mass, stiffness)
-    if order and damping > 0.0:  # Peng 2020 Eq 30 with the predictor (Kolafa & Lisal 2011)
-        return dt_velocity_predictor(stiffness, damping, inverse_mass, order)
-    return dt_velocity_verlet(stiffness, damping, inverse_mass)  # Peng 2020 Eq 30, 47
+    return dt_damped(stiffness, damping, inverse_mass, order)  # Peng 2020 Eq 30, 47
 
 
 def largest_damping(scenario: Scenario) -> tuple[float, float]:

@@ -19,7 +19,8 @@ contacts is applied matrix-free (`StiffnessOperator`); the largest eigenvalue λ
 mass-normalised M^-½ K M^-½ is ω_max², and velocity Verlet is stable below Δt = 2/ω_max
 (Peng 2020 Eq 47). With viscous contact damping (c = 2β √(m* k), as the engine applies it)
 the damped limit is that of the top mode with its own damping coefficient φᵀCφ (Eq 30
-integrated by velocity Verlet, `criteria.dt_velocity_verlet`).
+integrated by velocity Verlet, whose damping reads the half-step velocity or the velocity
+predictor as the scenario's scheme has it, `criteria.dt_damped`).
 
 Left out, and why the limit stays an upper bound on ω_max only to their order: the
 geometric stiffness of the contact forces as the normals turn (f_n/d beside k_n, of order
@@ -47,7 +48,7 @@ from revdem_cli.kernels.integrate import BLOWN_UP, OK, advance
 from revdem_cli.kernels.stiffness import apply_stiffness, contact_stiffnesses
 from revdem_cli.stage import Model, stepping_bundles
 from revdem_cli.state import State, empty_events, fixed_arrays
-from revdem_cli.timestep.criteria import dt_velocity_verlet
+from revdem_cli.timestep.criteria import dt_damped
 
 
 @dataclass(frozen=True)
@@ -233,7 +234,7 @@ def packing_limit(
         contacts=contacts,
         omega_max=omega,
         dt=2.0 / omega,
-        damped_dt=dt_velocity_verlet(lam, c_mode, 1.0),
+        damped_dt=dt_damped(lam, c_mode, 1.0, model.scenario.integrator.predictor_order),
         mode_damping=c_mode,
         mode=_mode_of(y, contacts, state),
         vector=y,

@@ -334,6 +334,25 @@ def test_auto_dt_takes_the_viscous_damping_of_its_own_stage(tmp_path):
     )
 
 
+def test_the_damped_limit_of_a_run_with_the_velocity_predictor_is_the_predictors():
+    """The linear lattice with viscous normal damping 0.2, stepped with the velocity predictor
+    of order 2 (`integrator.scheme = "trvp"`), whose damping reads predicted velocities: its
+    top mode is stable to 0.58 of velocity Verlet's damped limit (Peng 2020 Eq 30 with the
+    predictor, `criteria.dt_velocity_predictor`). The packing's limit (`revdem dt --restart`,
+    dt = "auto") took velocity Verlet's whatever the scheme; the engine's bracket, which
+    steps the scheme, went unstable at 0.60 of it. Both now agree to 2 %."""
+    from revdem_cli.timestep.criteria import dt_velocity_predictor, dt_velocity_verlet
+
+    contact = {"model": "linear", "kn": 1.0e4, "normal_damping": 0.2}
+    data = lattice(3, contact, integrator={"dt": 1e-5, "scheme": "trvp", "trvp_order": 2})
+    limit, state, model = limit_of(data)
+    lam, c = limit.omega_max**2, limit.mode_damping
+    assert limit.damped_dt == dt_velocity_predictor(lam, c, 1.0, 2)
+    assert limit.damped_dt / dt_velocity_verlet(lam, c, 1.0) == pytest.approx(0.584, abs=0.005)
+    check = packing.engine_bracket(state, model, limit)
+    assert 1.0 <= check.dt / limit.damped_dt < 1.03
+
+
 def test_a_state_without_contacts_and_figures_beside_a_restart_are_refused(tmp_path):
     """Two spheres apart after their collision: no contact, so no stiffness to bound the
     step (the table showed ∞, ratios of nan and 0, and --json wrote Infinity and NaN, which
