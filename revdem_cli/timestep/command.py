@@ -340,7 +340,7 @@ def _print_packing(report: dict) -> None:
             f"{engine['ratio']:.4g}",
         )
     elif engine is not None:
-        steps.add_row("engine_integrated", "not measured: the packing moves (below)", "–", "")
+        steps.add_row("engine_integrated", "not measured (below)", "–", "")
     steps.add_section()
     for key, estimate in report["estimates"].items():
         dt, ratio = estimate["dt"], estimate["ratio"]
