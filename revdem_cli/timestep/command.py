@@ -223,22 +223,14 @@ def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
         typer.echo(f"wrote {len(rows)} rows to {out}")
 
 
-def _particle_options(given: dict) -> dict:
-    """The options of `dt` that describe particles or a contact, as given."""
-    names = (
-        "shape",
-        "radius",
-        "semi_axes",
-        "exponents",
-        "vertices",
-        "density",
-        "kn",
-        "ks",
-        "sweep",
-    )
-    return {name: given[name] for name in names} | {
-        k: v for k, v in given.items() if k.startswith("other_")
-    }
+def _given_beside(ctx: typer.Context, taken: tuple[str, ...]) -> list[str]:
+    """The options of `dt` given on the command line other than those named in `taken`, as
+    the user spells them, in the order of `dt --help`."""
+    return [
+        param.opts[0]
+        for param in ctx.command.params
+        if param.name not in taken and ctx.get_parameter_source(param.name).name != "DEFAULT"
+    ]
 
 
 def _seconds(dt: float | None) -> str:
@@ -361,6 +353,7 @@ def _print_packing(report: dict) -> None:
 
 
 def dt(
+    ctx: typer.Context,
     shape: Annotated[
         str | None, typer.Option(help="sphere, ellipsoid, superquadric or polyhedron.")
     ] = None,
@@ -451,11 +444,13 @@ def dt(
 
     Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
     """
-    if figures is not None and restart is not None:
-        raise InputError(
-            "--figures writes Peng 2020's figures, not a packing's: leave out --restart"
-        )
     if figures is not None:
+        given = _given_beside(ctx, ("figures",))
+        if given:
+            raise InputError(
+                "--figures writes Peng 2020's figures, not a packing's nor particles of your "
+                f"own, and takes no other option; leave out {', '.join(given)}"
+            )
         from itertools import chain
 
         from revdem_cli.timestep.figures import PAPER_STEMS, write_appendix_figures, write_figures
@@ -466,14 +461,11 @@ def dt(
             typer.echo(f"wrote {path}")
         return
     if restart is not None:
-        given = [
-            f"--{k.replace('_', '-')}"
-            for k, v in _particle_options(locals()).items()
-            if v is not None
-        ]
+        given = _given_beside(ctx, ("restart", "verify", "as_json"))
         if given:
             raise InputError(
-                f"--restart takes the particles from the file; leave out {', '.join(given)}"
+                f"--restart takes the particles from the file; leave out {', '.join(given)} "
+                "(beside it only --verify and --json count)"
             )
         from rich.console import Console
 

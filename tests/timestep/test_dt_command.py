@@ -228,3 +228,20 @@ def test_missing_vertex_file_exits_2(tmp_path):
     path = tmp_path / "absent.json"
     result = invoke("--shape", "polyhedron", "--vertices", path, "--density", 1, "--kn", 1)
     assert_one_line_error(result, str(path), "cannot read")
+
+
+@pytest.mark.parametrize(
+    "extra, named",
+    [
+        (("--shape", "sphere", "--radius", -1, "--kn", 5), "--shape, --radius, --kn"),
+        (("--verify", "--json"), "--verify, --json"),
+        (("--damping", 0), "--damping"),
+    ],
+)
+def test_figures_take_no_other_option(tmp_path, extra, named):
+    """--figures draws the paper's own cases: particle and contact options beside it, even
+    invalid ones, were ignored and the figures written with exit 0."""
+    folder = tmp_path / "figures"
+    result = invoke("--figures", folder, *extra)
+    assert_one_line_error(result, "--figures writes Peng 2020's figures", f"leave out {named}")
+    assert not folder.exists()

@@ -320,6 +320,29 @@ def test_dt_restart_takes_no_particle_options(fcc_restart):
     assert "--restart takes the particles from the file; leave out --shape" in result.output
 
 
+@pytest.mark.parametrize(
+    "extra, named",
+    [
+        (["--damping", 0], "--damping"),  # its default, given: still refused
+        (["--trvp-order", 2], "--trvp-order"),
+        (["--omega-max", 10], "--omega-max"),
+        (["--out", "x.csv", "--force"], "--out, --force"),
+        (["--kn", 1e6, "--ks", 0, "--damping", 1], "--kn, --ks, --damping"),
+    ],
+)
+def test_dt_restart_refuses_every_option_it_does_not_use(fcc_restart, extra, named):
+    """Options that change nothing of a packing's assessment gave exit 0 and the same
+    table, leaving their user believing they counted."""
+    from tests.conftest import assert_one_line_error
+
+    result = invoke("dt", "--restart", fcc_restart, "--verify", "--json", *extra)
+    assert_one_line_error(
+        result,
+        f"--restart takes the particles from the file; leave out {named} (beside it only "
+        "--verify and --json count)",
+    )
+
+
 def test_auto_dt_is_the_safety_fraction_of_the_packing_limit(tmp_path):
     """A linear lattice: the start-up estimate (one contact, √(2m/k)) is twice the
     lattice's √(m/(2k)), so 'auto' takes dt_safety of the lattice's."""
