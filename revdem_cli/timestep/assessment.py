@@ -128,6 +128,18 @@ def _criteria(body1, body2, contact, inverse_mass, omega_max, order=0) -> tuple[
     )
 
 
+def _check_in_range(items: tuple[Estimate, ...], body1: Body, body2: Body) -> None:
+    """FloatingPointError where a criterion is not what its formula gives for positive finite
+    inputs, a positive finite Δt or None where it does not apply (∞ only for the rotation of
+    bodies without gyroscopic coupling, B_max = 0, Peng 2020 Eq 56): a product or a square
+    that left float64 on the way gives NaN, ∞ or 0 instead, without raising."""
+    uncoupled = criteria.b_max(body1) + criteria.b_max(body2) == 0.0
+    for e in items:
+        allowed_infinite = e.key == "rotation" and uncoupled
+        if e.dt is not None and not (e.dt > 0.0 and (math.isfinite(e.dt) or allowed_infinite)):
+            raise FloatingPointError(f"{e.key}: Δt {e.dt} outside float64's range")
+
+
 def _integrated(body1, body2, contact, order=0) -> tuple[Estimate, ...]:
     """The limits the engine's verifiers find, leaving out those that do not apply; with a
     velocity predictor of `order`, the engine's limit with it too."""
@@ -269,11 +281,13 @@ def assess(
     the rotation-dominant Δt (with omega_max). With `trvp_order` > 0 the damping reads the
     velocity predictor of that order (integrator.scheme = 'trvp'): its limit replaces the
     velocity-Verlet formula's in the recommendation, and the checks add the engine's with it.
+    A criterion that leaves float64's range raises ArithmeticError (`_check_in_range`).
     """
     inverse_mass = criteria.a_max(body1, body2)
     damping = criteria.damping_from_number(damping_number, kn, inverse_mass)
     contact = Contact(kn=kn, ks=ks, cn=damping, cs=damping)
     items = _criteria(body1, body2, contact, inverse_mass, omega_max, trvp_order)
+    _check_in_range(items, body1, body2)
     rigid, lost = _rigid(body1, body2, contact) if check else ((), ())
     integrated = _integrated(body1, body2, contact, trvp_order) + rigid if check else ()
     checks = integrated + _euler(body1, body2, contact) if check else ()

@@ -160,12 +160,36 @@ class _Case:
             return assess(
                 first, other, kn, ks, self.damping, self.omega_max, check, self.trvp_order
             )
-        except ArithmeticError:  # a square or a quotient left float64 on the way
-            raise InputError(
-                "the particles' sizes, densities and --kn, --ks give numbers outside float64's "
-                "range in the criteria (a square underflows or overflows); give SI values "
-                "closer to 1"
-            ) from None
+        except ArithmeticError:  # a product, square or quotient left float64 on the way
+            raise self._outside_float64(first, other, kn) from None
+
+    def _outside_float64(self, first, other, kn: float) -> InputError:
+        """The error for criteria that left float64's range, naming the options whose
+        products do: k A_max enters every translation criterion times 4 and under a root,
+        c A_max squared (Peng 2020 Eq 26, 30, 34, 46), ω_max B_max divides 2 (Eq 54, 56)."""
+        from revdem_cli.timestep.criteria import a_max, b_max, damping_from_number
+
+        largest = sys.float_info.max
+        inverse_mass = a_max(first, other)
+        stiffnesses = {"kn": kn, "ks": self.ks}  # --ks not given is --kn
+        named = [
+            f"--{name} {k:g}"
+            for name, k in stiffnesses.items()
+            if k and not 0.0 < k * inverse_mass <= largest / 4.0
+        ]
+        damping = damping_from_number(self.damping, kn, inverse_mass) * inverse_mass
+        if not damping * damping <= largest:
+            named.append(f"--damping {self.damping:g}")
+        if self.omega_max is not None:
+            coupling = self.omega_max * (b_max(first) + b_max(other))
+            if coupling and not 2.0 / largest <= coupling <= largest:
+                named.append(f"--omega-max {self.omega_max:g}")
+        given = ", ".join(named) + " with " if named else ""
+        return InputError(
+            f"{given}the particles' sizes and densities (A_max = {inverse_mass:.3g} 1/kg, "
+            "Peng 2020 Eq 26) give numbers outside float64's range in the criteria (a product "
+            "or a square overflows or underflows); give SI values closer to 1"
+        )
 
 
 def _sweep_values(spec: str) -> tuple[str, list[float]]:

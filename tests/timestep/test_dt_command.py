@@ -245,3 +245,28 @@ def test_figures_take_no_other_option(tmp_path, extra, named):
     result = invoke("--figures", folder, *extra)
     assert_one_line_error(result, "--figures writes Peng 2020's figures", f"leave out {named}")
     assert not folder.exists()
+
+
+SPHERE = ("--shape", "sphere", "--radius", 0.01, "--density", 2500)
+
+
+@pytest.mark.parametrize(
+    "args, named",
+    [
+        ((*SPHERE, "--kn", 1e305), "--kn 1e+305 with"),  # showed ∞ recommended
+        ((*SPHERE, "--kn", 1e308), "--kn 1e+308 with"),  # showed nan
+        ((*SPHERE, "--kn", 1e306, "--json"), "--kn 1e+306 with"),  # wrote NaN, not JSON
+        ((*SPHERE, "--kn", 1e6, "--ks", 1e307), "--ks 1e+307 with"),
+        ((*SPHERE, "--kn", 1e6, "--damping", 1e300), "--damping 1e+300 with"),  # blamed --kn
+        ((*ELLIPSOID, "--omega-max", 1.5e308), "--omega-max 1.5e+308 with"),  # showed 0
+        ((*SPHERE, "--kn", 1e6, "--sweep", "kn=1:1e307:2"), "--kn 1e+307 with"),
+    ],
+)
+def test_criteria_outside_float64_are_refused_naming_the_option(args, named):
+    """Products of the criteria that overflow to ∞ without raising gave ∞, 0 and NaN time
+    steps with exit 0, findings of "nan × the reference: stable but conservative" and JSON
+    with bare NaN."""
+    result = invoke(*args)
+    assert_one_line_error(
+        result, named, "the particles' sizes and densities", "outside float64's range"
+    )
