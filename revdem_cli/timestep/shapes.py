@@ -210,6 +210,11 @@ def read_vertices(path: Path) -> np.ndarray:
     except UnicodeDecodeError:
         raise InputError(f"vertex file {path}: not a text file") from None
     rows = _vertex_rows(text, Path(path))
+    if not rows:
+        raise InputError(
+            f"vertex file {path}: holds no vertices (a polyhedron needs 4 or more points not "
+            "in one plane)"
+        )
     for where, row in rows:
         try:
             point = np.array(row, dtype=float)

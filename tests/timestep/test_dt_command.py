@@ -224,6 +224,19 @@ def test_bad_vertex_files_exit_2_naming_the_file(tmp_path, content, fragments):
     assert_one_line_error(result, str(path), *fragments)
 
 
+@pytest.mark.parametrize(
+    "name, content",
+    [("empty.txt", ""), ("comments.txt", "# nothing\n\n"), ("empty.json", "[]"),
+     ("empty.json", '{"vertices": []}')],
+)  # fmt: skip
+def test_a_vertex_file_without_vertices_exits_2_naming_it(tmp_path, name, content):
+    """Once a ValueError traceback from Qhull: "No points given"."""
+    path = tmp_path / name
+    path.write_text(content)
+    result = invoke("--shape", "polyhedron", "--vertices", path, "--density", 1000, "--kn", 1e6)
+    assert_one_line_error(result, f"vertex file {path}: holds no vertices")
+
+
 def test_missing_vertex_file_exits_2(tmp_path):
     path = tmp_path / "absent.json"
     result = invoke("--shape", "polyhedron", "--vertices", path, "--density", 1, "--kn", 1)
