@@ -207,7 +207,7 @@ def _sweep_values(spec: str) -> tuple[str, list[float]]:
         raise InputError(f"--sweep {spec!r}: expected {name}=START:STOP:COUNT") from None
     if not 1 <= count <= MAX_SWEEP:
         raise InputError(f"--sweep {spec!r}: COUNT must be between 1 and {MAX_SWEEP}")
-    check = _non_negative if name == "damping" else _positive
+    check = _non_negative if name in ("ks", "damping") else _positive  # as --ks, --damping
     for end in (start, stop):
         check(f"--sweep {spec!r}: {name}", end)
     values = np.linspace(start, stop, count)

@@ -159,6 +159,17 @@ def test_density_sweep_goes_to_stdout():
     assert steps == pytest.approx([steps[0] * math.sqrt(q) for q in masses_ratio])
 
 
+def test_shear_stiffness_sweep_starts_at_frictionless():
+    """--ks 0 is a frictionless contact; a sweep from it was refused as "must be a positive
+    number, got 0"."""
+    result = invoke(*ELLIPSOID, "--sweep", "ks=0:1e10:3")
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader(io.StringIO(result.output)))
+    assert [float(r["ks"]) for r in rows] == [0.0, 5e9, 1e10]
+    frictionless = as_json(*ELLIPSOID, "--ks", 0)["recommended_dt"]
+    assert float(rows[0]["recommended_dt"]) == pytest.approx(frictionless, rel=1e-12)
+
+
 @pytest.mark.parametrize(
     "args, fragments",
     [
@@ -197,6 +208,7 @@ def test_density_sweep_goes_to_stdout():
         ((*ELLIPSOID, "--sweep", "density=-1:1:3"), ["--sweep 'density=-1:1:3': density"]),
         ((*ELLIPSOID, "--sweep", "kn=nan:1:5"), ["--sweep 'kn=nan:1:5': kn", "got nan"]),
         ((*ELLIPSOID, "--sweep", "damping=-1:1:2"), ["--sweep 'damping=-1:1:2': damping"]),
+        ((*ELLIPSOID, "--sweep", "ks=-1:1:2"), ["--sweep 'ks=-1:1:2': ks must be zero or"]),
         ((*ELLIPSOID, "--sweep", "kn=1:2:3", "--json"), ["--sweep", "--json"]),
         ((*ELLIPSOID, "--out", "x.csv"), ["--out", "--sweep"]),
         (
