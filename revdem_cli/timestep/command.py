@@ -73,23 +73,36 @@ def _check_sizes(given: _Particle, shape: str | None, prefix: str) -> None:
             )
 
 
-def _body(particle: _Particle, prefix: str):
-    """The Body the options describe, its volume, mass, moments and half-lengths positive
-    finite float64 numbers; InputError names the options at fault."""
+def _representable(particle: _Particle, prefix: str):
+    """The Body the options describe where its volume, mass, moments and half-lengths are
+    positive finite float64 numbers, else None."""
     try:
         body = _described(particle, prefix)
         sizes = (body.volume, body.mass, *body.moments, *body.half_lengths)
-        representable = all(math.isfinite(v) and v > 0.0 for v in sizes)
     except ArithmeticError:  # a size whose powers leave float64 on the way
-        representable = False
-    if not representable:
+        return None
+    return body if all(math.isfinite(v) and v > 0.0 for v in sizes) else None
+
+
+def _body(particle: _Particle, prefix: str):
+    """The Body the options describe, its volume, mass, moments and half-lengths positive
+    finite float64 numbers; InputError names the options at fault: a superquadric's
+    exponents where the ellipsoid of its semi-axes is representable (below about 1e-154,
+    (2/ε)² in `shapes._superquadric_octant_integral` overflows), else its size."""
+    body = _representable(particle, prefix)
+    if body is not None:
+        return body
+    ellipsoid = replace(particle, shape="ellipsoid", exponents=None)
+    if particle.shape == "superquadric" and _representable(ellipsoid, prefix) is not None:
+        fault, advice = "exponents", "give exponents above about 1e-150"
+    else:
         size = {"sphere": "radius", "polyhedron": "vertices"}.get(particle.shape, "semi-axes")
-        raise InputError(
-            f"--{prefix}{size} with --{prefix}density {particle.density:g}: the "
-            f"{particle.shape}'s volume, mass and moments of inertia are not all positive "
-            "finite float64 numbers; give sizes in metres within about 1e-60 to 1e60"
-        )
-    return body
+        fault, advice = size, "give sizes in metres within about 1e-60 to 1e60"
+    raise InputError(
+        f"--{prefix}{fault} with --{prefix}density {particle.density:g}: the "
+        f"{particle.shape}'s volume, mass and moments of inertia are not all positive "
+        f"finite float64 numbers; {advice}"
+    )
 
 
 def _described(particle: _Particle, prefix: str):

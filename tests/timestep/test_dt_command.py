@@ -15,6 +15,7 @@ from tests.conftest import assert_one_line_error
 
 runner = CliRunner()
 ELLIPSOID = ("--shape", "ellipsoid", "--semi-axes", 3, 2, 1, "--density", 1000, "--kn", 1e10)
+SUPERQUADRIC = ("--shape", "superquadric", "--semi-axes")
 CUBE = "\n".join(f"{x} {y} {z}" for x in (-1, 1) for y in (-1, 1) for z in (-1, 1))
 
 
@@ -198,6 +199,14 @@ def test_shear_stiffness_sweep_starts_at_frictionless():
         (
             (*ELLIPSOID, "--other-shape", "sphere", "--other-radius", 1, "--other-vertices", "v"),
             ["--other-vertices does not size a sphere; it takes --other-radius"],
+        ),
+        (
+            (*SUPERQUADRIC, 1, 1, 1, "--exponents", 1e-300, 1, "--density", 1000, "--kn", 1),
+            ["--exponents with --density 1000", "give exponents above about 1e-150"],
+        ),  # blamed --semi-axes
+        (
+            (*SUPERQUADRIC, 1e300, 1e300, 1e300, "--exponents", 1, 1, "--density", 1, "--kn", 1),
+            ["--semi-axes with --density 1", "give sizes in metres"],
         ),
         ((*ELLIPSOID, "--damping", -1), ["--damping"]),
         ((*ELLIPSOID, "--ks", -1), ["--ks must be zero or positive"]),
