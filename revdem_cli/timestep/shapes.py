@@ -184,7 +184,8 @@ def polyhedron(vertices: np.ndarray, density: float, source: str) -> Body:
 
 def _vertex_rows(text: str, path: Path) -> list[tuple[str, object]]:
     """(where, row) of each vertex of a vertex file: JSON ([[x, y, z], ...] or
-    {"vertices": [...]}; where: `vertex k`, from 0) or plain text (where: `line n`)."""
+    {"vertices": [...]}; where: `vertex k`, from 1 as `polyhedron` numbers them) or plain
+    text (where: `line n`)."""
     if path.suffix.lower() == ".json":
         try:
             data = json.loads(text)
@@ -195,7 +196,7 @@ def _vertex_rows(text: str, path: Path) -> list[tuple[str, object]]:
         rows = data["vertices"] if isinstance(data, dict) and "vertices" in data else data
         if not isinstance(rows, list):
             raise InputError(f"vertex file {path}: expected a list of vertices [x, y, z]")
-        return [(f"vertex {k}", row) for k, row in enumerate(rows)]
+        return [(f"vertex {k}", row) for k, row in enumerate(rows, start=1)]
     lines = (line.split("#", 1)[0].replace(",", " ").split() for line in text.splitlines())
     return [(f"line {n}", fields) for n, fields in enumerate(lines, start=1) if fields]
 

@@ -258,6 +258,17 @@ def test_a_vertex_file_without_vertices_exits_2_naming_it(tmp_path, name, conten
     assert_one_line_error(result, f"vertex file {path}: holds no vertices")
 
 
+def test_json_vertices_are_numbered_from_1_in_every_error(tmp_path):
+    """A malformed JSON vertex was numbered from 0 ("vertex 8") and one inside the hull
+    from 1 ("vertex 9") for the ninth alike."""
+    cube = [[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    path = tmp_path / "shape.json"
+    for ninth, named in (([0.1, 0], "vertex 9: expected three numbers"), ([0, 0, 0], "vertex 9")):
+        path.write_text(json.dumps(cube + [ninth]))
+        result = invoke("--shape", "polyhedron", "--vertices", path, "--density", 1, "--kn", 1)
+        assert_one_line_error(result, str(path), named)
+
+
 def test_missing_vertex_file_exits_2(tmp_path):
     path = tmp_path / "absent.json"
     result = invoke("--shape", "polyhedron", "--vertices", path, "--density", 1, "--kn", 1)

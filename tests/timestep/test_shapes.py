@@ -209,7 +209,7 @@ def test_vertex_files_in_text_and_json(tmp_path):
         (
             "ragged.json",
             "[[1, 2, 3], [1, 2]]",
-            r"vertex 1: expected three numbers x y z, got \[1, 2\]",
+            r"vertex 2: expected three numbers x y z, got \[1, 2\]",
         ),
         ("scalar.json", "3", "expected a list of vertices"),
         ("broken.json", "[[1, 2, 3],", "not valid JSON"),
