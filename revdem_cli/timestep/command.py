@@ -58,6 +58,11 @@ def _non_negative(option: str, value: float) -> float:
     return value
 
 
+def _a(shape: str) -> str:
+    """`shape` with its indefinite article: a sphere, an ellipsoid."""
+    return f"{'an' if shape[0] in 'aeiou' else 'a'} {shape}"
+
+
 def _check_sizes(given: _Particle, shape: str | None, prefix: str) -> None:
     """InputError for a size option `given` that a particle of `shape` does not take (an
     option silently left unused would leave its user believing it counted)."""
@@ -66,10 +71,8 @@ def _check_sizes(given: _Particle, shape: str | None, prefix: str) -> None:
     for name in ("radius", "semi_axes", "exponents", "vertices"):
         if getattr(given, name) is not None and name not in SIZES[shape]:
             takes = ", ".join(f"--{prefix}{size.replace('_', '-')}" for size in SIZES[shape])
-            article = "an" if shape[0] in "aeiou" else "a"
             raise InputError(
-                f"--{prefix}{name.replace('_', '-')} does not size {article} {shape}; it takes "
-                f"{takes}"
+                f"--{prefix}{name.replace('_', '-')} does not size {_a(shape)}; it takes {takes}"
             )
 
 
@@ -124,7 +127,7 @@ def _described(particle: _Particle, prefix: str):
         vertices = shapes.read_vertices(particle.vertices)
         return shapes.polyhedron(vertices, density, source=f"vertex file {particle.vertices}")
     if particle.semi_axes is None:
-        raise InputError(f"{option('semi-axes')} is required for a {particle.shape}")
+        raise InputError(f"{option('semi-axes')} is required for {_a(particle.shape)}")
     a, b, c = (_positive(option("semi-axes"), value) for value in particle.semi_axes)
     if particle.shape == "ellipsoid":
         return shapes.ellipsoid(a, b, c, density)
@@ -379,9 +382,11 @@ def _print_packing(report: dict) -> None:
     top = ", ".join(
         f"id {s['id']} ({s['share']:.2%}, {s['contacts']} contacts)" for s in mode["spheres"]
     )
+    carriers = f"{mode['participation']:.4g}"
     console.print(
         f"• fastest mode: ω_max = {assembly['omega_max']:.6g} rad/s, carried by about "
-        f"{mode['participation']:.4g} spheres, {mode['rotation_share']:.1%} of it rotation; "
+        f"{carriers} sphere{'' if carriers == '1' else 's'}, "
+        f"{mode['rotation_share']:.1%} of it rotation; "
         f"largest shares: {top}",
         highlight=False,
     )

@@ -15,6 +15,7 @@ from tests.conftest import assert_one_line_error
 
 runner = CliRunner()
 ELLIPSOID = ("--shape", "ellipsoid", "--semi-axes", 3, 2, 1, "--density", 1000, "--kn", 1e10)
+SPHERE = ("--shape", "sphere", "--radius", 0.01, "--density", 2500)
 SUPERQUADRIC = ("--shape", "superquadric", "--semi-axes")
 CUBE = "\n".join(f"{x} {y} {z}" for x in (-1, 1) for y in (-1, 1) for z in (-1, 1))
 
@@ -189,6 +190,10 @@ def test_shear_stiffness_sweep_starts_at_frictionless():
         ((*ELLIPSOID, "--shape", "superquadric", "--exponents", 3, 1), ["--exponents", "(0, 2]"]),
         ((*ELLIPSOID, "--other-shape", "sphere"), ["--other-radius", "required"]),
         (
+            (*SPHERE, "--kn", 1, "--other-shape", "ellipsoid"),
+            ["--other-semi-axes is required for an ellipsoid"],
+        ),
+        (
             ("--shape", "sphere", "--radius", 1, "--semi-axes", 1, 1, 1, "--density", 1, "--kn", 1),
             ["--semi-axes does not size a sphere; it takes --radius"],
         ),
@@ -290,9 +295,6 @@ def test_figures_take_no_other_option(tmp_path, extra, named):
     result = invoke("--figures", folder, *extra)
     assert_one_line_error(result, "--figures writes Peng 2020's figures", f"leave out {named}")
     assert not folder.exists()
-
-
-SPHERE = ("--shape", "sphere", "--radius", 0.01, "--density", 2500)
 
 
 @pytest.mark.parametrize(

@@ -314,6 +314,26 @@ def test_a_collision_caught_mid_contact_is_not_bracketed(tmp_path):
     assert "the engine's limit was not measured: trial steps from" in shown
 
 
+def test_a_mode_on_one_sphere_is_carried_by_1_sphere_in_the_table(tmp_path):
+    """A sphere pressed into the floor: its one contact's mode lives on it alone ("carried by
+    about 1 spheres", once)."""
+    from tests.conftest import FLOOR, PLANE, SPHERE
+
+    data = {
+        "name": "rest",
+        "materials": {"sphere": SPHERE, "plane": PLANE},
+        "contact": {"model": "hertz"},
+        "particles": [{"material": "sphere", "radius": 0.005, "position": [0, 0, 0.00499]}],
+        "walls": [FLOOR],
+        "integrator": {"dt": 1.0e-7},
+        "stages": [{"name": "rest", "steps": 10, "output_every": 10}],
+    }
+    run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path, reverse=False)
+    result = invoke("dt", "--restart", tmp_path / "rest.restart.h5")
+    assert result.exit_code == 0, result.output
+    assert "carried by about 1 sphere, " in " ".join(result.output.split())
+
+
 def test_dt_restart_takes_no_particle_options(fcc_restart):
     result = invoke("dt", "--restart", fcc_restart, "--shape", "sphere")
     assert result.exit_code == 2
