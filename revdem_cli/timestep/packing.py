@@ -577,7 +577,7 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
                 f"the engine's limit was not measured: trial steps from {low:.3g} to "
                 f"{high:.3g} s ({low / reference:.3g} to {high / reference:.3g} times the "
                 "assembly's limit) found no step that keeps a kick along the top mode below "
-                f"{grown:.3g} times its size in {check.steps} steps next to one that grows it "
+                f"{grown:.4g} times its size in {check.steps} steps next to one that grows it "
                 "past that. Set at rest, this state need not stay in its contacts (spheres "
                 "caught mid-collision spring apart), so the stepping loop may never meet the "
                 "stiffness the assembly's limit is of; the assembly's limit is the estimate."
