@@ -17,7 +17,7 @@ from revdem_cli.kernels.pairs import pair_geometry, separation
 from revdem_cli.kernels.stress import stress_of
 from revdem_cli.kernels.sums import blocks_of, by_blocks, span
 from revdem_cli.kernels.tape import MECHANISMS
-from revdem_cli.kernels.vectors import ZERO, cell_of, dot, row
+from revdem_cli.kernels.vectors import ZERO, axpy, cell_of, dot, norm, row
 from revdem_cli.kernels.wall_contacts import wall_normal
 
 SCALARS = (
@@ -100,10 +100,14 @@ def _size(shape: tuple[int, ...]) -> int:
 
 
 @jit
-def normal_and_shear(f, n):
-    """(|normal component|, |shear component|) of a contact force f across normal n."""
+def normal_and_shear(f, n, shear_law):
+    """(|normal component|, |shear component|) of a contact force f across normal n: the
+    shear component as |f - (f.n) n|, to round-off of |f| (from |f|^2 - (f.n)^2 it was of
+    order 1e-8 |f|), and 0 without a shear law, which exerts none."""
     fn = dot(f, n)
-    return abs(fn), math.sqrt(max(dot(f, f) - fn * fn, 0.0))
+    if not shear_law:
+        return abs(fn), 0.0
+    return abs(fn), norm(axpy(-fn, n, f))
 
 
 def _particle_energies(x, v, w, mass, inertia, gravity, partials):
@@ -150,7 +154,7 @@ def _pair_energies(
             turned = row(rolling, k) if rolls else ZERO
             e, g = estar[m_i, m_j], gstar[m_i, m_j]
             elastic += contact_energy(law, overlap, rstar, e, g, shear, turned)
-            fn, fs = normal_and_shear(row(force, k), n_ij)
+            fn, fs = normal_and_shear(row(force, k), n_ij, shear_law)
             max_normal = max(max_normal, fn)
             max_shear = max(max_shear, fs)
         partials[b, 0] = elastic
@@ -249,7 +253,7 @@ def observe(p, pairs, walls, cell, law, moduli, dyn, row_out):
                 e, g = moduli.estar[m, mw], moduli.gstar[m, mw]
                 elastic += contact_energy(law, overlap, p.radius[q], e, g, shear, turned)
                 f = cell_of(walls.force, q, b)
-                fn, fs = normal_and_shear(f, n)
+                fn, fs = normal_and_shear(f, n, law.tangential != NO_SHEAR)
                 max_normal = max(max_normal, fn)
                 max_shear = max(max_shear, fs)
                 for c in range(3):
