@@ -356,9 +356,11 @@ def _print_packing(report: dict) -> None:
         f"{assembly['dt'] / assembly['damped_dt']:.4g}",
     )
     if assembly["mode_damping"] > 0.0:
+        order = report["predictor_order"]
+        read = f", read from the velocity predictor of order {order}" if order else ""
         steps.add_row(
             "assembly, damped",
-            "the top mode with its viscous damping φᵀCφ",
+            f"the top mode with its viscous damping φᵀCφ{read}",
             _seconds(assembly["damped_dt"]),
             "1",
         )

@@ -539,6 +539,7 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
         "stage": restart.stage,
         "step": state.step,
         "spheres": len(state.particles.x),
+        "predictor_order": scenario.integrator.predictor_order,  # 0: velocity Verlet
         "assembly": limit.to_dict(state.ids),
         "estimates": {
             key: {"label": label, "dt": _finite(dt), "ratio": _finite(dt / reference)}

@@ -426,6 +426,20 @@ def test_the_damped_limit_of_a_run_with_the_velocity_predictor_is_the_predictors
     assert 1.0 <= check.dt / limit.damped_dt < 1.03
 
 
+def test_dt_restart_says_its_damped_limit_reads_the_velocity_predictor(tmp_path):
+    contact = {"model": "linear", "kn": 1.0e4, "normal_damping": 0.2}
+    data = lattice(3, contact, integrator={"dt": 1e-5, "scheme": "trvp", "trvp_order": 2})
+    outputs = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path)
+    result = invoke("dt", "--restart", str(outputs.restart), "--json")
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.output)
+    assert report["predictor_order"] == 2
+    shown = CliRunner().invoke(
+        app, ["dt", "--restart", str(outputs.restart)], env={"COLUMNS": "300"}
+    )
+    assert "viscous damping φᵀCφ, read from the velocity predictor of order 2" in shown.output
+
+
 def test_a_state_without_contacts_and_figures_beside_a_restart_are_refused(tmp_path):
     """Two spheres apart after their collision: no contact, so no stiffness to bound the
     step (the table showed ∞, ratios of nan and 0, and --json wrote Infinity and NaN, which
