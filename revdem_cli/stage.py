@@ -345,7 +345,7 @@ def run_stage(
                             dyn, law, direction < 0 and not isinstance(tape, Replayer)
                         ),
                     ),
-                    f"{writer.path} holds the frames up to step {writer.last_step}",
+                    _frames_held(writer, frames[0], direction),
                 )
             if status != OK:
                 state.grow_pairs()
@@ -393,6 +393,17 @@ def reversal_history(state: State, model: Model, clock: StageClock) -> None:
             ahead.grow_pairs()
     state.particles.v_past[...] = ahead.particles.v_past[::-1]
     state.particles.omega_past[...] = ahead.particles.omega_past[::-1]
+
+
+def _frames_held(writer: TrajectoryWriter, start: int, direction: int) -> str:
+    """What a trajectory holds when its stage, begun at step `start`, fails: forward, the
+    frames up to the last written; reversed, those from `start` down to it (the reversal's
+    frames go down from its restart's step)."""
+    if direction > 0:
+        return f"{writer.path} holds the frames up to step {writer.last_step}"
+    if writer.last_step == start:
+        return f"{writer.path} holds only the frame the reversal started from, step {start}"
+    return f"{writer.path} holds the reversed frames from step {start} down to {writer.last_step}"
 
 
 def _reversed_damping(dyn: Dynamics, law: ContactLaw, backwards: bool) -> str:

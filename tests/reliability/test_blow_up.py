@@ -89,6 +89,9 @@ def test_a_damped_stage_blown_up_backwards_names_its_damping(tmp_path):
     assert "blown up at step" in line and "overlap by" in line
     assert "likely cause: the stage's local damping 0.7, reversed, puts energy in" in line
     assert "unlikely cause" not in line
+    # the reversal's frames go down from its restart: "up to step 134525" said the opposite
+    steps, _ = _steps_written(tmp_path / "oedometer_settle.reverse.h5")
+    assert line.endswith(f"holds the reversed frames from step {steps[0]} down to {steps[-1]}")
 
 
 def _examined(scenario: Scenario, change, limit: float = 0.5) -> tuple[int, np.ndarray]:
