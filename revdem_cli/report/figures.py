@@ -459,11 +459,13 @@ def information_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     window = max(1, len(steps) // 100)
     cuts = np.searchsorted(steps, [first for _, first, _ in stages[1:]])
     fig, (total, rate) = plt.subplots(2, 1, figsize=(6, 6.5), dpi=120, sharex=True)
-    for k, name in enumerate(names):
-        if bits[:, k].sum() == 0.0:
-            continue
-        total.plot(x, np.cumsum(bits[:, k]), label=name)
-        rate.plot(x, moving_mean(bits[:, k], window, cuts), label=name, lw=1)
+    shown = [k for k in range(len(names)) if bits[:, k].sum() != 0.0]
+    for k in shown:
+        total.plot(x, np.cumsum(bits[:, k]), label=names[k])
+        rate.plot(x, moving_mean(bits[:, k], window, cuts), label=names[k], lw=1)
+    if not shown:  # a line at zero over the run says so, and spans the axes over it
+        for ax in (total, rate):
+            ax.plot(x, np.zeros(len(x)), color="0.4", label="no mechanism destroyed any")
     total.set_ylabel("bits destroyed since the start")
     rate.set_ylabel(f"bits per step (mean of {window})")
     for ax in (total, rate):
