@@ -16,7 +16,10 @@
                                     are unwrapped across periodic boundaries
 /observables/<name>                 step, time, value [F], [F, 3] or [F, 3, 3]
 /observables/events                 value [F, kinds, columns] at each frame: the log of
-                                    information-destroying mechanisms (kernels/events.py)
+                                    information-destroying mechanisms (kernels/events.py),
+                                    named in its attributes `kinds` and `columns`
+/observables/bits_destroyed         with an information tape: value [F, mechanisms], the bits
+                                    each mechanism destroyed, named in its attribute `columns`
 /connectivity/contacts              with [output] contacts: every contact at every frame, its
                                     frames' rows one after another (H5MD 1.1 connectivity,
                                     particles_group /particles/all): step, time [F] (the
@@ -44,6 +47,9 @@ import numpy as np
 from revdem_cli import __version__
 from revdem_cli.errors import InputError, WriteFailed, whole_number
 from revdem_cli.io import DAMAGE, FRAME_FIELDS, GRID_FIELDS, SCHEMA_VERSION, one_line, open_hdf5
+from revdem_cli.kernels.events import COLUMNS as EVENT_COLUMNS
+from revdem_cli.kernels.events import KINDS
+from revdem_cli.kernels.tape import MECHANISMS
 
 
 def _series(
@@ -198,6 +204,8 @@ class TrajectoryWriter:
         everything.create_dataset("id", data=np.asarray(ids, dtype=np.int64))
         everything.create_dataset("species", data=np.asarray(species, dtype=np.int64))
         events = _series(f, "observables/events", events_shape, clock)
+        events["value"].attrs["kinds"] = np.array(KINDS, dtype=h5py.string_dtype())
+        events["value"].attrs["columns"] = np.array(EVENT_COLUMNS, dtype=h5py.string_dtype())
         edges = _series(box, "edges", (3,), clock)
         self.frame_rows = [_Appender(clock["step"]), _Appender(clock["time"])]
         self.frame_rows += [_Appender(g["value"]) for g in frame_groups + [events, edges]]
@@ -216,6 +224,8 @@ class TrajectoryWriter:
         widths = []
         for name, shape in observables:
             clock = _series(f, f"observables/{name}", shape, clock)
+            if name == "bits_destroyed":  # its columns: the mechanisms charged
+                clock["value"].attrs["columns"] = np.array(MECHANISMS, dtype=h5py.string_dtype())
             widths.append((_Appender(clock["value"]), shape))
         self.observable_clock = [_Appender(clock["step"]), _Appender(clock["time"])]
         self.observable_rows = widths

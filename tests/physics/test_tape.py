@@ -583,6 +583,40 @@ def test_the_information_figure_averages_each_stage_apart():
     assert smeared[95] > 0.0 and smeared[105] < 10.0
 
 
+def test_the_information_figure_of_a_run_that_destroys_nothing_says_so(tmp_path):
+    """The resting sphere without damping destroys no information: the figure was empty axes
+    over 0 to 1 ms with an empty legend, and matplotlib warned that no artist had a label."""
+    import warnings
+
+    from revdem_cli.report.figures import information_by_step, information_figure
+
+    result = revdem.run(_fixed(_resting({}), True), tmp_path, reverse=False)
+    _, _, _, bits, _ = information_by_step(result.trajectory())
+    assert len(bits) == 3000 and not bits.any()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        png = information_figure(result.trajectory(), None, tmp_path / "information.png")
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_trajectory_names_the_columns_of_its_bits_and_events(tmp_path):
+    """`bits_destroyed` [F, 8] and `events` [F, kinds, columns] were bare numbers: which
+    column is which mechanism lived only in the source."""
+    import h5py
+
+    from revdem_cli.kernels import events
+    from revdem_cli.kernels.tape import MECHANISMS
+
+    result = revdem.run(_fixed(_resting({}), True), tmp_path, reverse=False)
+    with h5py.File(result.trajectory()) as f:
+        bits = f["observables/bits_destroyed/value"]
+        assert list(bits.attrs["columns"]) == list(MECHANISMS) and bits.shape[1] == 8
+        log = f["observables/events/value"]
+        assert list(log.attrs["kinds"]) == list(events.KINDS)
+        assert list(log.attrs["columns"]) == list(events.COLUMNS)
+        assert log.shape[1:] == (len(events.KINDS), len(events.COLUMNS))
+
+
 def test_the_information_figure_reads_the_tape_of_every_stage(tmp_path):
     """With every stage reversed each stage leaves its own tape: the figure `information`
     reads them end to end, from step 0 to the run's last, each stage's start marked."""
