@@ -84,13 +84,15 @@ def threads_line() -> str:
     )
 
 
-def kernels_compiled() -> bool:
-    """Whether numba's disk cache holds the stage loop (`kernels.integrate.advance`, one
-    signature for every run) compiled from these sources, the index file numba keeps for
-    it: where it does not, a run's first steps wait minutes for it (*Compile time* in
-    benchmarks/RECORD.md)."""
+def kernels_compiled(*kernels) -> bool:
+    """Whether numba's disk cache holds `kernels` (default: the stage loop,
+    `kernels.integrate.advance`, one signature for every run) compiled from these sources,
+    the index file numba keeps for each: where it does not, a run's first steps wait minutes
+    for it (*Compile time* in benchmarks/RECORD.md)."""
     from pathlib import Path
 
-    from revdem_cli.kernels.integrate import advance
+    if not kernels:
+        from revdem_cli.kernels.integrate import advance
 
-    return Path(advance._cache._cache_file._index_path).is_file()
+        kernels = (advance,)
+    return all(Path(k._cache._cache_file._index_path).is_file() for k in kernels)

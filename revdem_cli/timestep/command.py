@@ -230,20 +230,37 @@ def _sweep_values(spec: str) -> tuple[str, list[float]]:
     return name, values.tolist()
 
 
+def _working(what: str, check: bool):
+    """A spinner on standard error saying what `dt` is doing; with `check` (--verify: the
+    pair integrated, seconds a case), first the line a run prints where numba's cache lacks
+    the kernels it integrates with, which then compile (`progress.COMPILING`)."""
+    from rich.console import Console
+
+    from revdem_cli.kernels.integrate import advance
+    from revdem_cli.kernels.rigid_pair import stability_trial
+    from revdem_cli.report import progress
+
+    console = Console(stderr=True)
+    if check and not progress.kernels_compiled(advance, stability_trial):
+        console.print(progress.COMPILING)
+    return console.status(what)
+
+
+def _sweep_row(assessment, name: str, value: float) -> dict:
+    """One row of a --sweep's CSV: the value, A_max, the recommended Δt and every estimate."""
+    row = {name: value, "a_max": assessment.inverse_mass, "recommended_dt": assessment.recommended}
+    return row | {f"dt_{e.key}": e.dt for e in assessment.criteria + assessment.checks}
+
+
 def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
     import csv
 
     name, values = _sweep_values(spec)
     rows = []
-    for value in values:
-        assessment = case.with_value(name, value).assess(check)
-        estimates = assessment.criteria + assessment.checks
-        row = {
-            name: value,
-            "a_max": assessment.inverse_mass,
-            "recommended_dt": assessment.recommended,
-        }
-        rows.append(row | {f"dt_{e.key}": e.dt for e in estimates})
+    with _working(f"{name} = {values[0]:g}, 1 of {len(values)}", check) as shown:
+        for k, value in enumerate(values):
+            shown.update(f"{name} = {value:g}, {k + 1} of {len(values)}")
+            rows.append(_sweep_row(case.with_value(name, value).assess(check), name, value))
     try:  # a path that cannot be opened is bad input; a write that fails, a failure
         stream = open(out, "w", newline="") if out else contextlib.nullcontext(sys.stdout)
     except OSError as exc:
@@ -551,7 +568,9 @@ def dt(
             raise InputError("--sweep writes CSV; leave out --json")
         _write_sweep(case, sweep, verify, out)
         return
-    assessment = case.assess(verify)
+    integrating = "integrating the pair: the engine's and the rigid bodies' limits"
+    with _working(integrating, True) if verify else contextlib.nullcontext():
+        assessment = case.assess(verify)
     if as_json:
         import json
 

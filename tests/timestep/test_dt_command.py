@@ -317,3 +317,19 @@ def test_criteria_outside_float64_are_refused_naming_the_option(args, named):
     assert_one_line_error(
         result, named, "the particles' sizes and densities", "outside float64's range"
     )
+
+
+def test_dt_verify_says_its_kernels_compile_only_when_they_will(monkeypatch):
+    """`dt --verify` integrates the pair, a minute or more the first time while the kernels
+    compile, and said nothing; a --sweep with it, seconds a value, neither."""
+    from revdem_cli.report import progress
+
+    pair = ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "2500", "--kn", "1e6"]
+    said = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(progress, "kernels_compiled", lambda *k, compiled=compiled: compiled)
+        for args in ([*pair, "--verify"], [*pair, "--verify", "--sweep", "kn=1e5:1e6:2"]):
+            result = CliRunner().invoke(app, args)
+            assert result.exit_code == 0, result.output
+            said[compiled, len(args)] = progress.COMPILING in result.output
+    assert said == {(True, 10): False, (True, 12): False, (False, 10): True, (False, 12): True}
