@@ -13,7 +13,8 @@ Bad input raises `revdem_cli.errors.InputError` with the one line the command li
 a run that cannot go on raises `RunFailed`; SIGINT or SIGTERM stops a run with
 `revdem_cli.checkpoint.Interrupted` once its checkpoint is written (`resume` goes on), or
 after its last step with `Unfinished`. No progress is shown unless asked for
-(`progress=True`). `read` gives the Result of a run written before.
+(`progress=True`). `read` gives the Result of a run written before. A folder given as an
+empty text is refused, not taken for the working folder, as `revdem run --out ''` is.
 """
 
 from __future__ import annotations
@@ -56,6 +57,14 @@ def _path(value, what: str) -> Path:
     if not isinstance(value, str | Path):
         raise InputError(f"{what}: a path (str or Path), not {type(value).__name__}")
     return Path(value)
+
+
+def _folder(value, what: str) -> Path:
+    """A folder argument as a Path (`_path`); an empty text is refused, not taken for the
+    working folder (which `Path("")` is), as `revdem run --out ''` refuses it."""
+    if isinstance(value, str) and not value.strip():
+        raise InputError(f"{what}: an empty path; give a folder ('.' for this one)")
+    return _path(value, what)
 
 
 @dataclass(frozen=True)
@@ -321,15 +330,12 @@ def run(
     """Run every stage forward, and the reversed stage backwards with the comparison unless
     `reverse` is False, into the folder `out`, as `revdem run` does: earlier outputs are
     kept unless `force`, and a time step above the critical estimate is refused unless
-    `allow_unstable_dt`. A scenario file's path is loaded as it is (`load`); an empty `out`
-    is refused, not taken for the working folder, as `revdem run --out ''` is."""
+    `allow_unstable_dt`. A scenario file's path is loaded as it is (`load`)."""
     from revdem_cli.engine import check_time_step, run_scenario
 
     if isinstance(experiment, str | Path):
         experiment = load(experiment)
-    if isinstance(out, str) and not out.strip():  # Path("") would be this folder
-        raise InputError("out: an empty path; give a folder ('.' for this one)")
-    out = _path(out, "out")
+    out = _folder(out, "out")
     keep_checkpoint(out, experiment.name, force)
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
         check_time_step(experiment.scenario, experiment.origin)
@@ -361,7 +367,7 @@ def reverse(
     restart = _path(restart, "restart")
     spec, forward = restart_scenario(restart)
     read_restart(restart)  # every dataset checked before earlier outputs are replaced
-    folder = _path(out, "out") if out is not None else restart.parent
+    folder = _folder(out, "out") if out is not None else restart.parent
     paths = output_paths(folder, spec.name)
     written, figures = [paths["reverse"]], []
     if forward.is_file():  # compared with, and drawn beside, the reversed run
@@ -388,7 +394,7 @@ def resume(out: str | Path, progress=False) -> Result:
     from revdem_cli.io import exports_of
     from revdem_cli.io.restart import checkpoint_phase
 
-    out = _path(out, "out")
+    out = _folder(out, "out")
     checkpoint = find_checkpoint(out)
     paths = output_paths(out, checkpoint.name.removesuffix(SUFFIX))
     # the trajectories it goes on writing: their exports were made before they ended
@@ -410,7 +416,7 @@ def read(out: str | Path, name: str | None = None) -> Result:
     from revdem_cli.engine import output_paths
     from revdem_cli.io.h5md import open_trajectory
 
-    out = _path(out, "out")
+    out = _folder(out, "out")
     if not out.is_dir():
         raise InputError(f"{out}: {'a file, not' if out.exists() else 'no'} folder of a run")
     if name is None:

@@ -95,6 +95,24 @@ def test_what_a_script_gives_wrongly_is_refused_before_anything_runs(tmp_path):
     assert revdem.run(collision, tmp_path / "path", reverse=False, force=True).comparison is None
 
 
+def test_an_empty_folder_is_refused_wherever_one_is_taken(tmp_path, monkeypatch):
+    """`reverse(restart, out="")` wrote into the working folder, and `read("")` and
+    `resume("")` read it, as `Path("")` is "."; each is refused as `run(..., "")` is."""
+    folder = tmp_path / "run"
+    short = revdem.load(CONFIGS / "collision.toml", {"stages.0.steps": 200})
+    restart = revdem.run(short, folder, reverse=False).outputs.restart.absolute()
+    written = sorted(folder.iterdir())
+    monkeypatch.chdir(folder)  # where "" would read and write
+    for call in (
+        lambda: revdem.reverse(restart, out="", force=True),
+        lambda: revdem.read(""),
+        lambda: revdem.resume(" "),
+    ):
+        with pytest.raises(InputError, match=r"^out: an empty path; give a folder \('\.' for"):
+            call()
+    assert sorted(folder.iterdir()) == written
+
+
 def test_paths_and_arguments_of_the_wrong_kind_are_input_errors(tmp_path):
     """A file given as the folder of a run raised FileExistsError or NotADirectoryError, None
     or a list TypeError, and overrides given as one text were read letter by letter (`--set
