@@ -91,16 +91,27 @@ class Experiment:
 
 
 def _changed(fields: dict, changes: Mapping[str, Any] | None, origin: str) -> dict:
-    """A copy of `fields` with `changes` made (numpy's numbers and arrays as Python's); an
-    InputError names `origin`, the fields' file or <dict>."""
+    """A copy of `fields` with `changes` made, numpy's numbers and arrays anywhere in either
+    as Python's (`_plain`); an InputError names `origin`, the fields' file or <dict>."""
     from revdem_cli.config import set_field
 
-    fields = copy.deepcopy(fields)
+    fields = _plain(fields)
     for key, value in (changes or {}).items():
-        if isinstance(value, np.generic | np.ndarray):
-            value = value.tolist()
-        set_field(fields, key, value, f"{origin}: ")
+        set_field(fields, key, _plain(value), f"{origin}: ")
     return fields
+
+
+def _plain(value):
+    """A copy of `value` as a scenario file holds it: numpy's numbers and arrays at any depth
+    as Python's (floats, ints, bools, lists), every mapping as a dict, every tuple as a
+    list; YAML, which keeps the fields of a dict as text, writes no other."""
+    if isinstance(value, np.generic | np.ndarray):
+        return value.tolist()
+    if isinstance(value, Mapping):
+        return {_plain(key): _plain(inner) for key, inner in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(inner) for inner in value]
+    return copy.deepcopy(value)
 
 
 def _experiment(fields: dict, origin: str, base: Path, text: str, suffix: str, host: bool):
@@ -151,7 +162,7 @@ def from_dict(
     relative to `base`), with `changes` made."""
     if not isinstance(fields, Mapping):
         raise InputError(f"<dict>: the scenario's fields as a dict, not {type(fields).__name__}")
-    fields = _changed(dict(fields), changes, "<dict>")
+    fields = _changed(fields, changes, "<dict>")
     return _experiment(fields, "<dict>", Path(base), *_yaml(fields), host)
 
 

@@ -64,6 +64,25 @@ def test_a_changed_field_is_checked_as_a_file_is():
     )
 
 
+def test_numpy_values_anywhere_in_the_fields_are_taken_as_python_values():
+    """numpy's numbers and arrays inside the fields of `from_dict`, or inside a table that
+    `changed` sets, raised yaml's RepresenterError from writing the experiment's text; they
+    are now the Python values they hold, in the scenario and in its text."""
+    import yaml
+
+    fields = copy.deepcopy(revdem.load(CONFIGS / "collision.toml").fields)
+    fields["particles"][1]["velocity"] = np.array([-0.5, 0.0, 0.0])
+    fields["stages"][0]["steps"] = np.int64(3000)
+    fields["output"]["contacts"] = np.bool_(True)
+    experiment = revdem.from_dict(fields)
+    assert experiment.scenario.stages[0].steps == 3000
+    assert yaml.safe_load(experiment.text)["particles"][1]["velocity"] == [-0.5, 0.0, 0.0]
+    stage = {**experiment.fields["stages"][0], "steps": np.int32(200)}
+    changed = experiment.changed({"stages.0": stage})
+    assert yaml.safe_load(changed.text)["stages"][0]["steps"] == 200
+    assert changed.scenario.stages[0].steps == 200
+
+
 def test_results_name_what_they_do_not_have(tmp_path):
     result = revdem.run(revdem.load(CONFIGS / "collision.toml"), tmp_path, reverse=False)
     assert result.comparison is None
