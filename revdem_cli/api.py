@@ -92,11 +92,23 @@ class Experiment:
 
 def _changed(fields: dict, changes: Mapping[str, Any] | None, origin: str) -> dict:
     """A copy of `fields` with `changes` made, numpy's numbers and arrays anywhere in either
-    as Python's (`_plain`); an InputError names `origin`, the fields' file or <dict>."""
+    as Python's (`_plain`); an InputError names `origin`, the fields' file or <dict>, or
+    `changes` where they are not a mapping of dotted paths (text) to values."""
     from revdem_cli.config import set_field
 
+    changes = {} if changes is None else changes
+    if not isinstance(changes, Mapping):
+        raise InputError(
+            "changes: a mapping of dotted paths to values, {'stages.0.steps': 100}, not "
+            f"{type(changes).__name__}"
+        )
     fields = _plain(fields)
-    for key, value in (changes or {}).items():
+    for key, value in changes.items():
+        if not isinstance(key, str):
+            raise InputError(
+                f"changes: the key {key!r}: a dotted path as text, 'stages.0.steps', not "
+                f"{type(key).__name__}"
+            )
         set_field(fields, key, _plain(value), f"{origin}: ")
     return fields
 

@@ -83,6 +83,28 @@ def test_numpy_values_anywhere_in_the_fields_are_taken_as_python_values():
     assert changed.scenario.stages[0].steps == 200
 
 
+def test_changes_that_are_not_a_mapping_of_dotted_paths_are_refused():
+    """Changes given as a list of pairs, or keyed by a number, raised AttributeError from
+    deep inside; each is an InputError naming what `changes` must be."""
+    collision = CONFIGS / "collision.toml"
+    experiment = revdem.load(collision)
+    for call in (
+        lambda: experiment.changed([("stages.0.steps", 100)]),
+        lambda: revdem.load(collision, changes=[("stages.0.steps", 100)]),
+        lambda: revdem.from_dict(experiment.fields, changes=[("stages.0.steps", 100)]),
+    ):
+        with pytest.raises(InputError) as raised:
+            call()
+        assert str(raised.value) == (
+            "changes: a mapping of dotted paths to values, {'stages.0.steps': 100}, not list"
+        )
+    with pytest.raises(InputError) as raised:
+        experiment.changed({5: 1})
+    assert str(raised.value) == (
+        "changes: the key 5: a dotted path as text, 'stages.0.steps', not int"
+    )
+
+
 def test_results_name_what_they_do_not_have(tmp_path):
     result = revdem.run(revdem.load(CONFIGS / "collision.toml"), tmp_path, reverse=False)
     assert result.comparison is None
