@@ -59,6 +59,14 @@ def _path(value, what: str) -> Path:
     return Path(value)
 
 
+def _check_switches(**switches) -> None:
+    """InputError naming the first of the keyword arguments `switches` that is not True or
+    False (numpy's bools too): a text such as "no" would pass for True."""
+    for name, value in switches.items():
+        if not isinstance(value, bool | np.bool_):
+            raise InputError(f"{name}={value!r}: True or False, not {type(value).__name__}")
+
+
 def _folder(value, what: str) -> Path:
     """A folder argument as a Path (`_path`); an empty text is refused, not taken for the
     working folder (which `Path("")` is), as `revdem run --out ''` refuses it."""
@@ -131,6 +139,7 @@ def _experiment(fields: dict, origin: str, base: Path, text: str, suffix: str, h
     checks of this machine too, with `host`)."""
     from revdem_cli.config import scenario_from_data
 
+    _check_switches(host=host)
     scenario = scenario_from_data(copy.deepcopy(fields), origin, base, host)
     return Experiment(scenario, fields, origin, base, text, suffix)
 
@@ -348,7 +357,7 @@ def run(
     reverse: bool = True,
     force: bool = False,
     allow_unstable_dt: bool = False,
-    progress=False,
+    progress: bool = False,
 ) -> Result:
     """Run every stage forward, and the reversed stage backwards with the comparison unless
     `reverse` is False, into the folder `out`, as `revdem run` does: earlier outputs are
@@ -356,8 +365,16 @@ def run(
     `allow_unstable_dt`. A scenario file's path is loaded as it is (`load`)."""
     from revdem_cli.engine import check_time_step, run_scenario
 
+    _check_switches(
+        reverse=reverse, force=force, allow_unstable_dt=allow_unstable_dt, progress=progress
+    )
     if isinstance(experiment, str | Path):
         experiment = load(experiment)
+    elif not isinstance(experiment, Experiment):
+        raise InputError(
+            "experiment: an Experiment (load, from_dict) or a scenario file's path (str or "
+            f"Path), not {type(experiment).__name__}"
+        )
     out = _folder(out, "out")
     keep_checkpoint(out, experiment.name, force)
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
@@ -379,7 +396,7 @@ def reverse(
     out: str | Path | None = None,
     steps: int | None = None,
     force: bool = False,
-    progress=False,
+    progress: bool = False,
 ) -> Result:
     """Run the stage that ended at a restart backwards and compare it with its forward
     trajectory, as `revdem reverse` does."""
@@ -387,6 +404,7 @@ def reverse(
     from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.io.restart import read_restart, restart_scenario
 
+    _check_switches(force=force, progress=progress)
     restart = _path(restart, "restart")
     spec, forward = restart_scenario(restart)
     read_restart(restart)  # every dataset checked before earlier outputs are replaced
@@ -410,13 +428,14 @@ def reverse(
 
 
 @_paths_checked
-def resume(out: str | Path, progress=False) -> Result:
+def resume(out: str | Path, progress: bool = False) -> Result:
     """Continue the run whose checkpoint is in `out` to its end, as `revdem run --resume`."""
     from revdem_cli.checkpoint import SUFFIX, find_checkpoint
     from revdem_cli.engine import output_paths, resume_run
     from revdem_cli.io import exports_of
     from revdem_cli.io.restart import checkpoint_phase
 
+    _check_switches(progress=progress)
     out = _folder(out, "out")
     checkpoint = find_checkpoint(out)
     paths = output_paths(out, checkpoint.name.removesuffix(SUFFIX))

@@ -105,6 +105,31 @@ def test_changes_that_are_not_a_mapping_of_dotted_paths_are_refused():
     )
 
 
+def test_what_is_run_and_each_switch_must_be_of_its_kind(tmp_path):
+    """A dict or None given as the experiment raised AttributeError, and a switch given as
+    text ran as True (`reverse="no"` reversed): each is refused, naming the argument and
+    what it may be, before anything runs."""
+    for experiment, kind in (({"name": "x"}, "dict"), (None, "NoneType")):
+        with pytest.raises(InputError) as raised:
+            revdem.run(experiment, tmp_path / "x")
+        assert str(raised.value) == (
+            "experiment: an Experiment (load, from_dict) or a scenario file's path (str or "
+            f"Path), not {kind}"
+        )
+    short = revdem.load(CONFIGS / "collision.toml", {"stages.0.steps": 200})
+    for switch in ("reverse", "force", "allow_unstable_dt", "progress"):
+        with pytest.raises(InputError, match=f"^{switch}='no': True or False, not str$"):
+            revdem.run(short, tmp_path / "x", **{switch: "no"})
+    assert not (tmp_path / "x").exists()
+    restart = revdem.run(short, tmp_path / "run", reverse=np.bool_(False)).outputs.restart
+    with pytest.raises(InputError, match="^force=1: True or False, not int$"):
+        revdem.reverse(restart, force=1)
+    with pytest.raises(InputError, match="^progress=None: True or False, not NoneType$"):
+        revdem.resume(tmp_path / "run", progress=None)
+    with pytest.raises(InputError, match="^host='yes': True or False, not str$"):
+        short.changed({"stages.0.steps": 100}, host="yes")
+
+
 def test_results_name_what_they_do_not_have(tmp_path):
     result = revdem.run(revdem.load(CONFIGS / "collision.toml"), tmp_path, reverse=False)
     assert result.comparison is None
