@@ -492,10 +492,12 @@ def read_observable(f: h5py.File, name: str) -> tuple[np.ndarray, np.ndarray]:
 def read_contacts(f: h5py.File, index: int) -> dict[str, np.ndarray] | None:
     """The contacts of frame `index` by name (value: sphere and partner, point, ...), or
     None if the trajectory has none."""
+    if not whole_number(index):
+        raise InputError(f"frame {index!r}: must be a whole number, a frame's index (-1: the last)")
     if CONTACTS not in f:
         return None
     frames = len(frame_steps(f))
-    if not (whole_number(index) and -frames <= index < frames):
+    if not -frames <= index < frames:
         raise InputError(
             f"frame {index!r}: the trajectory has {frames} frames, 0 to {frames - 1} (-1: the last)"
         )

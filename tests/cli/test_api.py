@@ -155,8 +155,11 @@ def test_what_a_script_gives_wrongly_is_refused_before_anything_runs(tmp_path):
     assert not list(tmp_path.glob("back/*"))  # nothing written before the refusal
     frames = len(result.frames("position")[0])
     assert result.contacts(frames - 1) is not None and result.contacts(-frames) is not None
-    for frame in (frames, -frames - 1, 1.5):
+    for frame in (frames, -frames - 1):
         with pytest.raises(InputError, match=f"^frame {frame!r}: the trajectory has {frames}"):
+            result.contacts(frame)
+    for frame in (1.5, "3", None):  # said only how many frames there are
+        with pytest.raises(InputError, match=f"^frame {frame!r}: must be a whole number"):
             result.contacts(frame)
     assert revdem.run(collision, tmp_path / "path", reverse=False, force=True).comparison is None
 
