@@ -98,11 +98,17 @@ class Experiment:
         return _experiment(fields, self.origin, self.base, text, suffix, host)
 
 
-def _changed(fields: dict, changes: Mapping[str, Any] | None, origin: str) -> dict:
+def _changed(
+    fields: dict, changes: Mapping[str, Any] | None, origin: str, overrides: Sequence[str] = ()
+) -> dict:
     """A copy of `fields` with `changes` made, numpy's numbers and arrays anywhere in either
     as Python's (`_plain`); an InputError names `origin`, the fields' file or <dict>, or
-    `changes` where they are not a mapping of dotted paths (text) to values."""
+    `changes` where they are not a mapping of dotted paths (text) to values. A field that
+    `changes` names twice (`stages.0.steps` and `stages[0].steps`), or that one of
+    `overrides` (the `--set` texts made before) sets too, is refused, as `--set` refuses
+    it, not set to the last value given."""
     from revdem_cli.config import set_field
+    from revdem_cli.config.loader import dotted, split_override
 
     changes = {} if changes is None else changes
     if not isinstance(changes, Mapping):
@@ -110,6 +116,7 @@ def _changed(fields: dict, changes: Mapping[str, Any] | None, origin: str) -> di
             "changes: a mapping of dotted paths to values, {'stages.0.steps': 100}, not "
             f"{type(changes).__name__}"
         )
+    given = {split_override(item)[0]: f"overrides {item!r}" for item in overrides}
     fields = _plain(fields)
     for key, value in changes.items():
         if not isinstance(key, str):
@@ -117,7 +124,11 @@ def _changed(fields: dict, changes: Mapping[str, Any] | None, origin: str) -> di
                 f"changes: the key {key!r}: a dotted path as text, 'stages.0.steps', not "
                 f"{type(key).__name__}"
             )
-        set_field(fields, key, _plain(value), f"{origin}: ")
+        name = dotted(key)
+        if name in given:
+            raise InputError(f"changes[{key!r}]: {name} is given twice (also {given[name]})")
+        given[name] = f"changes[{key!r}]"
+        set_field(fields, name, _plain(value), f"{origin}: ")
     return fields
 
 
@@ -157,7 +168,8 @@ def load(
     host: bool = True,
 ) -> Experiment:
     """The experiment of a scenario file (TOML or YAML), with `changes` (Python values at
-    dotted paths) and `overrides` (`--set` texts, `key=value` with the value in TOML) made."""
+    dotted paths) and `overrides` (`--set` texts, `key=value` with the value in TOML) made;
+    a field that both set is refused, as a field given twice to `--set` is."""
     from revdem_cli.config import apply_overrides, parse_text
     from revdem_cli.config.loader import read_scenario_text
 
@@ -166,11 +178,10 @@ def load(
         raise InputError(
             f"overrides: a list of key=value texts, not one text; give [{overrides!r}]"
         )
-    text, suffix = read_scenario_text(path), path.suffix.lower()
-    fields = apply_overrides(parse_text(text, suffix, str(path)), list(overrides), str(path))
-    return _experiment(
-        _changed(fields, changes, str(path)), str(path), path.parent, text, suffix, host
-    )
+    text, suffix, overrides = read_scenario_text(path), path.suffix.lower(), list(overrides)
+    fields = apply_overrides(parse_text(text, suffix, str(path)), overrides, str(path))
+    fields = _changed(fields, changes, str(path), overrides)
+    return _experiment(fields, str(path), path.parent, text, suffix, host)
 
 
 def from_dict(

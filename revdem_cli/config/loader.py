@@ -160,15 +160,21 @@ def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
     twice is refused, as `revdem sweep` refuses it, not cut to its last value."""
     given: dict[str, str] = {}
     for item in overrides:
-        key, sep, raw = item.partition("=")
-        if not sep or not key:
-            raise InputError(f"--set {item}: expected key=value")
-        name = dotted(key)
+        name, raw = split_override(item)
         if name in given:
             raise InputError(f"--set {item}: {name} is given twice (also --set {given[name]})")
         given[name] = item
         set_field(data, name, read_value(raw, f"--set {item}"), "--set ")
     return data
+
+
+def split_override(item: str) -> tuple[str, str]:
+    """The field's path (`dotted`) and the value's text of a `--set` text `key=value`;
+    InputError naming it if it is not key=value."""
+    key, sep, raw = item.partition("=")
+    if not sep or not key:
+        raise InputError(f"--set {item}: expected key=value")
+    return dotted(key), raw
 
 
 def read_value(raw: str, where: str):

@@ -105,6 +105,26 @@ def test_changes_that_are_not_a_mapping_of_dotted_paths_are_refused():
     )
 
 
+def test_a_field_given_twice_is_refused_as_set_refuses_it():
+    """A field in both `changes` and `overrides`, or twice in `changes` under two spellings
+    of its path, took the last value given where `--set` refuses it; each names both."""
+    collision = CONFIGS / "collision.toml"
+    with pytest.raises(InputError) as raised:
+        revdem.load(collision, {"integrator.dt": 1e-8}, overrides=["integrator.dt=5e-8"])
+    assert str(raised.value) == (
+        "changes['integrator.dt']: integrator.dt is given twice "
+        "(also overrides 'integrator.dt=5e-8')"
+    )
+    with pytest.raises(InputError) as raised:
+        revdem.load(collision).changed({"stages.0.steps": 100, " stages[0].steps": 200})
+    assert str(raised.value) == (
+        "changes[' stages[0].steps']: stages.0.steps is given twice "
+        "(also changes['stages.0.steps'])"
+    )
+    both = revdem.load(collision, {"stages[0].steps": 100}, overrides=["integrator.dt=5e-8"])
+    assert (both.scenario.stages[0].steps, both.scenario.integrator.dt) == (100, 5e-8)
+
+
 def test_what_is_run_and_each_switch_must_be_of_its_kind(tmp_path):
     """A dict or None given as the experiment raised AttributeError, and a switch given as
     text ran as True (`reverse="no"` reversed): each is refused, naming the argument and
