@@ -30,7 +30,7 @@ import numpy as np
 
 from revdem_cli.config import Scenario
 from revdem_cli.engine import Outputs
-from revdem_cli.errors import InputError, path_problem
+from revdem_cli.errors import InputError, path_problem, whole_number
 
 
 def _paths_checked(function):
@@ -65,6 +65,20 @@ def _check_switches(**switches) -> None:
     for name, value in switches.items():
         if not isinstance(value, bool | np.bool_):
             raise InputError(f"{name}={value!r}: True or False, not {type(value).__name__}")
+
+
+def _use_threads(threads: int | None) -> None:
+    """Compute with at most `threads` threads from here on (None: the cores this process may
+    use), as `--threads` sets them; the progress display's first line says how many.
+    InputError for a count that is not a whole number from 1 to numba's pool."""
+    from revdem_cli import threads as pool
+
+    if threads is not None and not whole_number(threads):
+        raise InputError(f"--threads {threads!r}: must be a whole number, 1 or more")
+    try:
+        pool.use(threads)
+    except ValueError as exc:
+        raise InputError(f"--threads {threads}: {exc}") from None
 
 
 def _folder(value, what: str) -> Path:
@@ -369,11 +383,13 @@ def run(
     force: bool = False,
     allow_unstable_dt: bool = False,
     progress: bool = False,
+    threads: int | None = None,
 ) -> Result:
     """Run every stage forward, and the reversed stage backwards with the comparison unless
     `reverse` is False, into the folder `out`, as `revdem run` does: earlier outputs are
     kept unless `force`, and a time step above the critical estimate is refused unless
-    `allow_unstable_dt`. A scenario file's path is loaded as it is (`load`)."""
+    `allow_unstable_dt`; on at most `threads` threads (`_use_threads`). A scenario file's
+    path is loaded as it is (`load`)."""
     from revdem_cli.engine import check_time_step, run_scenario
 
     _check_switches(
@@ -387,6 +403,7 @@ def run(
             f"Path), not {type(experiment).__name__}"
         )
     out = _folder(out, "out")
+    _use_threads(threads)
     keep_checkpoint(out, experiment.name, force)
     if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
         check_time_step(experiment.scenario, experiment.origin)
@@ -408,14 +425,16 @@ def reverse(
     steps: int | None = None,
     force: bool = False,
     progress: bool = False,
+    threads: int | None = None,
 ) -> Result:
     """Run the stage that ended at a restart backwards and compare it with its forward
-    trajectory, as `revdem reverse` does."""
+    trajectory, as `revdem reverse` does, on at most `threads` threads (`_use_threads`)."""
     from revdem_cli.engine import output_paths, reverse_run
     from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.io.restart import read_restart, restart_scenario
 
     _check_switches(force=force, progress=progress)
+    _use_threads(threads)
     restart = _path(restart, "restart")
     spec, forward = restart_scenario(restart)
     read_restart(restart)  # every dataset checked before earlier outputs are replaced
@@ -439,14 +458,16 @@ def reverse(
 
 
 @_paths_checked
-def resume(out: str | Path, progress: bool = False) -> Result:
-    """Continue the run whose checkpoint is in `out` to its end, as `revdem run --resume`."""
+def resume(out: str | Path, progress: bool = False, threads: int | None = None) -> Result:
+    """Continue the run whose checkpoint is in `out` to its end, as `revdem run --resume`,
+    on at most `threads` threads (`_use_threads`)."""
     from revdem_cli.checkpoint import SUFFIX, find_checkpoint
     from revdem_cli.engine import output_paths, resume_run
     from revdem_cli.io import exports_of
     from revdem_cli.io.restart import checkpoint_phase
 
     _check_switches(progress=progress)
+    _use_threads(threads)
     out = _folder(out, "out")
     checkpoint = find_checkpoint(out)
     paths = output_paths(out, checkpoint.name.removesuffix(SUFFIX))

@@ -134,16 +134,6 @@ Threads = Annotated[
 ]
 
 
-def _use_threads(threads: int | None) -> None:
-    """Compute with at most `threads` threads (the progress display's first line says so)."""
-    from revdem_cli import threads as pool
-
-    try:
-        pool.use(threads)
-    except ValueError as exc:
-        raise InputError(f"--threads {threads}: {exc}") from None
-
-
 def _progress_of(unit: str, compiling: bool):
     from revdem_cli.report.progress import RunProgress
 
@@ -206,8 +196,7 @@ def run(
                 f"--resume DIR continues a run as it was, into DIR: {', '.join(given)} "
                 "cannot change it (--quiet and --threads can)"
             )
-        _use_threads(threads)
-        print_summary(_interruptible(api.resume, resume, not quiet).outputs)
+        print_summary(_interruptible(api.resume, resume, not quiet, threads).outputs)
         return
     if scenario is None:
         raise InputError("give a scenario file, or --resume DIR")
@@ -224,9 +213,8 @@ def run(
         return
 
     experiment = api.load(scenario, overrides=overrides or [])
-    _use_threads(threads)
     result = _interruptible(
-        api.run, experiment, out, not no_reverse, force, allow_unstable_dt, not quiet
+        api.run, experiment, out, not no_reverse, force, allow_unstable_dt, not quiet, threads
     )
     print_summary(result.outputs)
 
@@ -274,8 +262,7 @@ def reverse(
     from revdem_cli import api
     from revdem_cli.report.summary import print_summary
 
-    _use_threads(threads)
-    outputs = _interruptible(api.reverse, restart, out, steps, force, not quiet).outputs
+    outputs = _interruptible(api.reverse, restart, out, steps, force, not quiet, threads).outputs
     print_summary(outputs)
 
 

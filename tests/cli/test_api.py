@@ -150,6 +150,36 @@ def test_what_is_run_and_each_switch_must_be_of_its_kind(tmp_path):
         short.changed({"stages.0.steps": 100}, host="yes")
 
 
+def test_threads_are_chosen_as_threads_chooses_them(tmp_path):
+    """`run`, `reverse` and `resume` took no thread count (only `revdem_cli.threads.use`
+    did); `threads=N` is `--threads N`: at most N threads, and a count that is not a whole
+    number from 1 to the pool's is refused as the command line refuses it."""
+    import numba
+
+    from revdem_cli import threads
+
+    short = revdem.load(CONFIGS / "collision.toml", {"stages.0.steps": 200})
+    try:
+        result = revdem.run(short, tmp_path / "run", reverse=False, threads=1)
+        assert numba.get_num_threads() == 1
+        threads.use()
+        revdem.reverse(result.outputs.restart, tmp_path / "back", steps=100, threads=1)
+        assert numba.get_num_threads() == 1
+        for count, problem in [
+            (threads.most() + 1, "NUMBA_NUM_THREADS"),
+            (0, "0 threads: between 1"),
+            (2.5, "must be a whole number"),
+            ("2", "must be a whole number"),
+            (True, "must be a whole number"),
+        ]:
+            with pytest.raises(InputError, match=rf"^--threads {count!r}: .*{problem}"):
+                revdem.run(short, tmp_path / "run", reverse=False, force=True, threads=count)
+            with pytest.raises(InputError, match=rf"^--threads {count!r}: .*{problem}"):
+                revdem.resume(tmp_path / "run", threads=count)
+    finally:
+        threads.use()
+
+
 def test_results_name_what_they_do_not_have(tmp_path):
     result = revdem.run(revdem.load(CONFIGS / "collision.toml"), tmp_path, reverse=False)
     assert result.comparison is None
