@@ -247,15 +247,42 @@ class Result:
         with open_trajectory(self.trajectory(run)) as f:
             return {name: read_observable(f, name) for name in observable_names(f)}
 
-    def frames(self, field: str = "position", run: str = "forward") -> tuple[np.ndarray, ...]:
-        """(steps, times in s, values [F, N, 3]) of a per-sphere field at every frame:
-        position, velocity, angular_velocity or force."""
-        from revdem_cli.io import FRAME_FIELDS
+    @property
+    def ended(self) -> bool | None:
+        """Whether the forward run reached its end: False for one that failed (a blow-up) or
+        was stopped (`revdem info` calls it unfinished), None for a trajectory written
+        before trajectories said."""
+        from revdem_cli.io.h5md import ended, open_trajectory
+
+        with open_trajectory(self.trajectory()) as f:
+            return ended(f)
+
+    def spheres(self, run: str = "forward") -> dict[str, np.ndarray]:
+        """What each sphere keeps through a run, [N] in the frames' order: radius (m), mass
+        (kg), id (the outputs' numbering) and material (its index in [materials])."""
         from revdem_cli.io.h5md import open_trajectory
 
-        if field not in FRAME_FIELDS:
-            raise InputError(f"no frame field '{field}' (fields: {', '.join(FRAME_FIELDS)})")
         with open_trajectory(self.trajectory(run)) as f:
+            group = f["particles/all"]
+            names = {"radius": "radius", "mass": "mass", "id": "id", "material": "species"}
+            return {name: group[stored][:] for name, stored in names.items()}
+
+    def frames(self, field: str = "position", run: str = "forward") -> tuple[np.ndarray, ...]:
+        """(steps, times in s, values [F, N, ...]) of a per-sphere field at every frame:
+        position, velocity, angular_velocity or force [F, N, 3]; where the run keeps them,
+        stress [F, N, 3, 3] (`[output] particle_stress`) and in fixed-point arithmetic the
+        integer state, position_grid, velocity_grid and angular_velocity_grid."""
+        from revdem_cli.io import FRAME_FIELDS, GRID_FIELDS
+        from revdem_cli.io.h5md import open_trajectory
+
+        with open_trajectory(self.trajectory(run)) as f:
+            kept = [
+                name
+                for name in (*FRAME_FIELDS, "stress", *GRID_FIELDS)
+                if f"particles/all/{name}" in f
+            ]
+            if field not in kept:
+                raise InputError(f"no frame field '{field}' (fields: {', '.join(kept)})")
             group = f[f"particles/all/{field}"]
             steps = group["step"][:]
             frames = len(steps)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from revdem_cli import api as revdem
-from revdem_cli.errors import InputError
+from revdem_cli.errors import InputError, RunFailed
 from tests.conftest import CONFIGS
 
 README = Path(__file__).parents[2] / "README.md"
@@ -301,3 +301,34 @@ def test_an_earlier_run_is_read_back_as_the_result_it_gave(tmp_path):
     assert forward_only.comparison is None and forward_only.outputs.reverse is None
     with pytest.raises(InputError, match="no run"):
         revdem.read(tmp_path)
+
+
+def test_a_result_gives_every_per_sphere_field_the_run_keeps_and_whether_it_ended(tmp_path):
+    """`frames` refused the spheres' stresses and the fixed-point grids a run writes, the
+    radii, masses, ids and materials were not to be had, and a run read back that had blown
+    up looked like one that had ended."""
+    experiment = revdem.load(CONFIGS / "smoke" / "collision.yaml").changed(
+        {"stages.0.steps": 300, "output.particle_stress": True, "integrator.arithmetic": "fixed"}
+    )
+    revdem.run(experiment, tmp_path / "a", reverse=False)
+    result = revdem.read(tmp_path / "a")
+    steps, _, stress = result.frames("stress")
+    assert stress.shape == (len(steps), 2, 3, 3) and np.allclose(stress, stress.swapaxes(2, 3))
+    _, _, grid = result.frames("position_grid")
+    assert grid.dtype == np.int64 and grid.shape == (len(steps), 2, 3)
+    spheres = result.spheres()
+    radii = [p.radius for p in experiment.scenario.particles]
+    assert spheres["radius"].tolist() == radii and spheres["id"].tolist() == [1, 2]
+    assert spheres["mass"] == pytest.approx(4 / 3 * np.pi * np.array(radii) ** 3 * 1000.0)
+    assert spheres["material"].tolist() == [0, 0] and result.ended is True
+    with pytest.raises(InputError, match="no frame field 'entropy' .*stress, position_grid"):
+        result.frames("entropy")
+
+    blown = revdem.load(CONFIGS / "smoke" / "collision.yaml").changed(
+        {"integrator.overlap_limit": 0.01}  # reached part-way into the contact
+    )
+    with pytest.raises(RunFailed):
+        revdem.run(blown, tmp_path / "b")
+    assert revdem.read(tmp_path / "b").ended is False
+    with pytest.raises(InputError, match="no frame field 'stress'"):
+        revdem.read(tmp_path / "b").frames("stress")
