@@ -512,7 +512,9 @@ def read(out: str | Path, name: str | None = None) -> Result:
     """The Result of a run written earlier into the folder `out` (by `revdem run`, a sweep's
     variant, this module): its forward trajectory, and its restart, reversed trajectory,
     comparison and figures where they are there; `name`, the scenario's, where `out` holds
-    several runs. The trajectory is checked as every command checks it."""
+    several runs. A folder that holds a reversal alone (`revdem reverse RESTART --out
+    FOLDER`) gives it with the forward run its restart ends, where that is still there. The
+    trajectories are checked as every command checks them."""
     from revdem_cli.compare import read_verdict
     from revdem_cli.engine import output_paths
     from revdem_cli.io.h5md import open_trajectory
@@ -521,17 +523,24 @@ def read(out: str | Path, name: str | None = None) -> Result:
     if not out.is_dir():
         raise InputError(f"{out}: {'a file, not' if out.exists() else 'no'} folder of a run")
     if name is None:
-        names = sorted(p.name.removesuffix(".forward.h5") for p in out.glob("*.forward.h5"))
+        runs = [*out.glob("*.forward.h5"), *out.glob("*.reverse.h5")]
+        names = sorted({path.name.rsplit(".", 2)[0] for path in runs})
         if len(names) != 1:
             found = f"the runs {', '.join(names)}; give name=" if names else "no run"
-            raise InputError(f"{out}: {found} (NAME.forward.h5)")
+            raise InputError(f"{out}: {found} (NAME.forward.h5, or NAME.reverse.h5)")
         name = names[0]
     paths = {
         kind: path if path.exists() else None for kind, path in output_paths(out, name).items()
     }
+    if paths["forward"] is None and paths["reverse"] is not None:
+        paths["restart"], paths["forward"] = _reversed_from(paths["reverse"])
     if paths["forward"] is None:
-        raise InputError(f"{out}: no run {name} ({name}.forward.h5)")
-    open_trajectory(paths["forward"]).close()
+        alone = f"; {name}.reverse.h5's restart or forward run is not there"
+        alone *= paths["reverse"] is not None
+        raise InputError(f"{out}: no run {name} ({name}.forward.h5{alone})")
+    for path in (paths["forward"], paths["reverse"]):
+        if path is not None:
+            open_trajectory(path).close()
     verdict = read_verdict(paths["compare"]) if paths["compare"] else None
     figures = tuple(sorted(out.glob(f"{name}.*.png")))
     return Result(
@@ -539,3 +548,19 @@ def read(out: str | Path, name: str | None = None) -> Result:
             paths["forward"], paths["restart"], paths["reverse"], paths["compare"], figures, verdict
         )
     )
+
+
+def _reversed_from(reverse: Path) -> tuple[Path | None, Path | None]:
+    """(the restart, the forward trajectory) a reversed trajectory was run from, where they
+    are still there (a restart copied beside the reversal first, as `revdem compare` looks
+    for it); None for what is not."""
+    from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.io.restart import restart_scenario
+
+    with open_trajectory(reverse) as f:
+        written = Path(str(f["parameters/revdem"].attrs.get("source_restart", "")))
+    for restart in (reverse.parent / written.name, written):
+        if written.name and restart.is_file():
+            forward = restart_scenario(restart)[1]
+            return restart, forward if forward.is_file() else None
+    return None, None

@@ -332,3 +332,21 @@ def test_a_result_gives_every_per_sphere_field_the_run_keeps_and_whether_it_ende
     assert revdem.read(tmp_path / "b").ended is False
     with pytest.raises(InputError, match="no frame field 'stress'"):
         revdem.read(tmp_path / "b").frames("stress")
+
+
+def test_a_reversal_into_a_folder_of_its_own_is_read_back_with_its_forward_run(tmp_path):
+    """`revdem.reverse(restart, out=elsewhere)` wrote a reversal that `read` refused: its
+    folder held no NAME.forward.h5. It now comes with the forward run its restart ends."""
+    experiment = revdem.load(CONFIGS / "smoke" / "collision.yaml").changed({"stages.0.steps": 300})
+    ran = revdem.run(experiment, tmp_path / "a", reverse=False)
+    reversed_ = revdem.reverse(ran.outputs.restart, out=tmp_path / "b", steps=200)
+    read = revdem.read(tmp_path / "b")
+    assert read.outputs.forward.resolve() == ran.outputs.forward.resolve()
+    assert read.outputs.restart.resolve() == ran.outputs.restart.resolve()
+    assert read.outputs.reverse == tmp_path / "b" / "collision_smoke.reverse.h5"
+    assert read.comparison == reversed_.comparison and read.comparison["reversible"]
+    steps, _, _ = read.frames("position", "reverse")
+    assert steps[0] == 300 and steps[-1] == 100
+    ran.outputs.restart.unlink()
+    with pytest.raises(InputError, match="reverse.h5's restart or forward run is not there"):
+        revdem.read(tmp_path / "b")
