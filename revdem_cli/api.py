@@ -552,15 +552,14 @@ def read(out: str | Path, name: str | None = None) -> Result:
 
 def _reversed_from(reverse: Path) -> tuple[Path | None, Path | None]:
     """(the restart, the forward trajectory) a reversed trajectory was run from, where they
-    are still there (a restart copied beside the reversal first, as `revdem compare` looks
-    for it); None for what is not."""
+    are still there (`compare.restart_places`); None for what is not."""
+    from revdem_cli.compare import restart_places
     from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.io.restart import restart_scenario
 
     with open_trajectory(reverse) as f:
-        written = Path(str(f["parameters/revdem"].attrs.get("source_restart", "")))
-    for restart in (reverse.parent / written.name, written):
-        if written.name and restart.is_file():
-            forward = restart_scenario(restart)[1]
-            return restart, forward if forward.is_file() else None
-    return None, None
+        places = restart_places(f, reverse)
+    if not places:
+        return None, None
+    forward = restart_scenario(places[0])[1]
+    return places[0], forward if forward.is_file() else None

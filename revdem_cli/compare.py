@@ -62,7 +62,9 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
     them, at which an error exceeds its tolerance (None if none does). `bitwise_identical`:
     every common frame holds the same bits, in fixed-point arithmetic the same integer
     state, and the same box (a periodic cell's edges, which positions in it are fractions
-    of), so the round trip returned exactly the state it started from.
+    of), so the round trip returned exactly the state it started from. With the
+    information tapes the reversal replayed (`tapes_replayed`), their summary
+    (`with_tapes`).
     """
     with open_trajectory(first) as a, open_trajectory(second) as b:
         pairing = check_pairing(a, b, Path(first), Path(second))
@@ -109,8 +111,9 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         first_divergence = first_divergence_of(rows, tolerance)
         causes = divergence_causes(a, first_divergence)
         energy = _energy_back(a, b)
+        tapes = tapes_replayed(b, Path(second))
     table = np.array([r[1:] for r in rows])
-    return {
+    verdict = {
         "frames_compared": len(rows),
         "max_position_error": float(table[:, 1].max()),
         "max_position_error_rel": float(table[:, 0].max()),
@@ -130,6 +133,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
             "velocity_error": table[:, 2].tolist(),
         },
     }
+    return with_tapes(verdict, tapes)
 
 
 def refuse_nothing_to_compare(forward: Path, start: int, stop: int) -> None:
@@ -171,6 +175,51 @@ def _energy_back(forward, reverse) -> dict | None:
     }
 
 
+def restart_places(reverse, second: Path) -> list[Path]:
+    """Where the restart the reversed trajectory `reverse` (the open file `second`) began
+    from is, of the places it may be: beside the reversal first (a run's folder copied or
+    moved keeps the paths it was written with), then where it was written."""
+    written = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
+    if not written.name:
+        return []
+    return [path for path in (second.parent / written.name, written) if path.is_file()]
+
+
+def tapes_replayed(reverse, second: Path) -> list[Path]:
+    """The information tapes the reversed trajectory `reverse` (the open file `second`)
+    replayed, the later stage's first, where its restart is still there (`restart_places`):
+    that restart's, and where every stage was reversed, on through the restarts before
+    (`previous`) while the reversal reached each one's stage start, as `engine` went."""
+    from revdem_cli.io.restart import restart_links
+
+    places = restart_places(reverse, second)
+    steps = frame_steps(reverse)
+    if not places or not len(steps):
+        return []
+    reached, restart, tapes = int(steps[-1]), places[0], []
+    while True:
+        tape, previous, first_step = restart_links(restart)
+        if tape:
+            tapes.append(restart.parent / tape)
+        if not previous or reached > first_step:
+            return tapes
+        restart = restart.parent / previous
+
+
+def with_tapes(verdict: dict, tapes: list[Path]) -> dict:
+    """`verdict` with the summary of the information tapes a reversal replayed (`io.tape`):
+    `information_tape`, all of them together, and with several `information_tapes`, each;
+    as it is where none is."""
+    from revdem_cli.io.tape import combined, summary
+
+    summaries = [summary(tape) for tape in tapes]
+    if summaries:
+        verdict["information_tape"] = combined(summaries)
+    if len(summaries) > 1:
+        verdict["information_tapes"] = summaries
+    return verdict
+
+
 def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     """That `second` reverses `first`: a forward trajectory and a reversed one, in that order,
     of one scenario, the reversal from a restart that ends `first` (when that restart is
@@ -208,12 +257,11 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     written = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
     reversed_scenario = Scenario.model_validate(scenarios[1]).model_dump(mode="json")
     source = ends = None
-    for path in (second.parent / written.name, written):
-        if path.is_file():
-            stored, trajectory = restart_scenario(path)
-            if stored.model_dump(mode="json") == reversed_scenario:
-                source, ends = path, trajectory
-                break
+    for path in restart_places(reverse, second):
+        stored, trajectory = restart_scenario(path)
+        if stored.model_dump(mode="json") == reversed_scenario:
+            source, ends = path, trajectory
+            break
     if source is None:  # names only: the same words wherever the runs were made
         return f"one scenario; the reversal's restart {written.name} is not there to say more"
     if ends.resolve() != first.resolve():

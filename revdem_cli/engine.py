@@ -19,8 +19,7 @@ from revdem_cli.errors import InputError, RunFailed, whole_number
 from revdem_cli.io import open_hdf5, write_text
 from revdem_cli.io.h5md import TrajectoryWriter, open_trajectory
 from revdem_cli.io.restart import Restart, Resumption, read_restart, write_restart
-from revdem_cli.io.tape import Recorder, Replayer, combined, recorded
-from revdem_cli.io.tape import summary as tape_summary
+from revdem_cli.io.tape import Recorder, Replayer, recorded
 from revdem_cli.kernels.events import COLUMNS, KINDS
 from revdem_cli.kernels.tape import MECHANISMS
 from revdem_cli.stage import (
@@ -413,7 +412,7 @@ def _reverse(
         stop = clock.first_step if steps is None else start.state.step - steps
         if Path(start.trajectory).exists():
             refuse_nothing_to_compare(Path(start.trajectory), start.state.step, stop)
-        events, tapes, began = None, [], None
+        events, began = None, None
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:
         stop, events = resumption.stop_step, resumption.events
@@ -422,12 +421,10 @@ def _reverse(
         writer = _continued_writer(  # the restart of the stage it goes on in
             paths["reverse"], resumption, start.state, run.model, text, "reverse", began
         )
-        tapes = _tapes_before(scenario, began, clock)
     with writer:
         while True:
             tape = _replayer(scenario, start, source, clock)
             _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress, so_far)
-            tapes += [tape.path] if tape else []
             if not start.previous or stop != clock.first_step:
                 break
             start, source = _stage_before(start, source)
@@ -444,11 +441,6 @@ def _reverse(
     if forward.exists():
         outputs.forward = forward
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
-        summaries = [tape_summary(tape) for tape in tapes]
-        if summaries:  # several: a reversal of every stage, the last stage's first
-            verdict["information_tape"] = combined(summaries)
-        if len(summaries) > 1:
-            verdict["information_tapes"] = summaries
         write_text(paths["compare"], json.dumps(verdict, indent=2) + "\n")
         outputs.comparison, outputs.verdict = paths["compare"], verdict
         run.checkpoints.finish(
@@ -465,20 +457,6 @@ def _source_restart(reversed_trajectory: Path) -> str:
     reversal of every stage, resumed in an earlier stage, keeps naming."""
     with open_trajectory(reversed_trajectory) as f:
         return str(f["parameters/revdem"].attrs["source_restart"])
-
-
-def _tapes_before(scenario: Scenario, first: str, clock: StageClock) -> list[Path]:
-    """The information tapes of the stages a reversal of every stage went back through
-    before the checkpoint it resumes from: from the stage its first restart `first` ended
-    down to the one after the stage it goes on in (`clock`'s), the later first; none where
-    the run has no tape."""
-    if not scenario.reversal.tape:
-        return []
-    folder, count = Path(first).parent, len(scenario.stages)
-    paths = [stage_paths(folder, scenario.name, k, scenario) for k in range(count)]
-    top = next(k for k in range(count) if paths[k]["restart"] == Path(first))
-    now = [stage.name for stage in scenario.stages].index(clock.stage.name)
-    return [paths[k]["tape"] for k in range(top, now, -1)]
 
 
 def _replayer(

@@ -356,6 +356,20 @@ def restart_stage_start(path: str | Path) -> int:
         return int(_meta(f, path, checkpoint=False).attrs["stage_first_step"])
 
 
+def restart_links(path: str | Path) -> tuple[str, str, int]:
+    """(its information tape's name, the restart of the stage before's name, the first step
+    of its stage) of a restart file, as `read_restart` checks them, without its arrays:
+    the chain a reversal of every stage goes back along."""
+    path = Path(path)
+    with open_hdf5(path) as f:
+        attrs = _meta(f, path, checkpoint=False).attrs
+        return (
+            str(attrs.get("tape", "")),
+            str(attrs.get("previous", "")),
+            int(attrs["stage_first_step"]),
+        )
+
+
 def checkpoint_phase(path: str | Path) -> str:
     """The phase a checkpoint stopped in, "forward" or "reverse" (`Resumption.phase`),
     checked as `read_restart` checks it, without reading its arrays."""

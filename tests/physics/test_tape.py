@@ -3,6 +3,7 @@ contact loss, rolling resistance or a servo breaks (Hanley 2020 §4-5) reverse t
 starting integers with it, and not without; a tape altered in one entry, or without the
 entries of one mechanism, parts the reversal; the bits it recorded by mechanism."""
 
+import json
 import math
 from pathlib import Path
 
@@ -545,6 +546,19 @@ def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
     ]
     with pytest.raises(InputError, match="reversal.all_stages: needs reversal.tape = true"):
         experiment.changed({"reversal.tape": False})
+    # `revdem compare` finds the tapes from the reversal's restart, as the run did: it left
+    # them out, and a verdict made again lost the information it counted
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+
+    pair = [str(result.trajectory()), str(result.trajectory("reverse"))]
+    again = CliRunner().invoke(app, ["compare", *pair, "--json"])
+    assert again.exit_code == 0, again.output
+    assert json.loads(again.output) == json.loads(json.dumps(verdict))
+    partial = revdem.reverse(result.outputs.restart, out=tmp_path / "part", steps=500)
+    assert partial.comparison["information_tape"]["file"] == "resting.tape.h5"
+    assert "information_tapes" not in partial.comparison
 
 
 def test_a_reversal_of_every_stage_resumes_in_an_earlier_stage(tmp_path):
