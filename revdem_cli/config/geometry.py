@@ -86,10 +86,10 @@ def lattice_spheres(lattice, materials: tuple[str, ...]) -> Spheres:
 
 def spheres_from(source, path: str, scenario, materials: tuple[str, ...]) -> Spheres:
     """The spheres of a [[particles_from]] table, read from its LAMMPS data file: each atom
-    type's material, each density that material's (to DENSITY_RTOL); positions unwrapped by
-    their image flags, or, in a periodic box (the scenario's cell), as the file has them
-    inside it, from the box's lower corner; in the order of the atoms' ids, or numbered in
-    space (`spatial_order`)."""
+    type's material, each density that material's (to DENSITY_RTOL); positions as the file
+    has them, in an open box inside it with no image flag, in a periodic box (the scenario's
+    cell) inside it, from the box's lower corner, their image flags set aside; in the order
+    of the atoms' ids, or numbered in space (`spatial_order`)."""
     from revdem_cli.assembly.packing import spatial_order
     from revdem_cli.errors import InputError
     from revdem_cli.io.lammps_data import read_lammps_data
@@ -114,7 +114,7 @@ def spheres_from(source, path: str, scenario, materials: tuple[str, ...]) -> Sph
             f"atom {data.id[k]} of {data.path} has density {data.density[k]:.17g} kg/m^3, its "
             f"material '{names[k]}' {density[k]:.17g}: a sphere's mass comes from its material",
         )
-    position = data.unwrapped
+    position = data.position
     if source.periodic:
         edges = data.upper - data.lower
         if not np.allclose(edges, scenario.cell.size, rtol=1e-12, atol=0.0):
@@ -123,8 +123,18 @@ def spheres_from(source, path: str, scenario, materials: tuple[str, ...]) -> Sph
                 f"{list(scenario.cell.size)}, but the periodic box of {data.path} has edges "
                 f"{edges.tolist()}",
             )
-        position = data.position - data.lower  # inside the cell, as the file has them
+        # inside the cell, as the file has them, the box moved to start at 0 (the cell's
+        position = data.position - data.lower  # [0, L)); displacements count from here
     else:  # an open box holds its atoms, as LAMMPS' read_data demands on a non-periodic axis
+        flagged = np.flatnonzero(data.image.any(1))
+        if len(flagged):  # a periodic run's: LAMMPS would reset them to 0, moving the atom
+            k = int(flagged[0])
+            raise FieldError(
+                f"{path}.lammps_data",
+                f"atom {data.id[k]} of {data.path} has image flags {data.image[k].tolist()}, "
+                "but periodic = false: no axis wraps; give periodic = true with the box as "
+                "[cell], or image flags 0",
+            )
         outside = np.flatnonzero(
             ((data.position < data.lower) | (data.position > data.upper)).any(1)
         )

@@ -349,8 +349,9 @@ loaded; `geometry.check_overlaps`), but for a data file's own (`ParticlesFrom.ma
 class ParticlesFrom(_Model):
     """Spheres read from a file another code wrote: a LAMMPS data file of atom_style sphere
     in units si (`write_data`), its atoms numbered in space (or in the order of their ids,
-    `order`), each keeping its id, with their diameters, positions (unwrapped by their image
-    flags) and, where the file has them, velocities and angular velocities. A sphere's mass
+    `order`), each keeping its id, with their diameters, positions (inside the box; in a
+    periodic one from its lower corner, image flags set aside) and, where the file has them,
+    velocities and angular velocities. A sphere's mass
     is its material's density times its volume: the density the file gives must be that
     material's."""
 

@@ -48,6 +48,14 @@ class LammpsData:
 
 
 _SECTION = re.compile(r"^[A-Za-z]")
+
+READ = ("Atoms", "Velocities")
+"""The sections of a data file whose numbers revdem takes."""
+SET_ASIDE = ("Pair Coeffs", "PairIJ Coeffs")
+"""Sections that LAMMPS' `write_data` writes beside them and revdem sets aside: a contact's
+coefficients come from the scenario's [materials] and [contact]. Any other section (Bonds,
+Masses, Ellipsoids, a keyword misspelt) is refused, as LAMMPS refuses a keyword it does not
+know: its numbers would be lost without a word."""
 _UNITS = re.compile(r"units\s*=\s*(\w+)")
 
 
@@ -122,6 +130,15 @@ def _sections(path: Path, lines: list[str], start: int) -> dict[str, list[tuple[
         if not text:
             continue
         if _SECTION.match(text):
+            if text not in READ + SET_ASIDE:
+                meant = [name for name in READ if name.lower() == text.lower()]
+                hint = f" (did you mean {meant[0]}?)" if meant else ""
+                raise _fail(
+                    path, k + 1, f"section '{text}'{hint}: revdem reads the {' and '.join(READ)} "
+                    f"of atom_style sphere, and sets aside {' and '.join(SET_ASIDE)}",
+                )  # fmt: skip
+            if text in sections:
+                raise _fail(path, k + 1, f"a second {text} section")
             rows = sections.setdefault(text, [])
             if text == "Atoms":
                 style = lines[k].partition("#")[2].strip()
@@ -171,13 +188,16 @@ def read_lammps_data(path: str | Path) -> LammpsData:
         if len(moving) != atoms:
             raise _fail(path, None, f"{atoms} atoms but {len(moving)} velocities")
         where = {atom: row for row, atom in enumerate(ids)}
+        given = set()
         for number, words in moving:
             values = _numbers(path, number, words, 7, "a velocity (id vx vy vz wx wy wz)")
-            if int(values[0]) not in where:
-                raise _fail(
-                    path, number, f"a velocity of atom {int(values[0])}, which is not there"
-                )
-            velocity[where[int(values[0])]] = values[1:]
+            atom = int(values[0])
+            if atom not in where:
+                raise _fail(path, number, f"a velocity of atom {atom}, which is not there")
+            if atom in given:  # another atom's is then missing
+                raise _fail(path, number, f"a second velocity of atom {atom}")
+            given.add(atom)
+            velocity[where[atom]] = values[1:]
     return LammpsData(
         path=path,
         lower=lower,

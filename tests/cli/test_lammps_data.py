@@ -231,6 +231,16 @@ def test_a_data_file_round_trip_keeps_every_number(tmp_path):
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 2 0.01 1000 0 0 0"), ["atom type 2"]),
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "1 1 -0.01 1000 0 0 0"), ["line 12"]),
         (lambda t: t.replace("1 1 0.01 1000 0 0 0", "0 1 0.01 1000 0 0 0"), ["line 12", "id 0"]),
+        # every velocity was lost without a word: a section LAMMPS does not know was skipped
+        (
+            lambda t: t.replace("Velocities", "velocities"),
+            ["line 121", "section 'velocities' (did you mean Velocities?)"],
+        ),
+        (lambda t: t + "\nBonds\n\n1 1 1 2\n", ["section 'Bonds'", "atom_style sphere"]),
+        (  # atom 1's velocity line given as atom 5's again: atom 1 started at rest
+            lambda t: t.replace("\n1 -0.004893302917480469 ", "\n5 -0.004893302917480469 "),
+            ["line 124", "a second velocity of atom 5"],
+        ),
         (
             lambda t: t.replace(
                 "17 1 0.01 1000 0.0141279934881072 0.0141279934881072 0",
@@ -311,6 +321,31 @@ def test_an_open_box_must_hold_its_atoms_as_lammps_read_data_demands(tmp_path, x
     assert_one_line_error(
         result, "particles_from[0].lammps_data", "atom 2 of", "lies at [0.05, 0.01, 0.01]",
         "outside its box [0.0, 0.0, 0.0] to [0.04, 0.04, 0.04]",
+    )  # fmt: skip
+
+
+def test_an_open_box_refuses_image_flags(tmp_path):
+    """periodic = false: an atom with an image flag was unwrapped by it to outside the box
+    the file gives, which the check of that box, reading the wrapped position, let through
+    (LAMMPS would have reset the flag to 0, moving the atom back)."""
+    from revdem_cli.io.lammps_data import lammps_data_text
+
+    radius = np.array([0.005, 0.005])
+    mass = 1000.0 * 4.0 / 3.0 * math.pi * radius**3
+    position = np.array([[0.01, 0.01, 0.01], [0.03, 0.01, 0.01]])
+    zeros, box = np.zeros((2, 3)), (np.zeros(3), np.full(3, 0.04))
+    image = np.array([[0, 0, 0], [1, 0, 0]])
+    text = lammps_data_text([1, 2], radius, mass, position, image, zeros, zeros, [1, 1], *box,
+                            0, "open box")  # fmt: skip
+    data = tmp_path / "open.data"
+    data.write_text(text)
+    scenario = _scenario(tmp_path, data)
+    text = scenario.read_text().replace("periodic = true\n", "")
+    scenario.write_text(text[: text.index("[cell]")] + text[text.index("[integrator]") :])
+    assert_one_line_error(
+        CliRunner().invoke(app, ["validate", str(scenario)]),
+        "particles_from[0].lammps_data", "atom 2 of", "has image flags [1, 0, 0], but "
+        "periodic = false",
     )  # fmt: skip
 
 
