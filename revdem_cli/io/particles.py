@@ -180,11 +180,22 @@ def export_gsd(
                 if frame.contacts is not None:
                     _bonds(snapshot, frame.contacts)
                 out.append(snapshot)
+        tmp.chmod(_file_mode())  # the gsd library makes its files rw-r-----
         tmp.replace(path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise WriteFailed(path, exc) from None
     return path
+
+
+def _file_mode() -> int:
+    """The permissions a file written with Python's `open` gets here: rw for all, less the
+    process's umask (read by setting it, then setting it back)."""
+    import os
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
 
 
 def _gsd_box(frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

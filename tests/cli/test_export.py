@@ -383,6 +383,25 @@ def test_the_contact_forces_figure_sets_the_reversal_beside_the_state_it_returne
     assert (tmp_path / "fcc_triaxial.contact_forces.png").stat().st_size > 10_000
 
 
+@pytest.mark.parametrize("fmt", ["gsd", "lammps-dump"])
+def test_an_export_is_readable_as_the_other_outputs_are(smoke_run, tmp_path, fmt):
+    """The gsd library writes rw-r-----: a .gsd was unreadable to the group's others, where
+    every other output follows the umask (rw-r--r-- under 022)."""
+    import os
+
+    trajectory = smoke_run / "collision_smoke.forward.h5"
+    target = tmp_path / f"out.{fmt}"
+    mask = os.umask(0o022)
+    try:
+        result = runner.invoke(
+            app, ["export", str(trajectory), "--format", fmt, "--out", str(target)]
+        )
+    finally:
+        os.umask(mask)
+    assert result.exit_code == 0, result.output
+    assert target.stat().st_mode & 0o777 == 0o644
+
+
 def test_gsd_keeps_hoomds_box_convention_in_a_cell_and_for_an_open_system(tmp_path):
     """A sphere that crossed a periodic cell's face lay outside the GSD box, its image flag
     0 (HOOMD-blue refuses such a frame); and an open system's box, periodic to every GSD
