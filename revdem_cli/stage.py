@@ -464,8 +464,10 @@ def _stop_reached(state: State, model: Model, dyn: Dynamics, stop, ran: int) -> 
 
     if stop.kinetic_energy_below is not None:
         return row[model.layout.column("kinetic_energy")] < stop.kinetic_energy_below
-    if stop.solid_fraction_above is not None:
-        return row[model.layout.column("solid_fraction")] > stop.solid_fraction_above
+    if stop.solid_fraction_above is not None:  # a container's, or a cell's 1 / (1 + e)
+        if model.scenario.solid_fraction is not None:
+            return row[model.layout.column("solid_fraction")] > stop.solid_fraction_above
+        return 1.0 / (1.0 + row[model.layout.column("void_ratio")]) > stop.solid_fraction_above
     if stop.wall_force_above is not None:
         force = vector(f"wall_force/{stop.wall}")
         return float(np.linalg.norm(force)) > stop.wall_force_above.force

@@ -110,10 +110,11 @@ def check_stop_conditions(scenario) -> None:
                     f"{speed * stage.steps * dt:.6g} m in this stage ({speed:g} m/s for "
                     f"{stage.steps} steps of {dt:g} s)",
                 )
-        if stop.solid_fraction_above and scenario.solid_fraction is None:
+        if stop.solid_fraction_above and scenario.solid_fraction is None and not scenario.cell:
             raise FieldError(
                 f"{path}.solid_fraction_above",
-                "needs a [solid_fraction] table saying which walls close the container",
+                "needs a periodic [cell] (its solid fraction, 1 / (1 + void ratio)) or a "
+                "[solid_fraction] table saying which walls close the container",
             )
 
 

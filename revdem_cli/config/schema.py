@@ -502,7 +502,11 @@ class StopWhen(_Model):
         "the stage moves: walls move at their velocity alone)",
     )
     solid_fraction_above: Float | None = Field(
-        default=None, gt=0, lt=1, description="the solid fraction of [solid_fraction] above this"
+        default=None,
+        gt=0,
+        lt=1,
+        description="the solid fraction of [solid_fraction], or of the periodic [cell] (the "
+        "spheres' volume over the cell's, 1 / (1 + void ratio)), above this",
     )
     after_steps: Int | None = Field(
         default=None,

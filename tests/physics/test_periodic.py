@@ -12,6 +12,7 @@ from revdem_cli.engine import run_scenario
 from revdem_cli.kernels.stress import particle_stress
 from revdem_cli.stage import Model
 from revdem_cli.state import initial_state
+from tests.conftest import CONFIGS
 
 KN = 1.0e5  # N/m
 
@@ -178,3 +179,23 @@ def test_the_trajectory_keeps_each_spheres_stress_and_their_mean_is_the_cells(tm
     mean = per_sphere.sum(axis=1) * (4 / 3 * math.pi * r**3) / (3 * spacing) ** 3
     expected = sigma[np.searchsorted(steps, frames)]
     np.testing.assert_allclose(mean, expected, rtol=1e-10, atol=1e-12 * expected.max())
+
+
+def test_a_periodic_cell_stops_a_stage_at_a_solid_fraction(tmp_path):
+    """solid_fraction_above asked for a [solid_fraction] container, which walls make and a
+    periodic cell refuses: a cell had no stop at a density. Its solid fraction is the
+    spheres' volume over the cell's, 1 / (1 + void ratio): the fcc lattice pressed from
+    touching (0.74048) by the servo passes 0.74053 at its first check, 50 steps in, and
+    never reaches 0.7406."""
+    from revdem_cli import api as revdem
+
+    experiment = revdem.load(CONFIGS / "fcc_triaxial.toml").changed(
+        {"stages.1.steps": 100, "output.figures": []}
+    )
+    for above, stopped in ((0.74053, {"isotropic": (50, 20000, 50)}), (0.7406, {})):
+        changed = experiment.changed({"stages.0.stop_when": {"solid_fraction_above": above}})
+        outputs = revdem.run(changed, tmp_path / str(above), reverse=False, threads=1).outputs
+        assert outputs.stopped == stopped
+        assert ("isotropic" in outputs.unmet) == (not stopped)
+    _, void_ratio = revdem.read(tmp_path / "0.74053").observable("void_ratio")
+    assert 1.0 / (1.0 + void_ratio[1]) > 0.74053 >= 1.0 / (1.0 + void_ratio[0])
