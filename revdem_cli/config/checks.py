@@ -236,8 +236,9 @@ def check_wall_materials(scenario) -> None:
 
 
 def check_cell(scenario) -> None:
-    """Stages move the cell only if there is one, and hold a stress only with the
-    parameter of its servo; walls and a periodic cell do not go together."""
+    """Stages move the cell only if there is one, hold a stress only with the parameter of
+    its servo, and strain it at a rate that leaves each edge a length; walls and a periodic
+    cell do not go together."""
     if scenario.cell is not None and scenario.walls:
         raise FieldError("walls", "walls cannot be combined with a periodic [cell]")
     for i, stage in enumerate(scenario.stages):
@@ -253,6 +254,16 @@ def check_cell(scenario) -> None:
                 f"stages[{i}] holds a stress with the {scenario.cell.servo} servo, which "
                 f"needs {needed}",
             )
+        dt = stage.dt if stage.dt is not None else scenario.integrator.dt
+        for axis, motion in zip("xyz", stage.cell.axes(), strict=True):
+            rate = None if motion is None else motion.strain_rate
+            if rate is not None and dt != "auto" and 1.0 + rate * stage.steps * dt <= 0.0:
+                raise FieldError(  # L = L0 (1 + rate t) from the stage's start
+                    f"stages[{i}].cell.{axis}.strain_rate",
+                    f"{rate:g} 1/s for {stage.steps} steps of {dt:g} s takes the edge to "
+                    f"{1.0 + rate * stage.steps * dt:.3g} times its length at the stage's "
+                    "start: below zero",
+                )
 
 
 def check_solid_fraction(scenario) -> None:

@@ -199,3 +199,23 @@ def test_a_periodic_cell_stops_a_stage_at_a_solid_fraction(tmp_path):
         assert ("isotropic" in outputs.unmet) == (not stopped)
     _, void_ratio = revdem.read(tmp_path / "0.74053").observable("void_ratio")
     assert 1.0 / (1.0 + void_ratio[1]) > 0.74053 >= 1.0 / (1.0 + void_ratio[0])
+
+
+def test_a_strain_rate_that_inverts_the_cell_is_refused_before_it_runs():
+    """The edge moves as L0 (1 + rate t) from the stage's start: -0.012 1/s over the shear
+    stage's 44 000 steps of 2 ms takes it to -0.056 L0, which `validate` let through and
+    the run met as a cell too small, 41 s in. -0.011 1/s leaves 0.032 L0: left to the
+    run's own check of the cell against the contact reach, which needs the spheres."""
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+    from tests.conftest import assert_one_line_error
+
+    args = ["validate", str(CONFIGS / "fcc_triaxial.toml"), "--set"]
+    assert_one_line_error(
+        CliRunner().invoke(app, [*args, "stages.1.cell.z.strain_rate=-0.012"]),
+        "stages[1].cell.z.strain_rate: -0.012 1/s for 44000 steps of 0.002 s takes the edge "
+        "to -0.056 times its length at the stage's start: below zero",
+    )
+    result = CliRunner().invoke(app, [*args, "stages.1.cell.z.strain_rate=-0.011"])
+    assert result.exit_code == 0, result.output
