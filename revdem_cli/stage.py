@@ -328,7 +328,7 @@ def run_stage(
                 checkpoint(state, clock, events)
                 raise RuntimeError(f"the stage loop was halted at step {state.step} for nothing")
             if status == CELL_TOO_SMALL:
-                raise CellTooSmall(state.step, state.cell.length)
+                raise CellTooSmall(state.step, state.cell.length, _servo_held(model, clock))
             if status == FIXED_OVERFLOW:
                 raise OffGrid(state.step, state.fixed, state.ids)
             if status == BLOWN_UP:
@@ -344,6 +344,7 @@ def run_stage(
                         _reversed_damping(
                             dyn, law, direction < 0 and not isinstance(tape, Replayer)
                         ),
+                        _servo_held(model, clock),
                     ),
                     _frames_held(writer, frames[0], direction),
                 )
@@ -395,6 +396,16 @@ def reversal_history(state: State, model: Model, clock: StageClock) -> None:
     state.particles.omega_past[...] = ahead.particles.omega_past[::-1]
 
 
+def _servo_held(model: Model, clock: StageClock) -> str:
+    """The axes on which a stage holds a stress with the cell's servo, in words ("" where
+    none): "the stage's inertial servo holds a stress on x, y"."""
+    motion = clock.stage.cell.axes() if clock.stage.cell else [None] * 3
+    axes = [axis for axis, m in zip("xyz", motion, strict=True) if m and m.stress]
+    if not axes:
+        return ""
+    return f"the stage's {model.scenario.cell.servo} servo holds a stress on {', '.join(axes)}"
+
+
 def _frames_held(writer: TrajectoryWriter, start: int, direction: int) -> str:
     """What a trajectory holds when its stage, begun at step `start`, fails: forward, the
     frames up to the last written; reversed, those from `start` down to it (the reversal's
@@ -419,11 +430,12 @@ def _reversed_damping(dyn: Dynamics, law: ContactLaw, backwards: bool) -> str:
     return " and ".join(words for present, words in kinds if present and backwards)
 
 
-def _likely_cause(scenario: Scenario, dt: float, damping: str = "") -> str:
+def _likely_cause(scenario: Scenario, dt: float, damping: str = "", servo: str = "") -> str:
     """What the time step says about a blow-up: above the critical estimate, the likely
     cause; above the least a sphere in many contacts may need (`guard.CROWDED`), a possible
     one; below that, unlikely to be, and where the stage's `damping` ran backwards
-    (`_reversed_damping`), that is."""
+    (`_reversed_damping`), that is; where the stage's `servo` holds a stress
+    (`_servo_held`), it is among what may drive the spheres together."""
     from revdem_cli.timestep.guard import CROWDED, critical_time_step
 
     limit, reason = critical_time_step(scenario)
@@ -440,7 +452,9 @@ def _likely_cause(scenario: Scenario, dt: float, damping: str = "") -> str:
             "took it out going forward (Hanley 2020 §5.2; an information tape, reversal.tape, "
             f"reverses it exactly); {of_dt}"
         )
-    drives = "what drives the spheres together (walls, the cell, overlaps at the start, velocities)"
+    cell = f"the cell ({servo}: a servo_mass too small or a servo_gain too large overshoots)"
+    causes = f"walls, {cell if servo else 'the cell'}, overlaps at the start, velocities"
+    drives = f"what drives the spheres together ({causes})"
     crowded = limit / math.sqrt(CROWDED)
     if abs(dt) > crowded:
         return (

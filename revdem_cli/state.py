@@ -342,11 +342,17 @@ class CellTooSmall(RunFailed):
     """A periodic edge shrank to twice the contact reach or less: spheres could then touch
     through two images."""
 
-    def __init__(self, step: int, length: np.ndarray):
+    def __init__(self, step: int, length: np.ndarray, servo: str = ""):
         edges = ", ".join(f"{edge:.4g}" for edge in length)
+        held = (
+            f"; or {servo} and overshoots: a servo_mass too small or a servo_gain too large "
+            "for the packing's stiffness swings an edge further at each step"
+            if servo
+            else ""
+        )
         super().__init__(
             f"step {step}: the periodic cell ({edges} m) is no longer more than twice the "
-            "contact reach 2 r_max + skin on every axis; compress it less or start bigger"
+            f"contact reach 2 r_max + skin on every axis; compress it less or start bigger{held}"
         )
 
 

@@ -142,3 +142,26 @@ def test_examine_names_the_deepest_overlap_with_a_sphere_or_a_wall():
     assert what == TOO_DEEP and alarm[:3] == [TOO_DEEP, 1, -1]
     assert np.isclose(alarm[3], 0.6)
     assert on_floor.integrator.overlap_limit == 0.5  # the default
+
+
+def test_a_blow_up_under_a_servo_names_it(tmp_path):
+    """The fcc lattice held at 150 kPa by an inertial servo whose edges weigh 100 kg where
+    8e8 keep it steady: the edges jump at the first step and crush the lattice. The line
+    said to look at "the cell"; it names the servo that moved it and how it overshoots. A
+    cell crushed below twice the contact reach says so too."""
+    from revdem_cli.state import CellTooSmall
+
+    args = ["run", str(CONFIGS / "fcc_triaxial.toml"), "--out", str(tmp_path), "-q"]
+    line = _failed(CliRunner().invoke(app, [*args, "--set", "cell.servo_mass=1e2", "--no-reverse"]))
+    assert "blown up at step 1:" in line
+    assert (
+        "the cell (the stage's inertial servo holds a stress on x, y, z: a servo_mass too "
+        "small or a servo_gain too large overshoots)" in line
+    )
+    said = str(CellTooSmall(7, np.array([1.0, 1.0, -0.5]), "the stage's inertial servo holds "
+                            "a stress on z"))  # fmt: skip
+    assert said.endswith(
+        "start bigger; or the stage's inertial servo holds a stress on z and "
+        "overshoots: a servo_mass too small or a servo_gain too large for the "
+        "packing's stiffness swings an edge further at each step"
+    )
