@@ -47,6 +47,9 @@ class Outputs:
     stopped: dict[str, tuple[int, int, int]] = field(default_factory=dict)
     # stages that ran all their steps with their stop condition never met: the condition
     unmet: dict[str, dict] = field(default_factory=dict)
+    # stages whose servo ended off its target stress (`_stress_not_held`): axis -> (stress
+    # at the stage's end, target), Pa
+    unheld: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
     # what else the forward run wrote: its stages' information tapes and, where every stage
     # is reversed, their restarts, each (what it is, path)
     stage_files: tuple[tuple[str, Path], ...] = ()
@@ -231,7 +234,7 @@ def _forward(
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
     so_far = "{}" if resume is None else resume.resumption.so_far
-    chosen, stopped, unmet, stage_files = carried_summary(run, so_far)
+    chosen, stopped, unmet, unheld, stage_files = carried_summary(run, so_far)
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
             stage = scenario.stages[index]
@@ -260,7 +263,7 @@ def _forward(
             place = dict(
                 phase="forward", stage_index=index, reverse=reverse, source_restart="",
                 stop_step=-1, end_step=-1,
-                so_far=summary_so_far(chosen, stopped, unmet, stage_files),
+                so_far=summary_so_far(chosen, stopped, unmet, unheld, stage_files),
             )  # fmt: skip
 
             def checkpoint(state, clock, events, place=place, tape=tape, files=files):
@@ -276,6 +279,8 @@ def _forward(
             elif stage.stop_when is not None:
                 condition = stage.stop_when.model_dump(exclude_none=True)
                 unmet[stage.name] = condition | _motion_left(state, stage.stop_when)
+            if off := _stress_not_held(state, run.model, stage):
+                unheld[stage.name] = off
             time = float(clock.time(state.step))
             if index < len(scenario.stages) - 1 and scenario.reversal.all_stages:
                 stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
@@ -291,13 +296,15 @@ def _forward(
     if reverse:
         restart = read_restart(paths["restart"])
         source = str(paths["restart"].resolve())
-        so_far = summary_so_far(chosen, stopped, unmet, stage_files)
+        so_far = summary_so_far(chosen, stopped, unmet, unheld, stage_files)
         reversed_outputs = _reverse(run, restart, source, None, progress, so_far)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
         reversed_outputs.chosen_dt, reversed_outputs.stopped = chosen, stopped
-        reversed_outputs.unmet, reversed_outputs.stage_files = unmet, outputs.stage_files
+        reversed_outputs.unmet, reversed_outputs.unheld = unmet, unheld
+        reversed_outputs.stage_files = outputs.stage_files
         return reversed_outputs
     outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
+    outputs.unheld = unheld
     run.checkpoints.discard()
     run.checkpoints.finish("its figures were drawn; its trajectory and restart are whole")
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
@@ -318,23 +325,53 @@ def _motion_left(state: State, stop) -> dict:
     return {"kinetic_energy_at_end": total, "rotation_share": spinning / total if total else 0.0}
 
 
-def summary_so_far(chosen: dict, stopped: dict, unmet: dict, stage_files: list) -> str:
+HELD = 0.05
+"""How far from its target, as a fraction of it, a servo may leave a stress at its stage's
+end before the run's summary says the stage did not hold it."""
+
+
+def _stress_not_held(state: State, model, stage) -> dict[str, tuple[float, float]]:
+    """Where `stage` holds a stress on an axis of the cell with its servo and ends off that
+    target by more than HELD: each such axis's (stress, target), Pa. A servo that overshoots
+    (an inertial servo_mass too small, a proportional servo_gain too large) or a stage too
+    short for it ends so; the run goes on, and its summary says so."""
+    motion = stage.cell.axes() if stage.cell is not None else [None] * 3
+    targets = {axis: m.stress for axis, m in zip("xyz", motion, strict=True) if m and m.stress}
+    if not targets:
+        return {}
+    row = model.observe(state, model.stage_dynamics(stage))
+    at = model.layout.column("stress")
+    sigma = row[at : at + 9].reshape(3, 3)
+    reached = {axis: float(sigma["xyz".index(axis), "xyz".index(axis)]) for axis in targets}
+    return {
+        axis: (reached[axis], target)
+        for axis, target in targets.items()
+        if not abs(reached[axis] - target) <= HELD * target
+    }
+
+
+def summary_so_far(
+    chosen: dict, stopped: dict, unmet: dict, unheld: dict, stage_files: list
+) -> str:
     """What a run's summary says of the stages run so far (`Outputs`' chosen_dt, stopped,
-    unmet and stage_files, the files by name), as JSON, which a checkpoint keeps so that the
-    run resumed says it too."""
+    unmet, unheld and stage_files, the files by name), as JSON, which a checkpoint keeps so
+    that the run resumed says it too."""
     files = [[label, Path(path).name] for label, path in stage_files]
-    return json.dumps(
-        {"chosen_dt": chosen, "stopped": stopped, "unmet": unmet, "stage_files": files}
-    )
+    said = {"chosen_dt": chosen, "stopped": stopped, "unmet": unmet, "unheld": unheld}
+    return json.dumps(said | {"stage_files": files})
 
 
-def carried_summary(run: Run, so_far: str) -> tuple[dict, dict, dict, list]:
-    """`summary_so_far` read back: (chosen_dt, stopped, unmet, stage_files), the files in
-    the run's folder as it is named now."""
+def carried_summary(run: Run, so_far: str) -> tuple[dict, dict, dict, dict, list]:
+    """`summary_so_far` read back: (chosen_dt, stopped, unmet, unheld, stage_files), the
+    files in the run's folder as it is named now."""
     said = json.loads(so_far)
     stopped = {name: tuple(counts) for name, counts in said.get("stopped", {}).items()}
+    unheld = {
+        name: {axis: tuple(pair) for axis, pair in axes.items()}
+        for name, axes in said.get("unheld", {}).items()
+    }
     files = [(label, run.out_dir / name) for label, name in said.get("stage_files", [])]
-    return dict(said.get("chosen_dt", {})), stopped, dict(said.get("unmet", {})), files
+    return dict(said.get("chosen_dt", {})), stopped, dict(said.get("unmet", {})), unheld, files
 
 
 def _stage_files(run: Run, index: int) -> tuple[str, str]:
@@ -531,8 +568,9 @@ def resume_run(
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
         outputs = _reverse(run, resume, place.source_restart, None, progress, place.so_far)
-    chosen, stopped, unmet, stage_files = carried_summary(run, place.so_far)
+    chosen, stopped, unmet, unheld, stage_files = carried_summary(run, place.so_far)
     outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
+    outputs.unheld = unheld
     outputs.stage_files = tuple(stage_files)
     for kind in ("forward", "restart"):  # named as the run's folder is named now
         path = getattr(outputs, kind)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from rich.console import Console
 from rich.table import Table
 
+from revdem_cli.engine import HELD
 from revdem_cli.report.info import stop_condition
 
 
@@ -102,6 +103,17 @@ def print_summary(outputs, console: Console | None = None) -> None:
                 f": {condition['kinetic_energy_at_end']:.3g} J at its end, "
                 f"{condition['rotation_share']:.0%} of it the spheres' rotation"
             )
+        console.print(line, soft_wrap=True)
+    for stage, axes in outputs.unheld.items():
+        held = ", ".join(
+            f"σ_{axis}{axis} {stress:.4g} Pa against {target:.4g}"
+            for axis, (stress, target) in axes.items()
+        )
+        line = (
+            f"  {'not held':<20} stage {stage} ended with its servo off its target stress: "
+            f"{held} (more than {HELD:.0%} off: a servo_mass too small or a servo_gain too "
+            "large overshoots, a stage too short does not get there)"
+        )
         console.print(line, soft_wrap=True)
     if outputs.verdict is not None:
         console.print(verdict_line(outputs.verdict))

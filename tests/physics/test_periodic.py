@@ -219,3 +219,39 @@ def test_a_strain_rate_that_inverts_the_cell_is_refused_before_it_runs():
     )
     result = CliRunner().invoke(app, [*args, "stages.1.cell.z.strain_rate=-0.011"])
     assert result.exit_code == 0, result.output
+
+
+def test_a_stage_that_ends_with_its_servo_off_its_target_says_so(tmp_path):
+    """The fcc lattice's inertial servo, given 20 steps of the 20 000 it takes to press the
+    lattice to 150 kPa, ends near 64 kPa; a run said nothing of it (nor of a proportional
+    servo whose gain overshoots). The summary now names each axis off its target by more
+    than 5 %; 200 steps get there, and nothing is said."""
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from revdem_cli import api as revdem
+    from revdem_cli.engine import HELD, carried_summary, summary_so_far
+    from revdem_cli.report.summary import print_summary
+
+    experiment = revdem.load(CONFIGS / "fcc_triaxial.toml").changed(
+        {"stages.1.steps": 100, "output.figures": []}
+    )
+    short = revdem.run(experiment.changed({"stages.0.steps": 20}), tmp_path / "short",
+                       reverse=False, threads=1).outputs  # fmt: skip
+    assert list(short.unheld) == ["isotropic", "shear"]
+    assert list(short.unheld["shear"]) == ["x", "y"]  # z is strained, not held
+    for stress, target in short.unheld["isotropic"].values():
+        assert target == 1.5e5 and abs(stress - target) > HELD * target
+    console = Console(record=True, width=400)
+    print_summary(short, console)
+    said = console.export_text()
+    assert (
+        "not held             stage isotropic ended with its servo off its target stress: "
+        "σ_xx " in said
+    )
+    kept = summary_so_far({}, {}, {}, short.unheld, [])  # what a checkpoint keeps, read back
+    assert carried_summary(SimpleNamespace(out_dir=tmp_path), kept)[3] == short.unheld
+    enough = revdem.run(experiment.changed({"stages.0.steps": 200}), tmp_path / "enough",
+                        reverse=False, threads=1).outputs  # fmt: skip
+    assert "isotropic" not in enough.unheld
