@@ -257,8 +257,7 @@ SMOKE = str(CONFIGS / "smoke" / "collision.yaml")
     [
         (["run", SMOKE, "--out", "{file}/sub"], "{file}/sub: {file} is a file, not a folder"),
         (["run", SMOKE, "--out", "{file}"], "{file}: a file, not a folder"),
-        (["dt", "--shape", "sphere", "--radius", "1", "--density", "1000", "--kn", "1e6",
-          "--figures", "{file}/x"], "{file}/x: {file} is a file, not a folder"),
+        (["dt", "--figures", "{file}/x"], "{file}/x: {file} is a file, not a folder"),
     ],
     ids=["run-under-a-file", "run-into-a-file", "dt-figures"],
 )  # fmt: skip

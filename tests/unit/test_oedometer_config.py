@@ -56,7 +56,9 @@ def test_a_solid_fraction_stop_needs_a_container():
     text = SMOKE.read_text()
     start = text.index("[solid_fraction]")
     end = text.index("[integrator]")
-    with pytest.raises(InputError, match="needs a \\[solid_fraction\\] table"):
+    with pytest.raises(
+        InputError, match="needs a periodic \\[cell\\] .* or a \\[solid_fraction\\] table"
+    ):
         scenario_from_text(text[:start] + text[end:], ".toml", "no_container.toml")
 
 
