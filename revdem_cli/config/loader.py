@@ -156,15 +156,18 @@ def parse_text(text: str, suffix: str, origin: str) -> dict:
 
 
 def apply_overrides(data: dict, overrides: list[str], origin: str) -> dict:
-    """Apply ``key.sub=value`` overrides, each value as `read_value` reads it; a key given
-    twice is refused, as `revdem sweep` refuses it, not cut to its last value."""
+    """Apply ``key.sub=value`` overrides, each value as `read_value` reads it, and an empty
+    one, ``key.sub=``, as None: an optional field so given is unset (its default, or none:
+    `stages.0.stop_when=`), as the API's None does; a key given twice is refused, as
+    `revdem sweep` refuses it, not cut to its last value."""
     given: dict[str, str] = {}
     for item in overrides:
         name, raw = split_override(item)
         if name in given:
             raise InputError(f"--set {item}: {name} is given twice (also --set {given[name]})")
         given[name] = item
-        set_field(data, name, read_value(raw, f"--set {item}"), "--set ")
+        value = read_value(raw, f"--set {item}") if raw.strip() else None
+        set_field(data, name, value, "--set ")
     return data
 
 

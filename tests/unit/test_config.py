@@ -81,6 +81,20 @@ def test_bad_fields_are_named_by_path(change, message):
     assert "\n" not in str(error.value)
 
 
+def test_an_empty_override_unsets_an_optional_field():
+    """`--set stages.0.stop_when=null` was refused as the text 'null', and nothing on the
+    command line unset a field a file gives: an empty value does, as the API's None does;
+    a field that must have a value is refused as before."""
+    smoke = CONFIGS / "smoke" / "oedometer.toml"
+    assert load_scenario(smoke)[0].stages[0].stop_when is not None
+    assert load_scenario(smoke, ["stages.0.stop_when="])[0].stages[0].stop_when is None
+    fcc = CONFIGS / "fcc_triaxial.toml"
+    unset = load_scenario(fcc, ["cell.servo=proportional", "cell.servo_mass="])[0]
+    assert unset.cell.servo_mass is None
+    with pytest.raises(InputError, match="integrator.dt: Input should be a valid number"):
+        load_scenario(CONFIGS / "collision.toml", ["integrator.dt="])
+
+
 def test_linear_law_requires_kn():
     with pytest.raises(InputError, match="contact: .*needs kn"):
         scenario_from_text(YAML.replace("kn: 1.0e4", ""), ".yaml", "pair.yaml")
