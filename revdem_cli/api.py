@@ -513,11 +513,14 @@ def read(out: str | Path, name: str | None = None) -> Result:
     variant, this module): its forward trajectory, and its restart, reversed trajectory,
     comparison and figures where they are there; `name`, the scenario's, where `out` holds
     several runs. A folder that holds a reversal alone (`revdem reverse RESTART --out
-    FOLDER`) gives it with the forward run its restart ends, where that is still there. The
-    trajectories are checked as every command checks them."""
+    FOLDER`) gives it with the forward run its restart ends, where that is still there.
+    What the run said of its stages (which stopped on their condition, the dt each 'auto'
+    one took, the stages' tapes and restarts) comes from its restart. The trajectories are
+    checked as every command checks them."""
     from revdem_cli.compare import read_verdict
-    from revdem_cli.engine import output_paths
+    from revdem_cli.engine import carried_summary, output_paths
     from revdem_cli.io.h5md import open_trajectory
+    from revdem_cli.io.restart import restart_summary
 
     out = _folder(out, "out")
     if not out.is_dir():
@@ -543,11 +546,14 @@ def read(out: str | Path, name: str | None = None) -> Result:
             open_trajectory(path).close()
     verdict = read_verdict(paths["compare"]) if paths["compare"] else None
     figures = tuple(sorted(out.glob(f"{name}.*.png")))
-    return Result(
-        Outputs(
-            paths["forward"], paths["restart"], paths["reverse"], paths["compare"], figures, verdict
-        )
+    outputs = Outputs(
+        paths["forward"], paths["restart"], paths["reverse"], paths["compare"], figures, verdict
     )
+    if paths["restart"] is not None:  # what the run said of its stages, which it keeps
+        said = carried_summary(paths["restart"].parent, restart_summary(paths["restart"]))
+        outputs.chosen_dt, outputs.stopped, outputs.unmet, outputs.unheld = said[:4]
+        outputs.stage_files = tuple(said[4])
+    return Result(outputs)
 
 
 def _reversed_from(reverse: Path) -> tuple[Path | None, Path | None]:

@@ -174,10 +174,13 @@ class Run:
         )
         self.checkpoints.save(self.restart(state, clock, trajectory, resumption, files))
 
-    def restart(self, state, clock, trajectory, resumption=None, files=("", "")) -> Restart:
+    def restart(
+        self, state, clock, trajectory, resumption=None, files=("", ""), summary: str = "{}"
+    ) -> Restart:
         """A restart of the state at the end of (or, with `resumption`, part-way through) the
         stage of `clock`; `files`: the names of the stage's information tape and of the
-        restart of the stage before it, which a reversal of every stage goes on from."""
+        restart of the stage before it, which a reversal of every stage goes on from;
+        `summary`: what the run says of its stages, where the restart ends it."""
         tape, previous = files
         return Restart(
             state,
@@ -192,6 +195,7 @@ class Run:
             resumption,
             tape,
             previous,
+            summary,
         )
 
 
@@ -234,7 +238,7 @@ def _forward(
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
     so_far = "{}" if resume is None else resume.resumption.so_far
-    chosen, stopped, unmet, unheld, stage_files = carried_summary(run, so_far)
+    chosen, stopped, unmet, unheld, stage_files = carried_summary(run.out_dir, so_far)
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
             stage = scenario.stages[index]
@@ -276,11 +280,12 @@ def _forward(
             if state.step != clock.last_step:  # its stop condition ended it
                 ran = state.step - clock.first_step
                 stopped[stage.name] = (ran, stage.steps, stage.observable_interval)
-            elif stage.stop_when is not None:
-                condition = stage.stop_when.model_dump(exclude_none=True)
-                unmet[stage.name] = condition | _motion_left(state, stage.stop_when)
-            if off := _stress_not_held(state, run.model, stage):
-                unheld[stage.name] = off
+            else:
+                if stage.stop_when is not None:
+                    condition = stage.stop_when.model_dump(exclude_none=True)
+                    unmet[stage.name] = condition | _motion_left(state, stage.stop_when)
+                if off := _stress_not_held(state, run.model, stage):  # after all its steps
+                    unheld[stage.name] = off
             time = float(clock.time(state.step))
             if index < len(scenario.stages) - 1 and scenario.reversal.all_stages:
                 stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
@@ -290,7 +295,10 @@ def _forward(
         writer.end()
     reversal_history(state, run.model, clock)  # a velocity predictor's, for the reversal
     last = _stage_files(run, len(scenario.stages) - 1)
-    write_restart(paths["restart"], run.restart(state, clock, paths["forward"], files=last))
+    said = summary_so_far(chosen, stopped, unmet, unheld, stage_files)
+    write_restart(
+        paths["restart"], run.restart(state, clock, paths["forward"], files=last, summary=said)
+    )
     outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
     outputs.stage_files = tuple(stage_files)
     if reverse:
@@ -331,8 +339,9 @@ end before the run's summary says the stage did not hold it."""
 
 
 def _stress_not_held(state: State, model, stage) -> dict[str, tuple[float, float]]:
-    """Where `stage` holds a stress on an axis of the cell with its servo and ends off that
-    target by more than HELD: each such axis's (stress, target), Pa. A servo that overshoots
+    """Where `stage` holds a stress on an axis of the cell with its servo and ends all its
+    steps off that target by more than HELD (a stage its stop condition ended is not
+    judged): each such axis's (stress, target), Pa. A servo that overshoots
     (an inertial servo_mass too small, a proportional servo_gain too large) or a stage too
     short for it ends so; the run goes on, and its summary says so."""
     motion = stage.cell.axes() if stage.cell is not None else [None] * 3
@@ -361,16 +370,16 @@ def summary_so_far(
     return json.dumps(said | {"stage_files": files})
 
 
-def carried_summary(run: Run, so_far: str) -> tuple[dict, dict, dict, dict, list]:
+def carried_summary(out_dir: Path, so_far: str) -> tuple[dict, dict, dict, dict, list]:
     """`summary_so_far` read back: (chosen_dt, stopped, unmet, unheld, stage_files), the
-    files in the run's folder as it is named now."""
+    files in the run's folder `out_dir` as it is named now."""
     said = json.loads(so_far)
     stopped = {name: tuple(counts) for name, counts in said.get("stopped", {}).items()}
     unheld = {
         name: {axis: tuple(pair) for axis, pair in axes.items()}
         for name, axes in said.get("unheld", {}).items()
     }
-    files = [(label, run.out_dir / name) for label, name in said.get("stage_files", [])]
+    files = [(label, out_dir / name) for label, name in said.get("stage_files", [])]
     return dict(said.get("chosen_dt", {})), stopped, dict(said.get("unmet", {})), unheld, files
 
 
@@ -568,7 +577,7 @@ def resume_run(
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
         outputs = _reverse(run, resume, place.source_restart, None, progress, place.so_far)
-    chosen, stopped, unmet, unheld, stage_files = carried_summary(run, place.so_far)
+    chosen, stopped, unmet, unheld, stage_files = carried_summary(run.out_dir, place.so_far)
     outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
     outputs.unheld = unheld
     outputs.stage_files = tuple(stage_files)

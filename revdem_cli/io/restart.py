@@ -82,6 +82,10 @@ class Restart:
     resumption: Resumption | None = None  # a checkpoint's place in its run
     tape: str = ""  # the information tape of the stage that ended here (io/tape.py), or none
     previous: str = ""  # the restart at the end of the stage before, when every stage reverses
+    # the restart that ends a run: what its summary says of the stages (which stopped on
+    # their condition, which did not meet it or hold their stress, the dt each 'auto' one
+    # took; `engine.summary_so_far`), JSON; {} in any other, and in one written before it
+    summary: str = "{}"
 
 
 def write_restart(path: Path, restart: Restart) -> None:
@@ -114,6 +118,7 @@ def _write_state(f: h5py.File, restart: Restart) -> None:
     meta.attrs["stage_dt"] = restart.stage_dt
     meta.attrs["tape"] = restart.tape
     meta.attrs["previous"] = restart.previous
+    meta.attrs["summary"] = restart.summary
     for name in Particles._fields:
         _put(f, f"particles/{name}", getattr(s.particles, name))
     _put(f, "particles/id", s.ids)
@@ -287,6 +292,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         resumption=resumption,
         tape=str(meta.attrs.get("tape", "")),
         previous=str(meta.attrs.get("previous", "")),
+        summary=str(meta.attrs.get("summary", "{}")),
     )
 
 
@@ -354,6 +360,14 @@ def restart_stage_start(path: str | Path) -> int:
     path = Path(path)
     with open_hdf5(path) as f:
         return int(_meta(f, path, checkpoint=False).attrs["stage_first_step"])
+
+
+def restart_summary(path: str | Path) -> str:
+    """What the run a restart ends said of its stages (`Restart.summary`), as `read_restart`
+    checks it, without its arrays."""
+    path = Path(path)
+    with open_hdf5(path) as f:
+        return str(_meta(f, path, checkpoint=None).attrs.get("summary", "{}"))
 
 
 def restart_links(path: str | Path) -> tuple[str, str, int]:

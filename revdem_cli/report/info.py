@@ -113,6 +113,11 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
     checkpoint = checkpoint_path(path.parent, info["scenario"])
     if checkpoint.exists():  # the run stopped, or is going on
         info["checkpoint"] = str(checkpoint)
+    restart = path.with_name(f"{info['scenario']}.restart.h5")
+    if info["direction"] == "forward" and restart.is_file():  # what its run said of its stages
+        from revdem_cli.io.restart import restart_summary
+
+        info |= _stages_ran(restart_summary(restart))
     comparison = path.with_name(f"{info['scenario']}.compare.json")
     if comparison.exists():
         verdict = read_verdict(comparison)
@@ -206,7 +211,51 @@ def _restart(path: Path) -> dict:
         "stage_dt": float(restart.stage_dt),
         "trajectory": restart.trajectory,
         **_tape_of(path, restart.tape),
+        **_stages_ran(restart.summary),
     }
+
+
+def _stages_ran(summary: str) -> dict:
+    """What the run a restart ends said of its stages (`Restart.summary`), where it said
+    anything: `stages_ran`, {stopped, unmet, unheld, chosen_dt} of those it has."""
+    import json
+
+    said = {
+        key: value
+        for key, value in json.loads(summary).items()
+        if key in ("stopped", "unmet", "unheld", "chosen_dt") and value
+    }
+    return {"stages_ran": said} if said else {}
+
+
+def stresses_off(axes: dict) -> str:
+    """The stresses a servo ended a stage with off their targets (`engine.Outputs.unheld`),
+    in words: 'σ_xx 6.386e+04 Pa against 1.5e+05, ...'."""
+    return ", ".join(
+        f"σ_{axis}{axis} {stress:.4g} Pa against {target:.4g}"
+        for axis, (stress, target) in axes.items()
+    )
+
+
+def _stages_ran_lines(said: dict) -> list[str]:
+    """`_stages_ran` as `label: value` lines, as the run's summary said them."""
+    lines = [
+        f"stopped:    stage {stage} after {ran} of {most} steps, on its stop condition"
+        for stage, (ran, most, _) in said.get("stopped", {}).items()
+    ]
+    lines += [
+        f"not met:    stage {stage} ran all its steps without {stop_condition(condition)}"
+        for stage, condition in said.get("unmet", {}).items()
+    ]
+    lines += [
+        f"not held:   stage {stage}: {stresses_off(axes)}"
+        for stage, axes in said.get("unheld", {}).items()
+    ]
+    lines += [
+        f"time step:  {dt:.6g} s in stage {stage} (dt = 'auto')"
+        for stage, dt in said.get("chosen_dt", {}).items()
+    ]
+    return lines
 
 
 def _tape_of(path: Path, name: str) -> dict:
@@ -300,6 +349,7 @@ def info_lines(info: dict) -> list[str]:
         lines.append(f"trajectory: {info['trajectory']}")
         if "tape" in info:
             lines += tape_lines(info["tape"])
+    lines += _stages_ran_lines(info.get("stages_ran", {}))
     verdict = info.get("comparison")
     if verdict is not None:
         if verdict["reversible"]:

@@ -6,7 +6,7 @@ from rich.console import Console
 from rich.table import Table
 
 from revdem_cli.engine import HELD
-from revdem_cli.report.info import stop_condition
+from revdem_cli.report.info import stop_condition, stresses_off
 
 
 def comparison_table(verdict: dict) -> Table:
@@ -105,14 +105,10 @@ def print_summary(outputs, console: Console | None = None) -> None:
             )
         console.print(line, soft_wrap=True)
     for stage, axes in outputs.unheld.items():
-        held = ", ".join(
-            f"σ_{axis}{axis} {stress:.4g} Pa against {target:.4g}"
-            for axis, (stress, target) in axes.items()
-        )
         line = (
             f"  {'not held':<20} stage {stage} ended with its servo off its target stress: "
-            f"{held} (more than {HELD:.0%} off: a servo_mass too small or a servo_gain too "
-            "large overshoots, a stage too short does not get there)"
+            f"{stresses_off(axes)} (more than {HELD:.0%} off: a servo_mass too small or a "
+            "servo_gain too large overshoots, a stage too short does not get there)"
         )
         console.print(line, soft_wrap=True)
     if outputs.verdict is not None:

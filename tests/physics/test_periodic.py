@@ -226,8 +226,6 @@ def test_a_stage_that_ends_with_its_servo_off_its_target_says_so(tmp_path):
     lattice to 150 kPa, ends near 64 kPa; a run said nothing of it (nor of a proportional
     servo whose gain overshoots). The summary now names each axis off its target by more
     than 5 %; 200 steps get there, and nothing is said."""
-    from types import SimpleNamespace
-
     from rich.console import Console
 
     from revdem_cli import api as revdem
@@ -251,7 +249,35 @@ def test_a_stage_that_ends_with_its_servo_off_its_target_says_so(tmp_path):
         "σ_xx " in said
     )
     kept = summary_so_far({}, {}, {}, short.unheld, [])  # what a checkpoint keeps, read back
-    assert carried_summary(SimpleNamespace(out_dir=tmp_path), kept)[3] == short.unheld
+    assert carried_summary(tmp_path, kept)[3] == short.unheld
     enough = revdem.run(experiment.changed({"stages.0.steps": 200}), tmp_path / "enough",
                         reverse=False, threads=1).outputs  # fmt: skip
     assert "isotropic" not in enough.unheld
+
+
+def test_what_a_run_said_of_its_stages_is_read_back_from_its_restart(tmp_path):
+    """Where a stage stopped on its condition, which did not hold its stress: the run's
+    summary said it once, and `revdem info` and `read` had lost it (`read` gave stopped {}).
+    The restart that ends the run keeps it."""
+    from typer.testing import CliRunner
+
+    from revdem_cli import api as revdem
+    from revdem_cli.cli import app
+
+    experiment = revdem.load(CONFIGS / "fcc_triaxial.toml").changed(
+        {
+            "stages.0.stop_when": {"solid_fraction_above": 0.74053},
+            "stages.1.steps": 20,
+            "output.figures": [],
+        }
+    )
+    ran = revdem.run(experiment, tmp_path, reverse=False, threads=1).outputs
+    assert ran.stopped == {"isotropic": (50, 20000, 50)} and list(ran.unheld) == ["shear"]
+    read = revdem.read(tmp_path).outputs
+    assert (read.stopped, read.unheld, read.unmet) == (ran.stopped, ran.unheld, ran.unmet)
+    for name in ("restart", "forward"):
+        shown = CliRunner().invoke(app, ["info", str(tmp_path / f"fcc_triaxial.{name}.h5")])
+        assert shown.exit_code == 0, shown.output
+        lines = shown.output.splitlines()
+        assert "stopped:    stage isotropic after 50 of 20000 steps, on its stop condition" in lines
+        assert any(line.startswith("not held:   stage shear: σ_xx ") for line in lines)
