@@ -569,3 +569,90 @@ def _reversed_from(reverse: Path) -> tuple[Path | None, Path | None]:
         return None, None
     forward = restart_scenario(places[0])[1]
     return places[0], forward if forward.is_file() else None
+
+
+def _number(name: str, value, optional: bool = True):
+    """A number argument as a float (None where `optional` and not given); InputError naming
+    `name` for anything else (a text, a list, a bool)."""
+    if value is None and optional:
+        return None
+    if isinstance(value, bool | np.bool_) or not isinstance(value, int | float | np.number):
+        raise InputError(f"{name}={value!r}: a number, not {type(value).__name__}")
+    return float(value)
+
+
+def _particle(name: str, given: dict | None) -> dict:
+    """A particle's description for `critical_time_step`, its values checked for their kind:
+    `name`, what the argument is called."""
+    from revdem_cli.timestep.command import PARTICLE_FIELDS
+
+    if given is None:
+        return {}
+    if not isinstance(given, dict):
+        raise InputError(
+            f"{name}: a dict of {', '.join(PARTICLE_FIELDS)}, not {type(given).__name__}"
+        )
+    described = {}
+    for key, value in given.items():
+        if key not in PARTICLE_FIELDS:
+            raise InputError(f"{name}[{key!r}]: not one of {', '.join(PARTICLE_FIELDS)}")
+        if key == "shape":
+            if not isinstance(value, str):
+                raise InputError(
+                    f"{name}['shape']={value!r}: a shape's name, not {type(value).__name__}"
+                )
+            described[key] = value
+        elif key == "vertices":
+            described[key] = _path(value, f"{name}['vertices']")
+        elif key in ("semi_axes", "exponents"):
+            count = 3 if key == "semi_axes" else 2
+            if isinstance(value, str) or not hasattr(value, "__len__") or len(value) != count:
+                raise InputError(f"{name}[{key!r}]={value!r}: {count} numbers")
+            described[key] = tuple(_number(f"{name}[{key!r}]", v, False) for v in value)
+        else:
+            described[key] = _number(f"{name}[{key!r}]", value)
+    return described
+
+
+def critical_time_step(
+    particle: dict,
+    other: dict | None = None,
+    *,
+    kn: float,
+    ks: float | None = None,
+    damping: float = 0.0,
+    omega_max: float | None = None,
+    trvp_order: int = 0,
+    verify: bool = False,
+) -> dict:
+    """The critical time steps of two convex, centrally symmetric particles in contact, as
+    `revdem dt --json` gives them (Peng 2020): `particle` a dict of shape, its size (radius;
+    semi_axes, with exponents for a superquadric; vertices, a file) and density, `other`
+    the second particle's where it differs; `verify` integrates the pair as `--verify`.
+    Example: critical_time_step({"shape": "ellipsoid", "semi_axes": (3, 2, 1),
+    "density": 1000}, kn=1e10)["recommended_dt"]."""
+    from revdem_cli.timestep.command import assess_pair
+
+    _check_switches(verify=verify)
+    if not whole_number(trvp_order):
+        raise InputError(f"trvp_order={trvp_order!r}: a whole number, 0 to 4")
+    numbers = {
+        "kn": _number("kn", kn, False),
+        "ks": _number("ks", ks),
+        "damping": _number("damping", damping, False),
+        "omega_max": _number("omega_max", omega_max),
+    }
+    return assess_pair(
+        _particle("particle", particle), _particle("other", other), **numbers,
+        trvp_order=int(trvp_order), verify=verify,
+    )  # fmt: skip
+
+
+def packing_time_step(restart: str | Path, verify: bool = False) -> dict:
+    """The critical time step of the packing a restart or checkpoint holds, as `revdem dt
+    --restart FILE --json` gives it: the largest eigenvalue of M⁻¹K beside every estimate,
+    and with `verify` the engine's own bracket."""
+    from revdem_cli.timestep.packing import assess_restart
+
+    _check_switches(verify=verify)
+    return assess_restart(_path(restart, "restart"), verify)

@@ -208,6 +208,23 @@ class _Case:
         )
 
 
+PARTICLE_FIELDS = tuple(_Particle.__dataclass_fields__)
+"""What describes a particle: shape, radius, semi_axes, exponents, vertices, density."""
+
+
+def assess_pair(
+    first: dict, other: dict, kn, ks, damping, omega_max, trvp_order: int, verify: bool
+) -> dict:
+    """`revdem dt --json` of two particles, each a dict of some of PARTICLE_FIELDS (the
+    other's not given taken from the first's), checked as the command line checks them."""
+
+    def particle(given: dict) -> _Particle:
+        return _Particle(**{name: given.get(name) for name in PARTICLE_FIELDS})
+
+    case = _Case(particle(first), particle(other), kn, ks, damping, omega_max, trvp_order)
+    return case.assess(verify).to_dict()
+
+
 def _sweep_values(spec: str) -> tuple[str, list[float]]:
     """`name=start:stop:count` as the name and `count` evenly spaced values, each one the
     option takes (its ends are checked as the option is, naming --sweep)."""

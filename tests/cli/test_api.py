@@ -350,3 +350,53 @@ def test_a_reversal_into_a_folder_of_its_own_is_read_back_with_its_forward_run(t
     ran.outputs.restart.unlink()
     with pytest.raises(InputError, match="reverse.h5's restart or forward run is not there"):
         revdem.read(tmp_path / "b")
+
+
+def test_critical_time_steps_are_the_command_lines(tmp_path):
+    """`revdem dt` had no Python function: its internals took a negative radius and gave a
+    negative mass. `critical_time_step` and `packing_time_step` give what `--json` prints,
+    checked as the command line checks it."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+
+    ellipsoid = {"shape": "ellipsoid", "semi_axes": (3, 2, 1), "density": 1000}
+    given = revdem.critical_time_step(ellipsoid, kn=1e10, damping=np.float64(0.5))
+    args = ["dt", "--shape", "ellipsoid", "--semi-axes", "3", "2", "1", "--density", "1000"]
+    printed = CliRunner().invoke(app, [*args, "--kn", "1e10", "--damping", "0.5", "--json"])
+    assert printed.exit_code == 0, printed.output
+    assert json.loads(json.dumps(given)) == json.loads(printed.output)  # tuples as lists
+    sphere = {"shape": "sphere", "radius": 0.01, "density": 2500}
+    pair = revdem.critical_time_step(sphere, {"radius": 0.02}, kn=1e6)
+    alone = revdem.critical_time_step({**sphere, "radius": 0.02}, {"radius": 0.01}, kn=1e6)
+    assert pair["recommended_dt"] == alone["recommended_dt"]  # the pair either way round
+    for wrong, message in (
+        ({**sphere, "radius": -1.0}, "--radius must be a positive number, got -1"),
+        ({**sphere, "radius": "1"}, "particle['radius']='1': a number, not str"),
+        ({**sphere, "size": 1}, "particle['size']: not one of shape, radius"),
+        ({**ellipsoid, "semi_axes": (3, 2)}, "particle['semi_axes']=(3, 2): 3 numbers"),
+        ([0.01], "particle: a dict of shape"),
+    ):
+        with pytest.raises(InputError, match=re.escape(message)):
+            revdem.critical_time_step(wrong, kn=1e6)
+    with pytest.raises(InputError, match=re.escape("kn=True: a number, not bool")):
+        revdem.critical_time_step(sphere, kn=True)
+
+    run = revdem.run(
+        revdem.load(CONFIGS / "fcc_triaxial.toml").changed(
+            {"stages.0.steps": 200, "stages.1.steps": 100, "output.figures": []}
+        ),
+        tmp_path,
+        reverse=False,
+        threads=1,
+    )
+    packing = revdem.packing_time_step(run.outputs.restart)
+    printed = CliRunner().invoke(app, ["dt", "--restart", str(run.outputs.restart), "--json"])
+    timed = json.loads(printed.output)
+    for report in (packing, timed):
+        report["assembly"].pop("seconds")
+    assert json.loads(json.dumps(packing)) == timed and packing["assembly"]["dt"] > 0.0
+    with pytest.raises(InputError, match="restart: a path"):
+        revdem.packing_time_step(3)
