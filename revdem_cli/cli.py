@@ -413,6 +413,14 @@ def export(
             "of an earlier export of TRAJECTORY in the --out folder).",
         ),
     ] = False,
+    step: Annotated[
+        int | None,
+        typer.Option(
+            "--step",
+            help="lammps-data: the frame at this step (default: the last); the other formats "
+            "write every frame.",
+        ),
+    ] = None,
 ) -> None:
     """Export a trajectory: VTK for ParaView, GSD or a LAMMPS dump for OVITO, a LAMMPS data
     file of its last frame for LAMMPS and LIGGGHTS.
@@ -432,6 +440,7 @@ def export(
         given = "give one" if format is None else f"got {format!r}"
         raise InputError(f"export: --format must be one of {', '.join(EXPORT_SUFFIXES)}; {given}")
     from contextlib import nullcontext
+    from functools import partial
 
     from revdem_cli.io import particles, refuse_overwriting
     from revdem_cli.io.vtk import export_vtk, own_files
@@ -446,11 +455,14 @@ def export(
             f"export: --out {target}: holds {earlier[0].name}{more} of an earlier export of "
             f"{trajectory.name}; use --force to overwrite"
         )
+    if step is not None and format != "lammps-data":
+        raise InputError(f"export: --step picks the frame of a lammps-data export; {format} "
+                         "writes every frame")  # fmt: skip
     exporter = {
         "vtk": export_vtk,
         "gsd": particles.export_gsd,
         "lammps-dump": particles.export_lammps_dump,
-        "lammps-data": particles.export_lammps_data,
+        "lammps-data": partial(particles.export_lammps_data, step=step),
     }[format]
     with nullcontext() if quiet else _progress_of("frames", False) as shown:
         written = exporter(trajectory, target, shown)

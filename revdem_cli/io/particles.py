@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import (
     frame_steps,
     frames_per_block,
@@ -54,10 +55,11 @@ PER_FRAME = ("position", "velocity", "angular_velocity")
 
 
 def frames(
-    trajectory: str | Path, last_only: bool = False, progress: FrameProgress | None = None
+    trajectory: str | Path, at_step: int | None = None, progress: FrameProgress | None = None
 ) -> Iterator[Frame]:
-    """The frames of a revdem trajectory (`last_only`: its last), checked by
-    `open_trajectory` first; `progress` told of each once its consumer has it done."""
+    """The frames of a revdem trajectory (`at_step`: the one at that step alone; -1, its
+    last), checked by `open_trajectory` first; `progress` told of each once its consumer
+    has it done. InputError naming the steps it has where none is at `at_step`."""
     with open_trajectory(trajectory) as f:
         particles = f["particles/all"]
         radius, mass, ids = particles["radius"][:], particles["mass"][:], particles["id"][:]
@@ -65,13 +67,17 @@ def frames(
         periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
         times = particles["position/time"][:]
         steps = frame_steps(f)
-        first, per_block = len(steps) - 1 if last_only else 0, frames_per_block(len(radius))
+        first, stop = 0, len(steps)
+        if at_step is not None:
+            first = len(steps) - 1 if at_step == -1 else _frame_at(steps, at_step, trajectory)
+            stop = first + 1
+        per_block = frames_per_block(len(radius))
         if periodic:
             edges = particles["box/edges/value"][:]
         else:
-            lower, upper = _bounding_box(f, radius, range(first, len(steps)))
-        for start in range(first, len(steps), per_block):  # read a block of frames at once
-            block = np.arange(start, min(len(steps), start + per_block))
+            lower, upper = _bounding_box(f, radius, range(first, stop))
+        for start in range(first, stop, per_block):  # read a block of frames at once
+            block = np.arange(start, min(stop, start + per_block))
             fields = [read_frames(f, name, block) for name in PER_FRAME]
             for k, position, velocity, spin in zip(block, *fields, strict=True):
                 if periodic:
@@ -79,8 +85,20 @@ def frames(
                 yield Frame(int(steps[k]), float(times[k]), lower, upper, periodic, ids,
                             species + 1, radius, mass, position, velocity, spin,
                             read_contacts(f, k))  # fmt: skip
-                if progress is not None:  # of the frames exported: the last alone, 1 of 1
-                    progress(Path(trajectory).name, int(k) + 1 - first, len(steps) - first)
+                if progress is not None:  # of the frames exported: one alone, 1 of 1
+                    progress(Path(trajectory).name, int(k) + 1 - first, stop - first)
+
+
+def _frame_at(steps: np.ndarray, step: int, trajectory) -> int:
+    """The index of the frame at `step`; InputError naming the steps there are where none."""
+    found = np.flatnonzero(steps == step)
+    if len(found):
+        return int(found[0])
+    shown = ", ".join(str(s) for s in steps[:3]) + (f", ..., {steps[-1]}" if len(steps) > 3 else "")
+    raise InputError(
+        f"--step {step}: {Path(trajectory).name} has no frame there; its frames are at steps "
+        f"{shown}"
+    )
 
 
 def _bounding_box(f, radius: np.ndarray, exported: range) -> tuple[np.ndarray, np.ndarray]:
@@ -222,16 +240,19 @@ def _gsd_box(frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def export_lammps_data(
-    trajectory: str | Path, path: str | Path, progress: FrameProgress | None = None
+    trajectory: str | Path,
+    path: str | Path,
+    progress: FrameProgress | None = None,
+    step: int | None = None,
 ) -> Path:
-    """The last frame as a LAMMPS data file (atom_style sphere, units si, `read_data`):
-    id, radius, density, position (in a periodic box wrapped into it, with image flags),
-    velocity and angular velocity of every sphere, 17 significant digits, so that
-    `[[particles_from]]` reads back the same numbers bit for bit, each under its id."""
+    """The last frame (or the one at `step`) as a LAMMPS data file (atom_style sphere, units
+    si, `read_data`): id, radius, density, position (in a periodic box wrapped into it, with
+    image flags), velocity and angular velocity of every sphere, 17 significant digits, so
+    that `[[particles_from]]` reads back the same numbers bit for bit, each under its id."""
     from revdem_cli.io import write_text
     from revdem_cli.io.lammps_data import lammps_data_text, wrapped
 
-    (last,) = frames(trajectory, last_only=True, progress=progress)
+    (last,) = frames(trajectory, -1 if step is None else step, progress)
     position, image = last.position, np.zeros(last.position.shape, dtype=np.int64)
     if last.periodic:  # inside the box, with the crossings as image flags, as LAMMPS has them
         position, image = wrapped(last.position, last.upper)

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from revdem_cli.cli import app
 from revdem_cli.config import load_scenario
-from revdem_cli.io.h5md import open_trajectory
+from revdem_cli.io.h5md import frame_steps, open_trajectory
 from revdem_cli.io.lammps_data import read_header, read_lammps_data
 from tests.conftest import assert_one_line_error
 
@@ -175,6 +175,32 @@ def test_a_frame_exported_as_a_data_file_reads_back_bit_for_bit(lammps_run, tmp_
     assert np.array_equal(spheres.angular_velocity, frame["angular_velocity"])
     with open_trajectory(trajectory) as f:
         assert np.array_equal(spheres.radius, f["particles/all/radius"][:])
+
+
+def test_a_data_file_of_any_frame_is_exported_with_step(lammps_run, tmp_path):
+    """A data file was the last frame's alone; `--step N` takes the frame at step N (here
+    the first, LAMMPS' own starting state), named in its header, and a step with no frame is
+    refused naming those there are."""
+    trajectory = lammps_run / "fcc_from_lammps.forward.h5"
+    with open_trajectory(trajectory) as f:
+        steps = frame_steps(f)
+        velocity = f["particles/all/velocity/value"][0]
+        ids = f["particles/all/id"][:]
+    exported = tmp_path / "first.data"
+    args = ["export", str(trajectory), "--format", "lammps-data", "--out", str(exported)]
+    result = CliRunner().invoke(app, [*args, "--step", str(steps[0])])
+    assert result.exit_code == 0, result.output
+    assert f"at step {steps[0]}," in exported.read_text().splitlines()[0]
+    data = read_lammps_data(exported)
+    assert np.array_equal(data.velocity, velocity[np.argsort(ids)])  # the file by ids
+    there = ", ".join(str(step) for step in steps)
+    assert_one_line_error(
+        CliRunner().invoke(app, [*args, "--step", str(steps[0] + 1), "--force"]),
+        f"--step {steps[0] + 1}: fcc_from_lammps.forward.h5 has no frame there; its frames "
+        f"are at steps {there}",
+    )
+    gsd = ["export", str(trajectory), "--format", "gsd", "--out", str(tmp_path / "t.gsd")]
+    assert_one_line_error(CliRunner().invoke(app, [*gsd, "--step", "0"]), "--step picks")
 
 
 def test_exported_atoms_keep_their_lammps_ids(lammps_run, tmp_path):
