@@ -27,7 +27,7 @@ import re
 import time
 import tomllib
 from collections.abc import Callable
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -264,18 +264,44 @@ def _client(scheduler: str | None, workers: int, threads: int | None):
         with client:
             yield client
         return
-    with (
-        LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            env={"NUMBA_NUM_THREADS": str(threads or max(1, available() // workers))},
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+    with ExitStack() as stack:
+        with _born_deaf():
+            cluster = stack.enter_context(
+                LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                    env={"NUMBA_NUM_THREADS": str(threads or max(1, available() // workers))},
+                )
+            )
+        client = stack.enter_context(Client(cluster))
         client.register_plugin(_deaf_to_signals())
         yield client
+
+
+@contextmanager
+def _born_deaf():
+    """SIGINT and SIGTERM blocked in this thread while a local cluster starts: the threads
+    it starts and the processes they start (nannies, workers: a signal mask is inherited
+    across fork and exec) are born with them blocked, so that Ctrl-C, which reaches every
+    process of the terminal's group, cannot end a worker still starting (dask then failed,
+    "Nanny failed to start", or waited for it for minutes). This process takes a signal
+    that came meanwhile as the mask is restored: the stop file (`checkpoint.first_signal`),
+    no variant started. The resource tracker of multiprocessing is started first: starting
+    it unblocks both signals in the thread that starts it (`resource_tracker.ensure_running`),
+    which would be the one that then starts the workers."""
+    import signal
+    from multiprocessing import resource_tracker
+
+    from revdem_cli.checkpoint import SIGNALS
+
+    resource_tracker.ensure_running()
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 def _deaf_to_signals():

@@ -662,6 +662,44 @@ def test_a_signal_while_the_sweeps_cluster_starts_stops_it_before_any_variant_be
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.csv", "sweep.h5"]
 
 
+def _spawned_in_group(group: int) -> bool:
+    """Whether a process of multiprocessing's spawn (a dask nanny or worker) runs in the
+    process group `group`."""
+    for entry in Path("/proc").iterdir():
+        try:
+            if entry.name.isdigit() and os.getpgid(int(entry.name)) == group:
+                if b"spawn_main" in (entry / "cmdline").read_bytes():
+                    return True
+        except (OSError, ProcessLookupError):
+            continue
+    return False
+
+
+def test_ctrl_c_as_the_local_clusters_workers_start_stops_the_sweep_with_its_table(tmp_path):
+    """Ctrl-C reaches every process of the terminal's group: the sweep's workers too, while
+    their nanny starts them, before they ignore it. dask then failed ("Nanny failed to
+    start", exit 1, no table) or waited for a worker that never came, for minutes. Workers
+    are now born with both signals blocked; the sweep takes the signal once its cluster is
+    up, and stops with every variant not started, its table written."""
+    command = [sys.executable, "-m", "revdem_cli.cli", *SWEEP, "--out", str(tmp_path)]
+    process = subprocess.Popen(command, start_new_session=True, stderr=subprocess.PIPE, text=True)
+    while not _spawned_in_group(process.pid):
+        assert process.poll() is None, process.communicate()[1]
+        time.sleep(0.002)
+    os.killpg(process.pid, signal.SIGINT)
+    try:
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 130, err
+    assert err.strip().splitlines()[-1] == (
+        "stopped: SIGINT: 0 variants done, 0 stopped with a checkpoint, 4 not started; "
+        "continue with the same command and --resume"
+    ), err
+    assert [row["status"] for row in _sweep_rows(tmp_path)] == ["not started"] * 4
+
+
 def test_a_signal_while_the_figures_are_drawn_says_what_is_whole(tmp_path, monkeypatch):
     """A signal after the comparison was written said the run stopped "before its
     comparison and figures were written", though compare.json was there. The line now says
