@@ -524,8 +524,9 @@ def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> 
     all their outputs there and no checkpoint (the row its table has, or else, for one
     finished apart with `revdem run --resume`, the row its files give, without seconds).
     A variant neither done nor stopped with a checkpoint has what it left removed, as it
-    will run again. InputError if there is no earlier sweep, or if a variant's checkpoint or
-    outputs are of another scenario than this sweep's variant."""
+    will run again. InputError if there is no earlier sweep, if its table lists other
+    variants (a finished sweep's, which going on with these would replace), or if a
+    variant's checkpoint or outputs are of another scenario than this sweep's variant."""
     from revdem_cli.api import keep_outputs, output_paths_of
     from revdem_cli.checkpoint import find_checkpoints
 
@@ -533,6 +534,12 @@ def _earlier_results(out_dir: Path, loaded: list[tuple], folders: list[str]) -> 
     if not table.exists() and not any((out_dir / folder).is_dir() for folder in folders):
         raise InputError(f"--resume {out_dir}: no sweep there (no sweep.h5, no variant folder)")
     rows = read_table(table) if table.exists() else {}
+    if rows and sorted(rows) != sorted(folders):  # another sweep's table, not to be replaced
+        listed = ", ".join(sorted(rows)[:3]) + (" ..." if len(rows) > 3 else "")
+        raise InputError(
+            f"--resume {out_dir}: its sweep has other variants ({listed}) than these; give "
+            "its --set to go on with it, or --force without --resume to start over"
+        )
     results = {}
     for index, ((scenario, _), folder) in enumerate(zip(loaded, folders, strict=True)):
         checkpoints = find_checkpoints(out_dir / folder)

@@ -606,6 +606,16 @@ def test_resume_keeps_a_finished_sweep_and_refuses_one_of_other_values(tmp_path)
         CliRunner().invoke(app, other), f"{tmp_path / '000_steps=200'}", "another scenario"
     )
     assert (tmp_path / "sweep.csv").read_text() == table
+    # other values in other folders: it ran them and wrote their table over the finished
+    # sweep's, whose runs then stood in no table
+    values = [*args[:-1], "stages.0.steps=400,300", "--resume"]
+    assert_one_line_error(
+        CliRunner().invoke(app, values),
+        f"--resume {tmp_path}: its sweep has other variants (000_steps=200, 001_steps=300) "
+        "than these",
+    )
+    assert (tmp_path / "sweep.csv").read_text() == table
+    assert not (tmp_path / "000_steps=400").exists()
     fresh = [*args[:-4], "--out", str(tmp_path / "none"), "--resume"]
     assert_one_line_error(CliRunner().invoke(app, fresh), "no sweep there")
 
