@@ -298,7 +298,10 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     """What destroyed information just before the reversed run parted from the forward one.
 
     The reversed run parts at the frame `divergence_step`, having come from the next frame
-    of the forward run: the mechanisms that acted in between, newest first. If none did:
+    of the forward run: the mechanisms that acted in between, newest first; if none did,
+    those that acted at any step after it up to the restart (the reversal met them first:
+    a drop held at its terminal velocity by drag parts only where the forward run started
+    from rest, far from where the drag map's fixed point took its time). If none did:
     the reversed run's division by gamma_d where the run has drag, which amplifies round-off
     exponentially, and a time step above the critical one or the kinematic limit where the
     run was let go on at one (`--allow-unstable-dt`); otherwise nothing is named (round-off
@@ -310,11 +313,16 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     later = np.nonzero(steps > divergence_step)[0]
     if len(later) == 0:
         return []
-    log = forward["observables/events/value"][int(later[0])]
     scenario = _scenario_of(forward)
     walls = [wall.name for wall in scenario.walls] if scenario else []
     ids = forward["particles/all/id"][:]
-    window = [k for k in range(len(KINDS)) if log[k, COUNT] > 0 and log[k, LAST] > divergence_step]
+    for frame in (int(later[0]), -1):  # just before it parted, else any time after
+        log = forward["observables/events/value"][frame]
+        window = [
+            k for k in range(len(KINDS)) if log[k, COUNT] > 0 and log[k, LAST] > divergence_step
+        ]
+        if window:
+            break
     velocity_read = _velocity_read(scenario)
     causes = sorted(
         (_cause(k, log[k], walls, ids, velocity_read) for k in window),

@@ -1,6 +1,7 @@
 """compare.json's divergence causes: the particles they name."""
 
 import numpy as np
+import pytest
 
 from revdem_cli.compare import _cause
 from revdem_cli.kernels.events import AMOUNT, COLUMNS, COUNT, KINDS, LAST, PARTICLE, PARTNER
@@ -48,3 +49,23 @@ def test_a_cause_of_the_whole_run_names_no_particle_and_keeps_the_keys_of_a_mech
     unstable = _unstable_time_step(excess, 1000, 400)
     assert list(unstable) == keys and unstable["amount"] == 6e-4 / 3.86e-4
     assert "1.55 times the critical time step" in unstable["message"]
+
+
+def test_a_drop_held_at_its_terminal_velocity_is_blamed_on_the_drag_maps_fixed_point(tmp_path):
+    """Drop A's sphere with gamma_d = 0.999, 60 000 steps in the air: it reaches the terminal
+    velocity gamma_d g dt / (1 - gamma_d) by step 30 173 and the reversal, held there, climbs back
+    to rest never, parting only at step 0. The causes looked between step 0 and the next
+    frame, found nothing and blamed drag's amplification of round-off; the fixed point,
+    logged from step 30 173, is named."""
+    from revdem_cli import api as revdem
+    from tests.conftest import CONFIGS
+
+    experiment = revdem.load(CONFIGS / "drop_A.toml").changed(
+        {"damping.drag": 0.999, "stages.0.steps": 60000, "stages.0.output_every": 5000}
+    )
+    verdict = revdem.run(experiment, tmp_path, threads=1).comparison
+    assert verdict["first_divergence_step"] == 0
+    (cause,) = verdict["divergence_causes"]
+    assert cause["mechanism"] == "velocity_fixed_point_under_drag"
+    # v = gamma (v + g dt) at the fixed point (Eq 25): gamma g dt / (1 - gamma)
+    assert cause["amount"] == pytest.approx(0.999 * 9.81 * 1e-8 / 1e-3, rel=1e-6)
