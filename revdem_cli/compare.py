@@ -441,6 +441,15 @@ def _velocity_read(scenario: Scenario | None) -> str:
     )
 
 
+def _newtons(force: float) -> str:
+    """A force in the prefix of N its size reads in: 4 mN, 7.73 MN (the fcc test's 'removed
+    7.73e+06 mN')."""
+    for factor, unit in ((1e6, "MN"), (1e3, "kN"), (1.0, "N"), (1e-3, "mN"), (1e-6, "µN")):
+        if abs(force) >= factor or force == 0.0 and unit == "N":
+            return f"{force / factor:.3g} {unit}"
+    return f"{force * 1e9:.3g} nN"
+
+
 def _cause(kind: int, entry, walls: list[str], ids: np.ndarray, velocity_read: str) -> dict:
     """One mechanism of the event log `entry` as compare.json gives it: its last step, the
     particle and, at a contact (CONTACTS), the partner (a sphere's index in the arrays, -1 - w
@@ -455,10 +464,10 @@ def _cause(kind: int, entry, walls: list[str], ids: np.ndarray, velocity_read: s
     particle = particle_named(q, ids) if q >= 0 else "no particle"
     contact = f"the contact of {particle} and {partner_named(partner, ids, walls)}"
     messages = {
-        "contact_lost_with_shear_force": f"{contact} lost shear force {amount * 1e3:.3g} mN at "
+        "contact_lost_with_shear_force": f"{contact} lost shear force {_newtons(amount)} at "
         f"step {step}: the force zeroed at separation cannot be recovered",
         "coulomb_slip": f"{contact} slid at step {step}: the Coulomb limit removed "
-        f"{amount * 1e3:.3g} mN of shear force, which cannot be recovered",
+        f"{_newtons(amount)} of shear force, which cannot be recovered",
         "local_damping": f"local damping (gamma_l = {amount:g}) acted up to step {step}: "
         f"{velocity_read}",
         "viscous_damping": f"viscous contact damping acted up to step {step}: {velocity_read}",

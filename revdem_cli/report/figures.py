@@ -30,13 +30,26 @@ def _figure(
     png: Path,
     series,
     ylabel: str,
-    xlabel: str = "time (ms)",
+    xlabel: str,
     over_reversal: bool = False,
 ) -> Path:
     """Plot series(path) -> [(label, x, values)] for both runs: forward solid, reversed
     dashed, same colour per series; an entry (note, None, None) titles the legend instead
     (what was left out). `over_reversal`: as `_panels`'."""
     return _panels(forward, reverse, png, [(series, ylabel)], xlabel, over_reversal)
+
+
+def _time_unit(forward: Path) -> tuple[float, str]:
+    """(factor, label) of the time axis of a run's figures, in a unit its duration reads
+    well in: s from 10 s on (the fcc test's 128 s read as 128 000 ms), µs below 1 ms, else
+    ms."""
+    from revdem_cli.io.h5md import open_trajectory
+
+    with open_trajectory(forward) as f:
+        times = f["observables/kinetic_energy/time"][:]
+    end = float(np.abs(times).max()) if len(times) else 0.0
+    factor, unit = (1.0, "s") if end >= 10.0 else (1e6, "µs") if end < 1e-3 else (1e3, "ms")
+    return factor, f"time ({unit})"
 
 
 def _panels(
@@ -152,9 +165,10 @@ PLOTTED_SPHERES = 8
 """The spheres a figure of each sphere's velocity draws at most: the first, by index."""
 
 
-def _each_sphere(component):
+def _each_sphere(component, factor: float):
     """series(path) of `component(velocities [F, N, 3])` [F, N] for each of the first
-    PLOTTED_SPHERES spheres, named as messages name them (`state.particle_named`)."""
+    PLOTTED_SPHERES spheres, named as messages name them (`state.particle_named`), against
+    time times `factor` (`_time_unit`)."""
     from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.state import particle_named
 
@@ -164,7 +178,7 @@ def _each_sphere(component):
             ids = f["particles/all/id"][:]
         values = component(v)
         count = min(values.shape[1], PLOTTED_SPHERES)
-        drawn = [(particle_named(q, ids), time * 1e3, values[:, q]) for q in range(count)]
+        drawn = [(particle_named(q, ids), time * factor, values[:, q]) for q in range(count)]
         if count < values.shape[1]:
             drawn.append((f"the first {count} of {values.shape[1]} spheres", None, None))
         return drawn
@@ -174,27 +188,32 @@ def _each_sphere(component):
 
 def speed_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     """|v| of each particle against time (Hanley 2020 Figure 1)."""
-    speed = _each_sphere(lambda v: np.linalg.norm(v, axis=2))
-    return _figure(forward, reverse, png, speed, "|v| (m/s)", over_reversal=True)
+    factor, xlabel = _time_unit(forward)
+    speed = _each_sphere(lambda v: np.linalg.norm(v, axis=2), factor)
+    return _figure(forward, reverse, png, speed, "|v| (m/s)", xlabel, over_reversal=True)
 
 
 def velocity_z_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     """Vertical velocity of each particle against time (Hanley 2020 Figure 6)."""
-    vertical = _each_sphere(lambda v: v[:, :, 2])
-    return _figure(forward, reverse, png, vertical, "v_z (m/s)", over_reversal=True)
+    factor, xlabel = _time_unit(forward)
+    vertical = _each_sphere(lambda v: v[:, :, 2], factor)
+    return _figure(forward, reverse, png, vertical, "v_z (m/s)", xlabel, over_reversal=True)
 
 
 def forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     """Largest normal and shear contact force against time (Hanley 2020 Figure 5)."""
 
+    factor, xlabel = _time_unit(forward)
+
     def series(path):
         return [
-            (label, time * 1e3, values)
+            (label, time * factor, values)
             for label, name in (("normal", "max_normal_force"), ("shear", "max_shear_force"))
             for time, values in [_observable(path, name)]
         ]
 
-    return _figure(forward, reverse, png, series, "largest contact force (N)", over_reversal=True)
+    ylabel = "largest contact force (N)"
+    return _figure(forward, reverse, png, series, ylabel, xlabel, over_reversal=True)
 
 
 def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
@@ -209,6 +228,7 @@ def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     planes = [wall.name for wall in scenario.walls if wall.across_z]
     by_fraction = scenario.solid_fraction is not None
     window = _reversed_window(reverse)
+    factor, in_time = _time_unit(forward)
 
     def series(path):
         with open_trajectory(path) as f:
@@ -217,12 +237,12 @@ def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
             if by_fraction:
                 x = f["observables/solid_fraction/value"][:][keep]
             else:
-                x = f["observables/kinetic_energy/time"][:][keep] * 1e3
+                x = f["observables/kinetic_energy/time"][:][keep] * factor
             return [
                 (name, x, f[f"observables/wall_force/{name}/value"][:, 2][keep]) for name in planes
             ]
 
-    xlabel = ("solid fraction" if by_fraction else "time (ms)") + (
+    xlabel = ("solid fraction" if by_fraction else in_time) + (
         ", over the reversed stage" if window else ""
     )
     return _figure(forward, reverse, png, series, "force on the wall, z (N)", xlabel)
@@ -440,8 +460,9 @@ def information_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     from revdem_cli.io.h5md import open_trajectory
 
     stages, steps, times, bits, names = information_by_step(forward)
-    x, xlabel = times * 1e3, "time (ms)"
-    starts = [first_time * 1e3 for _, _, first_time in stages]
+    factor, xlabel = _time_unit(forward)
+    x = times * factor
+    starts = [first_time * factor for _, _, first_time in stages]
     if len(stages) == 1:
         with open_trajectory(forward) as f:
             scenario = json.loads(f["parameters/revdem"].attrs["scenario_json"])

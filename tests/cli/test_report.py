@@ -207,7 +207,23 @@ def test_a_time_figure_shows_the_forward_run_over_the_reversed_stage(tmp_path, m
         }
         assert spans["-"] == pytest.approx(spans["--"]), spans  # forward over the reversal's
         assert spans["--"][1] - spans["--"][0] < 0.25 * spans["--"][1]
-        assert ax.get_xlabel() == "time (ms), over the reversed stage"
+        assert ax.get_xlabel() == "time (µs), over the reversed stage"  # 500 µs in all
+
+
+def test_a_time_axis_reads_in_the_unit_of_the_runs_duration(tmp_path):
+    """Every time axis read in ms: the fcc test's 88 s of shear from 40 000 to 128 000 ms.
+    It reads in s from 10 s of run on, in µs below 1 ms."""
+    from revdem_cli import api
+    from revdem_cli.report.figures import _time_unit
+
+    experiment = api.load(ROOT / "configs/fcc_triaxial.toml").changed(
+        {"stages.0.steps": 5000, "stages.1.steps": 100, "output.figures": []}
+    )
+    fcc = api.run(experiment, tmp_path / "fcc", reverse=False, threads=1).outputs.forward
+    assert _time_unit(fcc) == (1.0, "time (s)")  # 10.2 s
+    short = api.load(ROOT / "configs/collision.toml").changed({"output.figures": []})
+    collision = api.run(short, tmp_path / "c", reverse=False, threads=1).outputs.forward
+    assert _time_unit(collision) == (1e3, "time (ms)")  # 1.5 ms
 
 
 def test_a_sphere_is_named_in_a_figure_as_in_messages(smoke_run):
@@ -215,7 +231,7 @@ def test_a_sphere_is_named_in_a_figure_as_in_messages(smoke_run):
     atom ids, which the legends lacked."""
     from revdem_cli.report.figures import _each_sphere
 
-    series = _each_sphere(lambda v: v[:, :, 2])(smoke_run / "collision_smoke.forward.h5")
+    series = _each_sphere(lambda v: v[:, :, 2], 1e3)(smoke_run / "collision_smoke.forward.h5")
     assert [label for label, _, _ in series] == ["particle 0 (id 1)", "particle 1 (id 2)"]
     assert all(len(time) == len(values) > 1 for _, time, values in series)
 

@@ -27,6 +27,14 @@ def test_a_cause_names_each_sphere_by_index_and_id_and_a_wall_by_name():
     assert cause["message"].startswith("the contact of particle 2 (id 13) and wall lid slid")
 
 
+def test_a_force_in_a_cause_reads_in_the_prefix_of_its_size():
+    """A slip in the fcc test, 7.73e+06 mN; a pair's, 0.0006 mN: each in its prefix."""
+    from revdem_cli.compare import _newtons
+
+    said = [_newtons(f) for f in (7.73e3, 27.5, 0.0353, 6e-7, 0.0)]
+    assert said == ["7.73 kN", "27.5 N", "35.3 mN", "600 nN", "0 N"]
+
+
 def test_a_cause_of_the_whole_run_names_no_particle_and_keeps_the_keys_of_a_mechanism():
     """Drag's amplification of round-off (Hanley 2020 Eq 28) and a time step above its limit
     act at every step back from the restart, at no particle: the keys of a mechanism's cause,
