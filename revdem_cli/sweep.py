@@ -331,8 +331,10 @@ def load_variants(sweep: Sweep, host: bool = False, allow_unstable_dt: bool = Fa
     `allow_unstable_dt`); with `host`, each also checked against this machine's memory
     (`config.host`)."""
     from revdem_cli.config import load_scenario
+    from revdem_cli.config.loader import read_scenario_text
     from revdem_cli.engine import check_time_step
 
+    read_scenario_text(sweep.scenario)  # a file that cannot be read is no variant's fault
     loaded = []
     for variant in sweep.variants():
         sets = [f"{key}={value}" for key, value in variant.items()]
@@ -369,6 +371,8 @@ def run_sweep(
     checkpoint, none begins after, and the table says which are done, stopped or not
     started; a second signal stops at once."""
     out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():  # before its stop file is named in an error
+        raise InputError(f"--out {out_dir}: a file, not a folder")
     variants = sweep.variants()
     # bad input stops the sweep before it starts; a local cluster runs on this machine
     loaded = load_variants(sweep, scheduler is None, allow_unstable_dt)

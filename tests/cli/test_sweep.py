@@ -153,6 +153,21 @@ def test_a_bad_set_of_a_sweep_file_names_the_file_and_its_entry(tmp_path, text, 
     assert "--set" not in result.output
 
 
+def test_a_missing_scenario_or_an_out_that_is_a_file_is_named_as_such(tmp_path):
+    """A scenario file that is not there was blamed on the first variant ("variant a=1:
+    nofile.toml: cannot read"), and --out naming a file on the sweep's own stop file
+    (".../afile/.stop: ... is a file")."""
+    missing = tmp_path / "nofile.toml"
+    result = runner.invoke(app, ["sweep", str(missing), "--set", "a=1,2", "-q"])
+    assert_one_line_error(result, f"error: {missing}: cannot read scenario file")
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    scenario = str(CONFIGS / "smoke" / "collision.yaml")
+    args = ["sweep", scenario, "--set", "stages.0.steps=10,20", "--out", str(afile), "-q"]
+    assert_one_line_error(runner.invoke(app, args), f"error: --out {afile}: a file, not a folder")
+    assert afile.read_text() == "mine"
+
+
 def test_the_scenario_of_a_sweep_cannot_be_a_sweep(tmp_path):
     sweep_file(tmp_path, 'set = ["contact.friction=0.1"]')
     path = tmp_path / "outer.toml"
