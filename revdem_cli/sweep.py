@@ -26,6 +26,7 @@ import math
 import re
 import time
 import tomllib
+import warnings
 from collections.abc import Callable
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
@@ -265,7 +266,10 @@ def _client(scheduler: str | None, workers: int, threads: int | None):
             yield client
         return
     with ExitStack() as stack:
-        with _born_deaf():
+        with _born_deaf(), warnings.catch_warnings():
+            # its scheduler serves HTTP on 8787, else on a free port, with a warning that a
+            # sweep's user has no use for: no dashboard is started (dashboard_address=None)
+            warnings.filterwarnings("ignore", message=r"Port \d+ is already in use")
             cluster = stack.enter_context(
                 LocalCluster(
                     n_workers=workers,

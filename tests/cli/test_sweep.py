@@ -285,3 +285,29 @@ def test_a_value_given_twice_in_a_list_is_refused(tmp_path):
     assert_one_line_error(result, "--set contact.friction=0.1,0.3,0.1: contact.friction: 0.1")
     assert "given twice" in result.output
     assert not list(tmp_path.iterdir())
+
+
+def test_a_sweep_says_nothing_of_its_schedulers_http_port(tmp_path):
+    """With 8787 taken (another cluster, a notebook's), dask warned "Port 8787 is already in
+    use ... Hosting the HTTP server on port N instead" under -q: nothing a sweep's user
+    asked for or can act on. (Run as a command: pytest would catch the warning itself.)"""
+    import socket
+    import subprocess
+    import sys
+
+    taken = socket.socket()
+    try:
+        taken.bind(("", 8787))
+        taken.listen()
+    except OSError:  # taken already: the same for the sweep
+        pass
+    args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--workers", "1", "-q"]
+    args += ["--set", "stages.0.steps=10,20", "--out", str(tmp_path)]
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "revdem_cli.cli", *args], capture_output=True, text=True
+        )
+    finally:
+        taken.close()
+    assert done.returncode == 0, done.stderr
+    assert "Port" not in done.stderr and "8787" not in done.stderr, done.stderr
