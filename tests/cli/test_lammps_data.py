@@ -322,25 +322,31 @@ def test_a_periodic_box_must_be_the_cell(tmp_path):
     assert_one_line_error(result, "cell.size", "periodic box")
 
 
-@pytest.mark.parametrize("x", [0.02, 0.05], ids=["inside", "outside"])
-def test_an_open_box_must_hold_its_atoms_as_lammps_read_data_demands(tmp_path, x):
-    """periodic = false: no axis wraps, so an atom past the file's box is an error in the
-    file, which LAMMPS' read_data refuses too; one inside is read."""
+def _open_box(tmp_path: Path, x: float, image) -> Path:
+    """A scenario reading two spheres of 5 mm in the open box 0 to 40 mm of a data file,
+    the second at (x, 10 mm, 10 mm) with the image flags `image`, without periodic = true."""
     from revdem_cli.io.lammps_data import lammps_data_text
 
     radius = np.array([0.005, 0.005])
     mass = 1000.0 * 4.0 / 3.0 * math.pi * radius**3
     position = np.array([[0.01, 0.01, 0.01], [x, 0.01, 0.01]])
     zeros, box = np.zeros((2, 3)), (np.zeros(3), np.full(3, 0.04))
-    image = zeros.astype(np.int64)
-    text = lammps_data_text([1, 2], radius, mass, position, image, zeros, zeros, [1, 1], *box,
+    images = np.array([[0, 0, 0], image], dtype=np.int64)
+    text = lammps_data_text([1, 2], radius, mass, position, images, zeros, zeros, [1, 1], *box,
                             0, "open box")  # fmt: skip
     data = tmp_path / "open.data"
     data.write_text(text)
     scenario = _scenario(tmp_path, data)
     text = scenario.read_text().replace("periodic = true\n", "")
     scenario.write_text(text[: text.index("[cell]")] + text[text.index("[integrator]") :])
-    result = CliRunner().invoke(app, ["validate", str(scenario)])
+    return scenario
+
+
+@pytest.mark.parametrize("x", [0.02, 0.05], ids=["inside", "outside"])
+def test_an_open_box_must_hold_its_atoms_as_lammps_read_data_demands(tmp_path, x):
+    """periodic = false: no axis wraps, so an atom past the file's box is an error in the
+    file, which LAMMPS' read_data refuses too; one inside is read."""
+    result = CliRunner().invoke(app, ["validate", str(_open_box(tmp_path, x, [0, 0, 0]))])
     if x < 0.04:
         assert result.exit_code == 0, result.output
         return
@@ -354,22 +360,8 @@ def test_an_open_box_refuses_image_flags(tmp_path):
     """periodic = false: an atom with an image flag was unwrapped by it to outside the box
     the file gives, which the check of that box, reading the wrapped position, let through
     (LAMMPS would have reset the flag to 0, moving the atom back)."""
-    from revdem_cli.io.lammps_data import lammps_data_text
-
-    radius = np.array([0.005, 0.005])
-    mass = 1000.0 * 4.0 / 3.0 * math.pi * radius**3
-    position = np.array([[0.01, 0.01, 0.01], [0.03, 0.01, 0.01]])
-    zeros, box = np.zeros((2, 3)), (np.zeros(3), np.full(3, 0.04))
-    image = np.array([[0, 0, 0], [1, 0, 0]])
-    text = lammps_data_text([1, 2], radius, mass, position, image, zeros, zeros, [1, 1], *box,
-                            0, "open box")  # fmt: skip
-    data = tmp_path / "open.data"
-    data.write_text(text)
-    scenario = _scenario(tmp_path, data)
-    text = scenario.read_text().replace("periodic = true\n", "")
-    scenario.write_text(text[: text.index("[cell]")] + text[text.index("[integrator]") :])
     assert_one_line_error(
-        CliRunner().invoke(app, ["validate", str(scenario)]),
+        CliRunner().invoke(app, ["validate", str(_open_box(tmp_path, 0.03, [1, 0, 0]))]),
         "particles_from[0].lammps_data", "atom 2 of", "has image flags [1, 0, 0], but "
         "periodic = false",
     )  # fmt: skip
