@@ -620,6 +620,37 @@ def write_table(rows: list[dict], stem: Path) -> list[Path]:
     return [csv_path, h5_path]
 
 
+def read_values(path: Path) -> dict[str, dict]:
+    """The values each variant of the table STEM.h5 at `path` set, by folder: {field: value}
+    as the table holds them (numbers, or the text given)."""
+    try:
+        with h5py.File(path, "r") as f:
+            table = f["sweep"]
+            folders = list(table["folder"].asstr()[:])
+            fields = [c for c in table.attrs["columns"] if c != "folder" and c not in RESULTS]
+            columns = {
+                field: table[field].asstr()[:]
+                if table[field].dtype.kind == "O"
+                else table[field][:]
+                for field in fields
+            }
+    except (OSError, KeyError) as exc:
+        raise InputError(f"{path}: cannot read the sweep's table ({exc})") from None
+    return {
+        folder: {field: _plain(columns[field][k]) for field in fields}
+        for k, folder in enumerate(folders)
+    }
+
+
+def _plain(value):
+    """A value of a table's column as Python's: the text, a whole number as an int (a
+    table's number columns are float64: 700000.0 steps), else a float."""
+    if isinstance(value, str):
+        return value
+    number = float(value)
+    return int(number) if number.is_integer() else number
+
+
 def read_table(path: Path) -> dict[str, dict]:
     """The results (RESULTS) of each variant of the table STEM.h5 at `path`, by folder, as
     `run_variant` gave them."""

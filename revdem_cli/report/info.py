@@ -148,22 +148,19 @@ def _tape(path: Path, f: h5py.File) -> dict:
 
 
 def _sweep(path: Path) -> dict:
-    """A sweep's table (`sweep.write_table`): each variant's folder, status and verdict."""
-    from revdem_cli.sweep import read_table
+    """A sweep's table (`sweep.write_table`): each variant's folder, the values it set and
+    every result (status, verdict, energies, seconds, error), which the lines show in part
+    (`_sweep_lines`) and `--json` in full."""
+    from revdem_cli.sweep import read_table, read_values
 
-    rows = read_table(path)
+    rows, values = read_table(path), read_values(path)
     return {
         "file": str(path),
         "kind": "sweep",
         "variants": [
-            {"folder": folder, **{key: row[key] for key in SWEEP_SHOWN}}
-            for folder, row in rows.items()
+            {"folder": folder, "values": values[folder], **row} for folder, row in rows.items()
         ],
     }
-
-
-SWEEP_SHOWN = ("status", "reversible", "max_position_error_rel", "error")
-"""What `revdem info` shows of each variant of a sweep."""
 
 
 def _sweep_lines(info: dict) -> list[str]:

@@ -80,6 +80,16 @@ def test_six_variants_on_two_workers_give_one_table(tmp_path):
         "004_steps=200_velocity=0.5+0.0+0.0", "done", "reversible", "(max", "position", "error",
         "/", "diameter", f"{float(rows[4]['max_position_error_rel']):.3g})",
     ]  # fmt: skip
+    # --json: each variant's values and every result, where it gave four of them
+    shown = json.loads(runner.invoke(app, ["info", str(tmp_path / "sweep.h5"), "--json"]).output)
+    fifth = shown["variants"][4]
+    assert fifth["values"] == {
+        "stages.0.steps": 200,
+        "particles.0.velocity": VELOCITIES[1],
+        "stages.0.output_every": 50,
+    }
+    assert fifth["kinetic_energy"] == float(rows[4]["kinetic_energy"])
+    assert fifth["seconds"] > 0.0 and fifth["first_divergence_step"] is None
 
 
 def test_values_split_at_commas_outside_brackets():
