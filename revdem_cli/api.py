@@ -391,14 +391,16 @@ def keep_checkpoint(out: Path, name: str, force: bool) -> None:
     path.unlink()
 
 
-def _progress(progress):
-    """A rich progress display when asked for (True), or none."""
+def _progress(progress, unit: str = "steps", here: bool = True):
+    """A rich progress display of `unit` done when asked for (True), or none; it says that
+    the kernels compile first where they will, on this machine (`here`: not a remote
+    scheduler's workers, which keep caches of their own)."""
     from contextlib import nullcontext
 
     if progress:
         from revdem_cli.report.progress import RunProgress, kernels_compiled
 
-        return RunProgress(unit="steps", compiling=not kernels_compiled())
+        return RunProgress(unit=unit, compiling=here and not kernels_compiled())
     return nullcontext()
 
 
@@ -656,3 +658,85 @@ def packing_time_step(restart: str | Path, verify: bool = False) -> dict:
 
     _check_switches(verify=verify)
     return assess_restart(_path(restart, "restart"), verify)
+
+
+def _set_text(value) -> str:
+    """A Python value as `--set` writes it, which the sweep reads back as that value (TOML:
+    true, 1e-07, inf, [0.9, 0.1, 0.0], hertz, "a, b")."""
+    import json
+
+    from revdem_cli.config import read_value
+
+    value = _plain(value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(float(value)) if isinstance(value, float) else str(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_set_text(inner) for inner in value) + "]"
+    if isinstance(value, str):  # as it is where `--set` would read it back as this text
+        plain = read_value(value, "values") == value and not set(value) & set(",[]{}\"'")
+        return value if plain else json.dumps(value)
+    raise InputError(
+        f"values: {value!r}: a number, a bool, a text or a list, not {type(value).__name__}"
+    )
+
+
+def sweep(
+    scenario: str | Path,
+    values: Mapping[str, Sequence],
+    out: str | Path = "out/sweep",
+    *,
+    workers: int = 2,
+    threads: int | None = None,
+    scheduler: str | None = None,
+    force: bool = False,
+    resume: bool = False,
+    allow_unstable_dt: bool = False,
+    progress: bool = False,
+) -> list[dict]:
+    """Run every combination of `values` ({dotted path: [value, ...]}, Python values) of a
+    scenario file (or every variant of a sweep file, with `values` added), each forward and
+    reversed, on a dask cluster, as `revdem sweep` does: its table (sweep.csv, sweep.h5)
+    in `out`, whose rows it returns (`read_sweep`). A signal stops it as it stops the
+    command (the variants not done say so in their status; `resume=True` goes on)."""
+    from revdem_cli.sweep import read_sweep, run_sweep
+
+    _check_switches(force=force, resume=resume, allow_unstable_dt=allow_unstable_dt,
+                    progress=progress)  # fmt: skip
+    if not isinstance(values, Mapping):
+        raise InputError(f"values: a mapping of dotted paths to lists, not {type(values).__name__}")
+    sets = []
+    for key, listed in values.items():
+        if (
+            not isinstance(key, str)
+            or isinstance(listed, str)
+            or not isinstance(listed, Sequence | np.ndarray)
+        ):
+            raise InputError(f"values[{key!r}]: a list of the values to take, not {listed!r}")
+        sets.append(f"{key}=" + ",".join(_set_text(value) for value in listed))
+    if not whole_number(workers) or workers < 1:
+        raise InputError(f"workers={workers!r}: a whole number, 1 or more")
+    out = _folder(out, "out")
+    plan = read_sweep(_path(scenario, "scenario"), sets)
+    with _progress(progress, "variants", scheduler is None) as shown:
+        run_sweep(plan, out, scheduler, int(workers), shown, threads, allow_unstable_dt, force,
+                  resume)  # fmt: skip
+    return sweep_table(out)
+
+
+def sweep_table(out: str | Path) -> list[dict]:
+    """The rows of the sweep table in the folder `out` (sweep.h5), as `revdem sweep` wrote
+    it: each variant's folder, the values it set (`values`) and its results (status,
+    reversible, max_position_error_rel, first_divergence_step, kinetic_energy, total_energy,
+    seconds, error); a variant's run is `read(out / row["folder"])`."""
+    from revdem_cli.sweep import read_table, read_values
+
+    table = _folder(out, "out") / "sweep.h5"
+    if not table.is_file():
+        raise InputError(f"{table.parent}: no sweep table there (sweep.h5)")
+    values = read_values(table)
+    return [
+        {"folder": folder, "values": values[folder], **row}
+        for folder, row in read_table(table).items()
+    ]

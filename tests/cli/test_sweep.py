@@ -3,6 +3,7 @@
 import csv
 import json
 import math
+import re
 
 import h5py
 import numpy as np
@@ -321,3 +322,41 @@ def test_a_sweep_says_nothing_of_its_schedulers_http_port(tmp_path):
         taken.close()
     assert done.returncode == 0, done.stderr
     assert "Port" not in done.stderr and "8787" not in done.stderr, done.stderr
+
+
+def test_a_sweep_from_python_is_the_command_lines(tmp_path):
+    """There was no Python function for a sweep, and its table was read back only by hand:
+    `revdem.sweep` takes the values as Python values and gives the rows `sweep_table` reads
+    (each variant's values and results); they are those of the same command's table."""
+    from revdem_cli import api as revdem
+    from revdem_cli.errors import InputError
+
+    scenario = CONFIGS / "smoke" / "collision.yaml"
+    values = {"stages.0.steps": [100, 200], "particles.0.velocity": [[0.9, 0.1, 0.0]]}
+    rows = revdem.sweep(scenario, values, tmp_path / "api", workers=1, threads=1)
+    args = ["sweep", str(scenario), "--set", "stages.0.steps=100,200", "--workers", "1"]
+    args += ["--set", "particles.0.velocity=[0.9, 0.1, 0.0]", "--out", str(tmp_path / "cli")]
+    assert runner.invoke(app, [*args, "-q", "--threads", "1"]).exit_code == 0
+    cli = revdem.sweep_table(tmp_path / "cli")
+    assert [row["folder"] for row in rows] == ["000_steps=100", "001_steps=200"]
+    for got, expected in zip(rows, cli, strict=True):
+        assert (
+            got["values"]
+            == expected["values"]
+            == {
+                "stages.0.steps": int(got["folder"][-3:]),
+                "particles.0.velocity": "[0.9, 0.1, 0.0]",
+            }
+        )
+        for key in ("status", "reversible", "max_position_error_rel", "kinetic_energy"):
+            assert got[key] == expected[key], key
+    assert revdem.read(tmp_path / "api" / rows[1]["folder"]).comparison["reversible"]
+    for bad, message in (
+        ({"stages.0.steps": 100}, "values['stages.0.steps']: a list of the values"),
+        ({"stages.0.steps": [object()]}, "values: <object"),
+        ([("stages.0.steps", [1])], "values: a mapping"),
+    ):
+        with pytest.raises(InputError, match=re.escape(message)):
+            revdem.sweep(scenario, bad, tmp_path / "bad")
+    with pytest.raises(InputError, match="no sweep table there"):
+        revdem.sweep_table(tmp_path)
