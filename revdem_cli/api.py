@@ -492,17 +492,17 @@ def resume(out: str | Path, progress: bool = False, threads: int | None = None) 
     on at most `threads` threads (`_use_threads`)."""
     from revdem_cli.checkpoint import SUFFIX, find_checkpoint
     from revdem_cli.engine import output_paths, resume_run
-    from revdem_cli.io import exports_of
     from revdem_cli.io.restart import checkpoint_phase
 
     _check_switches(progress=progress)
     _use_threads(threads)
     out = _folder(out, "out")
     checkpoint = find_checkpoint(out)
-    paths = output_paths(out, checkpoint.name.removesuffix(SUFFIX))
+    name = checkpoint.name.removesuffix(SUFFIX)
     # the trajectories it goes on writing: their exports were made before they ended
     kinds = ("forward", "reverse") if checkpoint_phase(checkpoint) == "forward" else ("reverse",)
-    stale = tuple(export for kind in kinds for export in exports_of(paths[kind]))
+    paths = output_paths(out, name)
+    stale = stale_exports([paths[kind] for kind in kinds], out, name)
     with _progress(progress) as shown:
         outputs = resume_run(out, shown)
     outputs.stale_exports = stale
@@ -698,7 +698,7 @@ def sweep(
     """Run every combination of `values` ({dotted path: [value, ...]}, Python values) of a
     scenario file (or every variant of a sweep file, with `values` added), each forward and
     reversed, on a dask cluster, as `revdem sweep` does: its table (sweep.csv, sweep.h5)
-    in `out`, whose rows it returns (`read_sweep`). A signal stops it as it stops the
+    in `out`, whose rows it returns (`sweep_table`). A signal stops it as it stops the
     command (the variants not done say so in their status; `resume=True` goes on)."""
     from revdem_cli.sweep import read_sweep, run_sweep
 
@@ -730,13 +730,9 @@ def sweep_table(out: str | Path) -> list[dict]:
     it: each variant's folder, the values it set (`values`) and its results (status,
     reversible, max_position_error_rel, first_divergence_step, kinetic_energy, total_energy,
     seconds, error); a variant's run is `read(out / row["folder"])`."""
-    from revdem_cli.sweep import read_table, read_values
+    from revdem_cli.sweep import table_rows
 
     table = _folder(out, "out") / "sweep.h5"
     if not table.is_file():
         raise InputError(f"{table.parent}: no sweep table there (sweep.h5)")
-    values = read_values(table)
-    return [
-        {"folder": folder, "values": values[folder], **row}
-        for folder, row in read_table(table).items()
-    ]
+    return table_rows(table)

@@ -444,8 +444,10 @@ def _velocity_read(scenario: Scenario | None) -> str:
 def _newtons(force: float) -> str:
     """A force in the prefix of N its size reads in: 4 mN, 7.73 MN (the fcc test's 'removed
     7.73e+06 mN')."""
+    if force == 0.0:
+        return "0 N"
     for factor, unit in ((1e6, "MN"), (1e3, "kN"), (1.0, "N"), (1e-3, "mN"), (1e-6, "µN")):
-        if abs(force) >= factor or force == 0.0 and unit == "N":
+        if abs(force) >= factor:
             return f"{force / factor:.3g} {unit}"
     return f"{force * 1e9:.3g} nN"
 

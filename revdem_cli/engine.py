@@ -28,7 +28,6 @@ from revdem_cli.stage import (
     StageClock,
     reversal_history,
     run_stage,
-    stage_dt,
     stage_time_step,
 )
 from revdem_cli.state import State, initial_state
@@ -251,7 +250,7 @@ def _forward(
                 clock = StageClock(
                     stage, state.step, time, stage_time_step(run.model, stage, state)
                 )
-            if stage_dt(scenario, stage) == "auto":
+            if scenario.stage_dt(stage) == "auto":
                 chosen[stage.name] = clock.dt
             files = _stage_files(run, index)
             tape = None  # the stages a reversal reverses: the last, or with all_stages every one
@@ -344,8 +343,7 @@ def _stress_not_held(state: State, model, stage) -> dict[str, tuple[float, float
     judged): each such axis's (stress, target), Pa. A servo that overshoots
     (an inertial servo_mass too small, a proportional servo_gain too large) or a stage too
     short for it ends so; the run goes on, and its summary says so."""
-    motion = stage.cell.axes() if stage.cell is not None else [None] * 3
-    targets = {axis: m.stress for axis, m in zip("xyz", motion, strict=True) if m and m.stress}
+    targets = stage.held_stresses()
     if not targets:
         return {}
     row = model.observe(state, model.stage_dynamics(stage))

@@ -219,15 +219,10 @@ class StageClock:
         return steps + [self.last_step]
 
 
-def stage_dt(scenario: Scenario, stage: Stage) -> float | str:
-    """The time step a stage is given, s, or 'auto'."""
-    return stage.dt or scenario.integrator.dt
-
-
 def stage_time_step(model: Model, stage: Stage, state: State) -> float:
     """The time step of a stage starting from `state`: as given, or for 'auto' chosen from
     the state (`timestep.packing.automatic_dt`, with the stage's viscous damping)."""
-    dt = stage_dt(model.scenario, stage)
+    dt = model.scenario.stage_dt(stage)
     if dt != "auto":
         return dt
     from revdem_cli.timestep.packing import automatic_dt
@@ -399,8 +394,7 @@ def reversal_history(state: State, model: Model, clock: StageClock) -> None:
 def _servo_held(model: Model, clock: StageClock) -> str:
     """The axes on which a stage holds a stress with the cell's servo, in words ("" where
     none): "the stage's inertial servo holds a stress on x, y"."""
-    motion = clock.stage.cell.axes() if clock.stage.cell else [None] * 3
-    axes = [axis for axis, m in zip("xyz", motion, strict=True) if m and m.stress]
+    axes = list(clock.stage.held_stresses())
     if not axes:
         return ""
     return f"the stage's {model.scenario.cell.servo} servo holds a stress on {', '.join(axes)}"

@@ -620,6 +620,16 @@ def write_table(rows: list[dict], stem: Path) -> list[Path]:
     return [csv_path, h5_path]
 
 
+def table_rows(path: Path) -> list[dict]:
+    """The rows of the table STEM.h5 at `path`: each variant's folder, the values it set
+    (`values`, `read_values`) and its results (RESULTS, `read_table`)."""
+    values = read_values(path)
+    return [
+        {"folder": folder, "values": values[folder], **row}
+        for folder, row in read_table(path).items()
+    ]
+
+
 def read_values(path: Path) -> dict[str, dict]:
     """The values each variant of the table STEM.h5 at `path` set, by folder: {field: value}
     as the table holds them (numbers, or the text given)."""

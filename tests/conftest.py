@@ -189,14 +189,14 @@ def stepped(scenario: Scenario, steps: int, every: int):
     compiled stage loop leaves it (forward, the stage's dt, damping and contact)."""
 
     from revdem_cli.kernels.integrate import OK, PAIR_OVERFLOW, advance
-    from revdem_cli.stage import Model, stage_dt, stepping_bundles
+    from revdem_cli.stage import Model, stepping_bundles
     from revdem_cli.state import empty_events, initial_state
 
     model, state = Model.of(scenario), initial_state(scenario)
     stage = scenario.stages[0]
     dyn = model.stage_dynamics(stage)
     state.walls.velocity[:] = model.stage_wall_velocities(stage)
-    stepping = model.stepping(stage_dt(scenario, stage), 0, steps, steps)
+    stepping = model.stepping(scenario.stage_dt(stage), 0, steps, steps)
     (obs, obs_steps), events = model.buffers(2), empty_events()
     while state.step < steps:
         target = min(state.step + every, steps)

@@ -101,7 +101,7 @@ def check_stop_conditions(scenario) -> None:
                     f"wall '{stop.wall}' does not move in this stage: its velocity here is "
                     f"zero (stages[{i}].wall_velocities.{stop.wall}, else walls[{k}].velocity)",
                 )
-            dt = stage.dt if stage.dt is not None else scenario.integrator.dt
+            dt = scenario.stage_dt(stage)
             distance = stop.wall_travel_above.distance
             if dt != "auto" and distance >= speed * stage.steps * dt:
                 raise FieldError(
@@ -246,7 +246,7 @@ def check_cell(scenario) -> None:
             continue
         if scenario.cell is None:
             raise FieldError(f"stages[{i}].cell", "needs a periodic [cell] to move")
-        holds = any(a is not None and a.stress is not None for a in stage.cell.axes())
+        holds = bool(stage.held_stresses())
         needed = "servo_mass" if scenario.cell.servo == "inertial" else "servo_gain"
         if holds and getattr(scenario.cell, needed) is None:
             raise FieldError(
@@ -254,7 +254,7 @@ def check_cell(scenario) -> None:
                 f"stages[{i}] holds a stress with the {scenario.cell.servo} servo, which "
                 f"needs {needed}",
             )
-        dt = stage.dt if stage.dt is not None else scenario.integrator.dt
+        dt = scenario.stage_dt(stage)
         for axis, motion in zip("xyz", stage.cell.axes(), strict=True):
             rate = None if motion is None else motion.strain_rate
             if rate is not None and dt != "auto" and 1.0 + rate * stage.steps * dt <= 0.0:

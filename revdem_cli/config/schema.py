@@ -674,6 +674,12 @@ class Stage(_Model):
         the one of [[walls]]. Walls move at it alone (from where the stage finds them)."""
         return self.wall_velocities.get(wall.name, wall.velocity)
 
+    def held_stresses(self) -> dict[str, float]:
+        """The stress, Pa, this stage holds on each axis of the cell with its servo, by axis
+        ('x', 'y', 'z'); {} where it holds none."""
+        axes = self.cell.axes() if self.cell is not None else [None] * 3
+        return {axis: m.stress for axis, m in zip("xyz", axes, strict=True) if m and m.stress}
+
 
 class Reversal(_Model):
     """Tolerances that decide whether a reversed run reproduced the forward one, and the
@@ -836,3 +842,7 @@ class Scenario(_Model):
     @property
     def reversed_stage(self) -> Stage | None:
         return next((stage for stage in self.stages if stage.reverse), None)
+
+    def stage_dt(self, stage: Stage) -> TimeStep:
+        """The time step `stage` is given, s, or 'auto': its own, else [integrator]'s."""
+        return stage.dt or self.integrator.dt

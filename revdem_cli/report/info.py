@@ -151,16 +151,9 @@ def _sweep(path: Path) -> dict:
     """A sweep's table (`sweep.write_table`): each variant's folder, the values it set and
     every result (status, verdict, energies, seconds, error), which the lines show in part
     (`_sweep_lines`) and `--json` in full."""
-    from revdem_cli.sweep import read_table, read_values
+    from revdem_cli.sweep import table_rows
 
-    rows, values = read_table(path), read_values(path)
-    return {
-        "file": str(path),
-        "kind": "sweep",
-        "variants": [
-            {"folder": folder, "values": values[folder], **row} for folder, row in rows.items()
-        ],
-    }
+    return {"file": str(path), "kind": "sweep", "variants": table_rows(path)}
 
 
 def _sweep_lines(info: dict) -> list[str]:
