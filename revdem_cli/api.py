@@ -717,6 +717,8 @@ def sweep(
         sets.append(f"{key}=" + ",".join(_set_text(value) for value in listed))
     if not whole_number(workers) or workers < 1:
         raise InputError(f"workers={workers!r}: a whole number, 1 or more")
+    if threads is not None and (not whole_number(threads) or threads < 1):
+        raise InputError(f"--threads {threads!r}: must be a whole number, 1 or more")
     out = _folder(out, "out")
     plan = read_sweep(_path(scenario, "scenario"), sets)
     with _progress(progress, "variants", scheduler is None) as shown:

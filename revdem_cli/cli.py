@@ -12,7 +12,7 @@ import typer
 from typer.core import TyperGroup
 
 from revdem_cli import __version__
-from revdem_cli.errors import InputError, RunFailed, path_problem
+from revdem_cli.errors import InputError, RunFailed, given_options, path_problem
 from revdem_cli.timestep.command import dt as _dt
 
 
@@ -186,11 +186,7 @@ def run(
     if resume is not None:
         if scenario is not None or overrides:
             raise InputError("--resume DIR continues a run as it was: give no scenario or --set")
-        given = [
-            f"--{name.replace('_', '-')}"
-            for name in ("out", "no_reverse", "force", "allow_unstable_dt")
-            if ctx.get_parameter_source(name).name != "DEFAULT"
-        ]
+        given = given_options(ctx, ("out", "no_reverse", "force", "allow_unstable_dt"))
         if given:
             raise InputError(
                 f"--resume DIR continues a run as it was, into DIR: {', '.join(given)} "

@@ -24,6 +24,19 @@ def whole_number(value) -> bool:
     return isinstance(value, Integral) and not isinstance(value, bool)
 
 
+def given_options(ctx, names: tuple[str, ...] | None = None, beside: tuple[str, ...] = ()):
+    """The options of the command of `ctx` (click's context) given on its command line, as
+    the user spells them, in the order of its --help: of those named in `names` (None: all
+    its options), less those in `beside`."""
+    return [
+        param.opts[0]
+        for param in ctx.command.params
+        if (names is None or param.name in names)
+        and param.name not in beside
+        and ctx.get_parameter_source(param.name).name != "DEFAULT"
+    ]
+
+
 def check_regular(path, what: str) -> None:
     """InputError if `path` exists but is not a regular file: a FIFO or a device would block
     a reader for ever, waiting for a writer."""

@@ -11,7 +11,7 @@ from typing import Annotated
 
 import typer
 
-from revdem_cli.errors import InputError, WriteFailed
+from revdem_cli.errors import InputError, WriteFailed, given_options
 
 SHAPES = ("sphere", "ellipsoid", "superquadric", "polyhedron")
 SIZES = {
@@ -297,16 +297,6 @@ def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
         typer.echo(f"wrote {len(rows)} rows to {out}")
 
 
-def _given_beside(ctx: typer.Context, taken: tuple[str, ...]) -> list[str]:
-    """The options of `dt` given on the command line other than those named in `taken`, as
-    the user spells them, in the order of `dt --help`."""
-    return [
-        param.opts[0]
-        for param in ctx.command.params
-        if param.name not in taken and ctx.get_parameter_source(param.name).name != "DEFAULT"
-    ]
-
-
 def _seconds(dt: float | None) -> str:
     if dt is None:
         return "n/a (overdamped)"
@@ -523,7 +513,7 @@ def dt(
     Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
     """
     if figures is not None:
-        given = _given_beside(ctx, ("figures",))
+        given = given_options(ctx, beside=("figures",))
         if given:
             raise InputError(
                 "--figures writes Peng 2020's figures, not a packing's nor particles of your "
@@ -539,7 +529,7 @@ def dt(
             typer.echo(f"wrote {path}")
         return
     if restart is not None:
-        given = _given_beside(ctx, ("restart", "verify", "as_json"))
+        given = given_options(ctx, beside=("restart", "verify", "as_json"))
         if given:
             raise InputError(
                 f"--restart takes the particles from the file; leave out {', '.join(given)} "

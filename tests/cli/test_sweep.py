@@ -358,5 +358,9 @@ def test_a_sweep_from_python_is_the_command_lines(tmp_path):
     ):
         with pytest.raises(InputError, match=re.escape(message)):
             revdem.sweep(scenario, bad, tmp_path / "bad")
+    for threads in (0, 2.5, "2"):  # each variant's count, passed to workers unchecked before
+        with pytest.raises(InputError, match=rf"^--threads {threads!r}: must be a whole number"):
+            revdem.sweep(scenario, values, tmp_path / "bad", threads=threads)
+    assert not (tmp_path / "bad").exists()
     with pytest.raises(InputError, match="no sweep table there"):
         revdem.sweep_table(tmp_path)
