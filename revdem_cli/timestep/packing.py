@@ -462,17 +462,19 @@ def engine_bracket(
         )
         return parted(dt, steps) > threshold
 
-    for _ in range(MOVES + 1):
-        low, high = grows(stable), grows(unstable)
+    low, high = grows(stable), grows(unstable)
+    for move in range(MOVES + 1):
         if high and not low:
             break
-        if low:
-            stable, unstable = 0.9 * stable, stable
-        else:
-            stable, unstable = unstable, 1.1 * unstable
-    else:
-        searched = (min(tried), max(tried))
-        return EngineCheck(math.nan, math.nan, steps, len(tried), divergence, seconds, searched)
+        if move == MOVES:
+            searched = (min(tried), max(tried))
+            return EngineCheck(math.nan, math.nan, steps, len(tried), divergence, seconds, searched)
+        if low:  # the bracket moves down a tenth: its lower end grew, so is the new upper end
+            stable, unstable, high = 0.9 * stable, stable, True
+            low = grows(stable)
+        else:  # up a tenth: its upper end did not grow, so is the new lower end
+            stable, unstable, low = unstable, 1.1 * unstable, False
+            high = grows(unstable)
     while unstable - stable > width * stable:
         middle = 0.5 * (stable + unstable)
         if grows(middle):
