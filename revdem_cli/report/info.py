@@ -227,24 +227,38 @@ def stresses_off(axes: dict) -> str:
     )
 
 
-def _stages_ran_lines(said: dict) -> list[str]:
-    """`_stages_ran` as `label: value` lines, as the run's summary said them."""
+def stage_lines(said: dict) -> list[tuple[str, str]]:
+    """(label, text) of each thing a run said of its stages (`_stages_ran`'s keys, each
+    where there is any: `engine.Outputs` chosen_dt, stopped, unmet and unheld), as the run's
+    summary prints them and `info` of its restart gives them back."""
     lines = [
-        f"stopped:    stage {stage} after {ran} of {most} steps, on its stop condition"
-        for stage, (ran, most, _) in said.get("stopped", {}).items()
-    ]
-    lines += [
-        f"not met:    stage {stage} ran all its steps without {stop_condition(condition)}"
-        for stage, condition in said.get("unmet", {}).items()
-    ]
-    lines += [
-        f"not held:   stage {stage}: {stresses_off(axes)}"
-        for stage, axes in said.get("unheld", {}).items()
-    ]
-    lines += [
-        f"time step:  {dt:.6g} s in stage {stage} (dt = 'auto')"
+        ("time step", f"{dt:.6g} s in stage {stage} (dt = 'auto')")
         for stage, dt in said.get("chosen_dt", {}).items()
     ]
+    for stage, (ran, most, every) in said.get("stopped", {}).items():
+        first = ", at its first check: its condition held from its start" if ran <= every else ""
+        lines.append(("stopped", f"stage {stage} after {ran} of {most} steps{first}"))
+    for stage, condition in said.get("unmet", {}).items():
+        text = f"stage {stage} ran all its steps without {stop_condition(condition)}"
+        if "kinetic_energy_at_end" in condition:
+            text += (
+                f": {condition['kinetic_energy_at_end']:.3g} J at its end, "
+                f"{condition['rotation_share']:.0%} of it the spheres' rotation"
+            )
+        lines.append(("not met", text))
+    unheld = said.get("unheld", {})
+    if unheld:
+        from revdem_cli.engine import HELD  # here, as `info` of other files loads no kernels
+
+        lines += [
+            (
+                "not held",
+                f"stage {stage} ended with its servo off its target stress: "
+                f"{stresses_off(axes)} (more than {HELD:.0%} off: a servo_mass too small or "
+                "a servo_gain too large overshoots, a stage too short does not get there)",
+            )
+            for stage, axes in unheld.items()
+        ]
     return lines
 
 
@@ -339,7 +353,9 @@ def info_lines(info: dict) -> list[str]:
         lines.append(f"trajectory: {info['trajectory']}")
         if "tape" in info:
             lines += tape_lines(info["tape"])
-    lines += _stages_ran_lines(info.get("stages_ran", {}))
+    lines += [
+        f"{label + ':':<11} {text}" for label, text in stage_lines(info.get("stages_ran", {}))
+    ]
     verdict = info.get("comparison")
     if verdict is not None:
         if verdict["reversible"]:

@@ -5,8 +5,7 @@ from __future__ import annotations
 from rich.console import Console
 from rich.table import Table
 
-from revdem_cli.engine import HELD
-from revdem_cli.report.info import stop_condition, stresses_off
+from revdem_cli.report.info import stage_lines
 
 
 def comparison_table(verdict: dict) -> Table:
@@ -88,29 +87,14 @@ def print_summary(outputs, console: Console | None = None) -> None:
         said = "made before this run wrote its trajectory; export again"
         line = f"  {'stale export':<20} {path} ({said})"
         console.print(line, soft_wrap=True, markup=False)
-    for stage, dt in outputs.chosen_dt.items():
-        console.print(f"  {'time step':<20} {dt:.6g} s in stage {stage} (dt = 'auto')")
-    for stage, (ran, most, every) in outputs.stopped.items():
-        first = ", at its first check: its condition held from its start" if ran <= every else ""
-        line = f"  {'stopped':<20} stage {stage} after {ran} of {most} steps{first}"
-        console.print(line, soft_wrap=True)
-    for stage, condition in outputs.unmet.items():
-        line = (
-            f"  {'not met':<20} stage {stage} ran all its steps without {stop_condition(condition)}"
-        )
-        if "kinetic_energy_at_end" in condition:
-            line += (
-                f": {condition['kinetic_energy_at_end']:.3g} J at its end, "
-                f"{condition['rotation_share']:.0%} of it the spheres' rotation"
-            )
-        console.print(line, soft_wrap=True)
-    for stage, axes in outputs.unheld.items():
-        line = (
-            f"  {'not held':<20} stage {stage} ended with its servo off its target stress: "
-            f"{stresses_off(axes)} (more than {HELD:.0%} off: a servo_mass too small or a "
-            "servo_gain too large overshoots, a stage too short does not get there)"
-        )
-        console.print(line, soft_wrap=True)
+    said = {
+        "chosen_dt": outputs.chosen_dt,
+        "stopped": outputs.stopped,
+        "unmet": outputs.unmet,
+        "unheld": outputs.unheld,
+    }
+    for label, text in stage_lines(said):
+        console.print(f"  {label:<20} {text}", soft_wrap=True)
     if outputs.verdict is not None:
         console.print(verdict_line(outputs.verdict))
     elif outputs.reverse is not None:

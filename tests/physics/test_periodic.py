@@ -279,5 +279,10 @@ def test_what_a_run_said_of_its_stages_is_read_back_from_its_restart(tmp_path):
         shown = CliRunner().invoke(app, ["info", str(tmp_path / f"fcc_triaxial.{name}.h5")])
         assert shown.exit_code == 0, shown.output
         lines = shown.output.splitlines()
-        assert "stopped:    stage isotropic after 50 of 20000 steps, on its stop condition" in lines
-        assert any(line.startswith("not held:   stage shear: σ_xx ") for line in lines)
+        # in the words of the run's summary (`info.stage_lines`), which info's were not
+        assert (
+            "stopped:    stage isotropic after 50 of 20000 steps, at its first check: its "
+            "condition held from its start" in lines
+        )
+        held = "not held:   stage shear ended with its servo off its target stress: σ_xx "
+        assert any(line.startswith(held) for line in lines)
