@@ -9,6 +9,7 @@ natural frequency) returns None.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from revdem_cli.timestep.shapes import Body
@@ -116,6 +117,20 @@ def predictor_is_stable(k: float, c: float, inverse_mass: float, dt: float, orde
     return bool(np.abs(np.roots(polynomial)).max() <= 1.0 + 1e-12)
 
 
+def bisected(
+    is_stable: Callable[[float], bool], stable: float, unstable: float, rtol: float
+) -> tuple[float, float]:
+    """The bracket [stable, unstable] of a stability limit (is_stable at the one, not at the
+    other) halved until it is narrower than `rtol` of its upper end."""
+    while unstable - stable > rtol * unstable:
+        middle = 0.5 * (stable + unstable)
+        if is_stable(middle):
+            stable = middle
+        else:
+            unstable = middle
+    return stable, unstable
+
+
 def dt_velocity_predictor(k: float, c: float, inverse_mass: float, order: int) -> float:
     """Stability limit of Eq 30 under velocity Verlet with the velocity predictor of order
     `order` (`predictor_is_stable`), found by bisection: the largest dt stable along with
@@ -123,17 +138,14 @@ def dt_velocity_predictor(k: float, c: float, inverse_mass: float, order: int) -
     `dt_velocity_verlet`; undamped every order gives 2/omega."""
     omega = math.sqrt(k * inverse_mass)
     step = 2e-3 / omega
+
+    def stable_at(dt: float) -> bool:
+        return predictor_is_stable(k, c, inverse_mass, dt, order)
+
     stable = 0.0
-    while predictor_is_stable(k, c, inverse_mass, stable + step, order):
+    while stable_at(stable + step):
         stable += step
-    unstable = stable + step
-    while unstable - stable > 1e-12 * unstable:
-        middle = 0.5 * (stable + unstable)
-        if predictor_is_stable(k, c, inverse_mass, middle, order):
-            stable = middle
-        else:
-            unstable = middle
-    return stable
+    return bisected(stable_at, stable, stable + step, 1e-12)[0]
 
 
 def dt_damped(k: float, c: float, inverse_mass: float, order: int) -> float:

@@ -48,7 +48,7 @@ from revdem_cli.kernels.integrate import BLOWN_UP, OK, advance
 from revdem_cli.kernels.stiffness import apply_stiffness, contact_stiffnesses
 from revdem_cli.stage import Model, stepping_bundles
 from revdem_cli.state import State, empty_events, fixed_arrays
-from revdem_cli.timestep.criteria import dt_damped
+from revdem_cli.timestep.criteria import bisected, dt_damped
 
 
 @dataclass(frozen=True)
@@ -475,12 +475,7 @@ def engine_bracket(
         else:  # up a tenth: its upper end did not grow, so is the new lower end
             stable, unstable, low = unstable, 1.1 * unstable, False
             high = grows(unstable)
-    while unstable - stable > width * stable:
-        middle = 0.5 * (stable + unstable)
-        if grows(middle):
-            unstable = middle
-        else:
-            stable = middle
+    stable, unstable = bisected(lambda dt: not grows(dt), stable, unstable, width)
     searched = (min(tried), max(tried))
     return EngineCheck(stable, unstable, steps, len(tried), divergence, seconds, searched)
 

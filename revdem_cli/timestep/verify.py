@@ -14,7 +14,7 @@ from functools import partial
 
 import numpy as np
 
-from revdem_cli.timestep.criteria import Contact, a_max
+from revdem_cli.timestep.criteria import Contact, a_max, bisected
 from revdem_cli.timestep.engine_pair import engine_limit
 from revdem_cli.timestep.shapes import Body
 
@@ -101,13 +101,7 @@ def largest_stable_dt(
         unstable /= 2.0
     if stable == 0.0:
         return 0.0
-    while unstable - stable > rtol * stable:
-        middle = 0.5 * (stable + unstable)
-        if is_stable(middle):
-            stable = middle
-        else:
-            unstable = middle
-    return stable
+    return bisected(is_stable, stable, unstable, rtol)[0]
 
 
 def limit_1d(is_stable, k: float, c: float, inverse_mass: float) -> float:
