@@ -422,7 +422,7 @@ def _unstable_time_step(excess, restart_step: int, step: int) -> dict:
 
 CONTACTS = frozenset(
     {"contact_lost_with_shear_force", "coulomb_slip", "rolling_limit",
-     "contact_lost_with_rolling_moment"}
+     "contact_lost_with_rolling_moment", "viscous_damping"}
 )  # fmt: skip
 """The mechanisms that act at a contact: theirs is the only cause with a partner."""
 
@@ -472,7 +472,8 @@ def _cause(kind: int, entry, walls: list[str], ids: np.ndarray, velocity_read: s
         f"{_newtons(amount)} of shear force, which cannot be recovered",
         "local_damping": f"local damping (gamma_l = {amount:g}) acted up to step {step}: "
         f"{velocity_read}",
-        "viscous_damping": f"viscous contact damping acted up to step {step}: {velocity_read}",
+        "viscous_damping": f"viscous contact damping (beta = {amount:g}) acted up to step "
+        f"{step}, last at {contact}: {velocity_read}",
         "velocity_fixed_point_under_drag": f"{particle} reached a fixed point of the drag "
         f"map at step {step} (|v| = {amount:.4g} m/s, terminal velocity or rest): the time spent "
         "there cannot be recovered",

@@ -142,6 +142,15 @@ def coulomb_cap(shear, limit):
 
 
 @inline
+def capped_away(law, carried):
+    """Whether a shear force the Coulomb cap removed destroyed no information: with mu = 0
+    the cap leaves no history, so one that carried none in is found again, zero, by the
+    reversed step (its history unwound, capped the same way); what it removed was the
+    step's increment, found from the positions and velocities alone."""
+    return law.mu == 0.0 and dot(carried, carried) == 0.0
+
+
+@inline
 def relative_velocity(n, arm_i, arm_j, v_i, w_i, v_j, w_j):
     """Velocity of j relative to i at the contact point, branch vectors arm_i n and -arm_j n:
     (v_j + w_j x (-arm_j n)) - (v_i + w_i x arm_i n) = v_j - v_i - (arm_i w_i + arm_j w_j) x n."""

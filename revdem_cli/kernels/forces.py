@@ -163,7 +163,7 @@ def compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, mode, dt, h, 
     else:
         damp_and_kick(n, *end_args)
     servo_forces(cell, dyn.local_damping)
-    note_destroyed(events, step, pairs, walls, pair_events, wall_events)
+    note_destroyed(events, step, pairs, walls, pair_events, wall_events, law)
 
 
 @jit

@@ -24,8 +24,8 @@ from revdem_cli.kernels.events import (
     KINDS,
     MOTION_LOST,
     note,
-    note_damping,
     note_fixed_points,
+    note_local_damping,
 )
 from revdem_cli.kernels.forces import compute_forces, note_normals
 from revdem_cli.kernels.gather import kick
@@ -200,7 +200,7 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     predict(p)  # v_P(t + dt) from v(t + dt/2) and the k before (Kolafa & Lisal 2011)
     compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, np.int64(FORWARD), dt, h,
                    events, step + 1, keep)  # fmt: skip
-    note_damping(events, step + 1, law, dyn)
+    note_local_damping(events, step + 1, dyn)
     kick_cell(cell, fixed, h)
 
 
@@ -231,7 +231,7 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     predict(p)  # the same predictor on the reversed run's own history: dt -> -dt
     compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, np.int64(REVERSE), dt, h,
                    events, step - 1, keep)  # fmt: skip
-    note_damping(events, step - 1, law, dyn)
+    note_local_damping(events, step - 1, dyn)
     kick_cell(cell, fixed, h)
     steer_back(cell)
 

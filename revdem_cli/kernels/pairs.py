@@ -51,6 +51,7 @@ from revdem_cli.kernels.contact import (
     SETTLED,
     SMALL_ANGLE,
     STATIC,
+    capped_away,
     contact_force,
     contact_velocity,
     earlier_shear,
@@ -365,11 +366,14 @@ def contacts(
         )
         touching = overlap > 0.0
         enter3(block, FORCE, k, f if touching else ZERO)
+        if shear_law or damped:  # the scatter counts the pairs touching (`scatter_pairs`)
+            enter(block, OVERLAP, k, overlap)
         if shear_law:
             enter3(block, NEW_SHEAR, k, shear if touching else ZERO)
-            kept = n if turned else cross(n, f)  # for its moment (`Pairs.normal`, `.moment`)
+            # for its moment (`Pairs.normal`, `.moment`): n x f of f's tangential part, which
+            # is f + |f_n| n (Hanley 2020 Eq 5), exactly zero where the shear force is
+            kept = n if turned else cross(n, axpy(normal, n, f))
             enter3(block, MOMENT, k, kept if touching else ZERO)
-            enter(block, OVERLAP, k, overlap)
             enter(block, SLIPPED, k, slipped if touching else 0.0)
             if predicting:
                 earlier, spacing = earlier_shear(
@@ -493,9 +497,11 @@ def scatter_pairs(
     `Pairs.normal`; its histories and what was destroyed always; `predicting`, each pair whose
     history the reversed step would miss listed in `earlier` from row `listed` on,
     `list_missed`); returns the block's counts (`Destroyed`: slips, last pair that slipped,
-    losses, last pair that lost its shear force, and the same for the rolling moment) and
-    the next row of `earlier`. A pair apart loses its histories (counted lost when stepping
-    forward)."""
+    losses, last pair that lost its shear force, the same for the rolling moment, and with
+    viscous damping the pairs touching and the last of them) and the next row of `earlier`.
+    A pair apart loses its histories (counted lost when stepping forward). A slip is counted
+    where it destroys information: not with mu = 0 where the pair carried no history in
+    (`contact.capped_away`)."""
     slips = 0
     last_slip = -1
     losses = 0
@@ -504,12 +510,18 @@ def scatter_pairs(
     last_cap = -1
     drops = 0
     last_drop = -1
+    dashpots = 0
+    last_dashpot = -1
     shear_law = law.tangential != NO_SHEAR
+    damped = law.beta_n > 0.0 or law.beta_t > 0.0
     for k in range(size):
         p = first + k
         u = np.uint64(p)  # unsigned, as in `gather_pairs`
         if write:
             put(force, u, entries(block, FORCE, k))
+        if damped and entry(block, OVERLAP, k) > 0.0:
+            dashpots += 1
+            last_dashpot = p
         if shear_law:
             overlap = entry(block, OVERLAP, k)
             lost = norm(row(history, u)) if overlap <= 0.0 and mode == FORWARD else 0.0
@@ -523,7 +535,7 @@ def scatter_pairs(
                 overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
             destroyed[p] = slipped  # this step's, 0 where nothing was: the sliding flag
-            if slipped > 0.0:
+            if slipped > 0.0 and not capped_away(law, entries(block, SHEAR, k)):
                 slips += 1
                 last_slip = p
             if lost > 0.0:
@@ -543,7 +555,8 @@ def scatter_pairs(
                 rolled[p] = dropped
                 drops += 1
                 last_drop = p
-    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop, listed
+    counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
+    return counts + (dashpots, last_dashpot), listed
 
 
 @inline
@@ -743,6 +756,8 @@ def _pair_loop(
     last_cap = -1
     drops = 0
     last_drop = -1
+    dashpots = 0
+    last_dashpot = -1
     largest = 0.0  # fixed point: the largest component of a pair's force, N
     f_step = law.force_grid  # fixed point: the force grid's step; 0 in floating point
     turned = law.history_grid != 0.0  # fixed point: `moment` holds the pairs' normals
@@ -783,7 +798,7 @@ def _pair_loop(
                 force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
                 predicting, listed, law, mode, keep,
             )  # fmt: skip
-            scattered = scatter_pairs(block, first, size, *results)
+            scattered, listed = scatter_pairs(block, first, size, *results)
             slips += scattered[0]
             last_slip = max(last_slip, scattered[1])
             losses += scattered[2]
@@ -792,7 +807,8 @@ def _pair_loop(
             last_cap = max(last_cap, scattered[5])
             drops += scattered[6]
             last_drop = max(last_drop, scattered[7])
-            listed = scattered[8]
+            dashpots += scattered[8]
+            last_dashpot = max(last_dashpot, scattered[9])
             sum_in_order(
                 block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond,
                 foreign, foreign_end, force, moment, overlaps, turned,
@@ -816,7 +832,7 @@ def _pair_loop(
                                 turned,
                             )  # fmt: skip
     counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
-    return counts, largest
+    return counts + (dashpots, last_dashpot), largest
 
 
 @inline

@@ -8,6 +8,7 @@ from revdem_cli.kernels.contact import (
     FORWARD,
     NO_ROLLING,
     NO_SHEAR,
+    capped_away,
     contact_force,
     lever_arm,
     relative_velocity,
@@ -74,8 +75,10 @@ def _wall_loop(
     """Force and moment on each particle from each wall (Hanley 2020 Eq 4-10, R* = r; the
     wall does not turn), the moment with the rolling moment of a rolling law; viscous
     damping reads `v_damp`, `w_damp` where `predicted` (a velocity predictor's). Returns the
-    counts of `events.note_destroyed`, contacts numbered q W + b."""
+    counts of `events.note_destroyed`, contacts numbered q W + b (a slip where it destroys
+    information, `contact.capped_away`; with viscous damping, the contacts touching)."""
     shear_law = law.tangential != NO_SHEAR
+    damped = law.beta_n > 0.0 or law.beta_t > 0.0
     rolling_law = law.rolling != NO_ROLLING
     walls = kind.shape[0]
     slips = 0
@@ -86,15 +89,19 @@ def _wall_loop(
     last_cap = -1
     drops = 0
     last_drop = -1
+    dashpots = 0
+    last_dashpot = -1
     if walls == 0:  # no parallel region for nothing: each costs microseconds a step
-        return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
+        counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
+        return counts + (dashpots, last_dashpot)
     for q in numba.prange(x.shape[0]):
         for b in range(walls):
             overlap, n, arm, vrel, spin = wall_kinematics(
                 q, b, x, v, w, radius, kind, point, axis, wall_radius, wall_velocity
             )
             overlaps[q, b] = overlap
-            shear = cell_of(history, q, b)
+            carried = cell_of(history, q, b)
+            shear = carried
             if overlap > 0.0:
                 m = wall_material[b]
                 vdamp = vrel
@@ -119,7 +126,8 @@ def _wall_loop(
                     shear,
                     n_new,
                 )
-                t = cross(scaled(arm, n), f) if shear_law else ZERO
+                # f's tangential part, f + |f_n| n, exactly zero where the shear force is
+                t = cross(scaled(arm, n), axpy(normal, n, f)) if shear_law else ZERO
                 dropped = 0.0
                 if rolling_law:
                     old = cell_of(rolling, q, b)
@@ -144,9 +152,12 @@ def _wall_loop(
             place(torque, q, b, t)
             destroyed[q, b] = slipped + dropped
             contact = q * walls + b
-            if slipped > 0.0:
+            if slipped > 0.0 and not capped_away(law, carried):
                 slips += 1
                 last_slip = max(last_slip, contact)
+            if damped and overlap > 0.0:
+                dashpots += 1
+                last_dashpot = max(last_dashpot, contact)
             if dropped > 0.0:
                 losses += 1
                 last_loss = max(last_loss, contact)
@@ -156,7 +167,8 @@ def _wall_loop(
             if rolling_law and overlap <= 0.0 and rolled[q, b] > 0.0:
                 drops += 1
                 last_drop = max(last_drop, contact)
-    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop
+    counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
+    return counts + (dashpots, last_dashpot)
 
 
 wall_loop = by_size(_wall_loop)

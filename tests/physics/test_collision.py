@@ -169,3 +169,71 @@ def test_a_reversal_run_above_the_critical_time_step_is_blamed_on_it_not_on_roun
     assert "amplifies round-off" in cause["message"]
     below = verdict(2.6e-4)
     assert below["reversible"] and below["divergence_causes"] == []
+
+
+def test_viscous_damping_is_logged_at_the_contacts_it_acts_on(tmp_path):
+    """Viscous damping was logged at every step of a run with beta > 0, contact or none: the
+    damped collision counted its 3000 steps, and a sphere falling under drag that never
+    touched anything, with normal_damping set, was blamed on the dashpot, not on drag's
+    amplification of round-off (Hanley 2020 Eq 28). Now the force loops log it at the contacts
+    touching: one a step of the collision's contact, and none in the fall."""
+    from revdem_cli import api as revdem
+    from tests.conftest import CONFIGS
+
+    damped = revdem.load(CONFIGS / "trvp" / "collision_damped.toml").changed(
+        {"stages.0.observables_every": 1, "output.figures": []}
+    )
+    result = revdem.run(damped, tmp_path / "collision")
+    times, coordination = result.observables()["coordination_number"]
+    steps = np.rint(times / 1e-6).astype(int)  # dt = 1 us
+    touching = steps[(coordination > 0.0) & (steps > 0)]  # forces found after each step
+    (cause,) = result.comparison["divergence_causes"]
+    assert cause["mechanism"] == "viscous_damping"
+    assert 1500 < cause["occurrences"] == len(touching) < 2000  # a contact of 1.68 ms
+    assert cause["step"] == touching[-1] and cause["amount"] == 0.3
+    assert (cause["particle_id"], cause["partner_id"]) == (1, 2)
+    assert "(beta = 0.3) acted up to step" in cause["message"]
+
+    fall = revdem.load(CONFIGS / "drop_A.toml").changed(
+        {
+            "damping.drag": 0.999,
+            "contact.normal_damping": 0.1,  # acts at no contact: the sphere falls 2 mm of 1 m
+            "integrator.dt": 1e-6,
+            "particles.0.position": [0.0, 0.0, 1.0],
+            "stages.0.steps": 20000,
+            "stages.0.output_every": 1000,
+            "reversal.velocity_tolerance": 1e-13,
+            "reversal.position_tolerance_rel": 1e-15,
+            "output.figures": [],
+        }
+    )
+    verdict = revdem.run(fall, tmp_path / "fall").comparison
+    assert not verdict["reversible"]
+    mechanisms = [cause["mechanism"] for cause in verdict["divergence_causes"]]
+    assert mechanisms == ["drag_amplifies_round_off"], mechanisms
+
+
+def test_a_frictionless_shear_law_destroys_nothing_and_turns_nothing(tmp_path):
+    """With mu = 0 a shear law's history is capped to zero each step: the reversed step,
+    capping the same way, finds it again (zero), so nothing is destroyed, but every step of
+    every contact was logged as a Coulomb slip, and the reversal of the frictionless
+    critical-state cell blamed on it. And the moment n x f of the normal force alone, along n,
+    was round-off, not zero: the spheres of a head-on-free oblique collision spun at
+    1e-12 rad/s. The moment is now that of f's tangential part, exactly zero here, and a
+    slip that removes only the step's increment at mu = 0 is not logged."""
+    from revdem_cli import api as revdem
+    from tests.conftest import CONFIGS
+
+    experiment = revdem.load(CONFIGS / "collision_shear.toml").changed(
+        {"contact.friction": 0.0, "output.figures": []}
+    )
+    result = revdem.run(experiment, tmp_path)
+    from revdem_cli.kernels.events import COUNT, KINDS
+
+    with h5py.File(result.outputs.forward) as f:
+        spin = f["particles/all/angular_velocity/value"][:]
+        slips = f["observables/events/value"][-1, KINDS.index("coulomb_slip"), COUNT]
+    assert np.count_nonzero(spin) == 0
+    assert slips == 0
+    mechanisms = [cause["mechanism"] for cause in result.comparison["divergence_causes"]]
+    assert "coulomb_slip" not in mechanisms
