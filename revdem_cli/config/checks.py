@@ -18,9 +18,9 @@ class FieldError(ValueError):
 
 def check_consistency(scenario) -> None:
     """How the fields of a scenario fit together: names that refer to materials, walls and
-    stages exist and are unique, one reversed stage and the last, stop conditions that can
-    be met, the cell and its servo, the container of [solid_fraction]; FieldError at the
-    first that does not."""
+    stages exist and are unique, one reversed stage and the last, friction and tangential
+    damping only with a tangential law, stop conditions that can be met, the cell and its
+    servo, the container of [solid_fraction]; FieldError at the first that does not."""
     for path, material in _materials_named(scenario):
         if material not in scenario.materials:
             raise FieldError(
@@ -31,14 +31,8 @@ def check_consistency(scenario) -> None:
     wall_names = [w.name for w in scenario.walls]
     check_solid_fraction(scenario)
     check_stop_conditions(scenario)
+    check_tangential_fields(scenario)
     for i, stage in enumerate(scenario.stages):
-        if stage.contact and stage.contact.friction is not None:
-            if scenario.contact.tangential == "none":
-                raise FieldError(
-                    f"stages[{i}].contact.friction",
-                    "needs a tangential law in [contact] (frictionless spheres have no shear "
-                    "force to cap)",
-                )
         for name in stage.wall_velocities:
             if name not in wall_names:
                 raise FieldError(
@@ -116,6 +110,31 @@ def check_stop_conditions(scenario) -> None:
                 "needs a periodic [cell] (its solid fraction, 1 / (1 + void ratio)) or a "
                 "[solid_fraction] table saying which walls close the container",
             )
+
+
+TANGENTIAL_FIELDS = {"friction": "cap", "tangential_damping": "damp"}
+"""The coefficients of [contact] and of a stage's contact that act on a tangential law's
+shear force, with what each does to it."""
+
+
+def check_tangential_fields(scenario) -> None:
+    """Friction and tangential damping, in [contact] or a stage's contact, only with a
+    tangential law: frictionless spheres have no shear force for them to act on, and they
+    would do nothing. A coefficient counts as given where it is not [contact]'s default
+    (friction has none; tangential damping's is 0)."""
+    if scenario.contact.tangential != "none":
+        return
+    contacts = [("contact", scenario.contact)]
+    contacts += [(f"stages[{i}].contact", s.contact) for i, s in enumerate(scenario.stages)]
+    for path, contact in contacts:
+        for field, effect in TANGENTIAL_FIELDS.items():
+            value = None if contact is None else getattr(contact, field)
+            if value is not None and value != type(scenario.contact).model_fields[field].default:
+                raise FieldError(
+                    f"{path}.{field}",
+                    "needs a tangential law in [contact] (tangential = 'mindlin', ...): "
+                    f"frictionless spheres have no shear force for it to {effect}",
+                )
 
 
 def check_figures(scenario) -> None:

@@ -130,7 +130,10 @@ class _Contact(_Model):
         default=0.0, ge=0, description=f"viscous normal damping beta_n: {NORMAL_DAMPING}, -"
     )
     tangential_damping: Float = Field(
-        default=0.0, ge=0, description=f"viscous tangential damping beta_t: {SHEAR_DAMPING}, -"
+        default=0.0,
+        ge=0,
+        description=f"viscous tangential damping beta_t: {SHEAR_DAMPING}, -; needs a tangential "
+        "law",
     )
     wall_moduli: Literal["combined", "wall"] = Field(
         default="combined",
@@ -156,11 +159,6 @@ class _Contact(_Model):
                     raise ValueError(f"{selector} = '{name}' needs {field}: {description}")
         if self.tangential != "none" and self.friction is None:
             raise ValueError("a tangential law needs friction (mu; inf for no sliding)")
-        if self.tangential == "none" and self.friction is not None:
-            raise ValueError(
-                "friction needs a tangential law (tangential = 'mindlin', ...): frictionless "
-                "spheres have no shear force to cap"
-            )
         if self.rolling != "none" and self.tangential == "none":
             raise ValueError(
                 "rolling resistance needs a tangential law: the spheres turn only under "

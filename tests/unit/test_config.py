@@ -66,7 +66,13 @@ def test_overrides_reach_nested_fields_and_list_items():
         ),
         ("output.figures=['speed','speed']", "output: figure 'speed' is listed twice"),
         # was silently ignored, where the same in a stage's [contact] is refused
-        ("contact.friction=0.5", "contact: friction needs a tangential law"),
+        ("contact.friction=0.5", "contact.friction: needs a tangential law"),
+        # tangential damping without a tangential law was accepted and did nothing
+        ("contact.tangential_damping=0.3", "contact.tangential_damping: needs a tangential law"),
+        (
+            "stages.0.contact={tangential_damping=0.3}",
+            "stages[0].contact.tangential_damping: needs a tangential law",
+        ),
         (
             "particles.1.position=[0.005, 0, 0]",
             "particles[1].position: sphere 1 of particles overlaps sphere 0 of",
