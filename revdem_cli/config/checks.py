@@ -67,7 +67,8 @@ def check_consistency(scenario) -> None:
 
 
 def check_stop_conditions(scenario) -> None:
-    """Each stage's stop condition can be met: it is first checked before the stage ends, the
+    """Each stage's stop condition can be met: it is first checked before the stage ends, at
+    an observables row (`check_stop_rows`), the
     wall it watches exists, a wall whose travel it waits for moves in that stage (walls move
     only at their velocity, `Stage.wall_velocity`; a static wall's force may still rise), and
     a solid fraction has the container of [solid_fraction]."""
@@ -83,6 +84,7 @@ def check_stop_conditions(scenario) -> None:
                 f"{stop.after_steps} must be below the stage's steps, {stage.steps}: the "
                 "condition is first checked that many steps into the stage",
             )
+        check_stop_rows(stage, i)
         condition = "wall_force_above" if stop.wall_force_above else "wall_travel_above"
         if stop.wall is not None and stop.wall not in names:
             raise FieldError(f"{path}.{condition}.wall", f"no wall is named '{stop.wall}'")
@@ -135,6 +137,23 @@ def check_tangential_fields(scenario) -> None:
                     "needs a tangential law in [contact] (tangential = 'mindlin', ...): "
                     f"frictionless spheres have no shear force for it to {effect}",
                 )
+
+
+def check_stop_rows(stage, i: int) -> None:
+    """A stage's stop condition is checked at its observables rows, every observables_every
+    steps from its start (its interval, as N is fix halt's in LIGGGHTS), from its after_steps
+    on: at least one row comes before its last step, which ends the stage anyway."""
+    every, after = stage.observable_interval, stage.stop_when.after_steps
+    if -(-(after or 1) // every) * every < stage.steps:  # the first row from `after` on
+        return
+    given = "" if stage.observables_every else f" (default: output_every, {every})"
+    since = f" from its after_steps, {after}," if after else ""
+    raise FieldError(
+        f"stages[{i}].observables_every",
+        f"{every}{given} leaves stages[{i}].stop_when no observables row to be checked at"
+        f"{since} before the stage's last step, {stage.steps}: it could never end the stage "
+        f"early; give observables_every at most {stage.steps - (after or 1)}",
+    )
 
 
 def check_figures(scenario) -> None:

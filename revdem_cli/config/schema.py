@@ -632,7 +632,8 @@ class Stage(_Model):
     observables_every: Int | None = Field(
         default=None,
         gt=0,
-        description="record observables every this many steps; default: output_every",
+        description="record observables every this many steps; default: output_every; with "
+        "stop_when, how often its condition is checked (at least once before the last step)",
     )
     reverse: bool = Field(
         strict=True,
@@ -647,7 +648,7 @@ class Stage(_Model):
     )
     stop_when: StopWhen | None = Field(
         default=None,
-        description="end the stage early, at the first observables row where this holds",
+        description="end the stage early, at the first observables row or frame where this holds",
     )
     wall_velocities: dict[str, Vector3] = Field(
         default_factory=dict,

@@ -537,6 +537,18 @@ VELOCITIES = ("stages", 0, "wall_velocities")
             {STOP: {"kinetic_energy_below": 1e-7, "after_steps": 200}},
             "stages[0].stop_when.after_steps: 200 must be below the stage's steps, 200",
         ),
+        (  # its only row from step 199 on is the stage's last: it never ended the stage early
+            {STOP: {"kinetic_energy_below": 1e-7, "after_steps": 199}},
+            "stages[0].observables_every: 50 (default: output_every, 50) leaves "
+            "stages[0].stop_when no observables row to be checked at from its after_steps, 199, "
+            "before the stage's last step, 200",
+        ),
+        (  # no row in the stage but its start and its end: the stage ran all its steps
+            {STOP: {"kinetic_energy_below": 1e-7}, ("stages", 0, "observables_every"): 200},
+            "stages[0].observables_every: 200 leaves stages[0].stop_when no observables row to "
+            "be checked at before the stage's last step, 200: it could never end the stage "
+            "early; give observables_every at most 199",
+        ),
         (
             {STOP: TRAVEL},
             "stages[0].stop_when.wall_travel_above.wall: wall 'floor' does not move in this "
@@ -576,7 +588,7 @@ def test_a_stop_condition_that_cannot_be_met_is_refused(changes, message):
 @pytest.mark.parametrize(
     "changes",
     [
-        {STOP: {"kinetic_energy_below": 1e-7, "after_steps": 199}},
+        {STOP: {"kinetic_energy_below": 1e-7, "after_steps": 150}},  # a row at 150, of 200
         {STOP: TRAVEL, VELOCITIES: {"floor": [0.0, 0.0, 0.1]}},
         {STOP: TRAVEL, ("walls", 0, "velocity"): [0.1, 0.0, 0.0]},  # along its plane: it travels
         {STOP: {"wall_force_above": {"wall": "floor", "force": 1.0}}},  # a still wall is loaded
