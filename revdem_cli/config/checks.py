@@ -275,10 +275,17 @@ def check_wall_materials(scenario) -> None:
 
 def check_cell(scenario) -> None:
     """Stages move the cell only if there is one, hold a stress only with the parameter of
-    its servo, and strain it at a rate that leaves each edge a length; walls and a periodic
-    cell do not go together."""
+    its servo, and strain it at a rate that leaves each edge a length; walls and gravity do
+    not go with a periodic cell."""
     if scenario.cell is not None and scenario.walls:
         raise FieldError("walls", "walls cannot be combined with a periodic [cell]")
+    if scenario.cell is not None and any(scenario.gravity):
+        raise FieldError(
+            "gravity",
+            f"{list(scenario.gravity)} m/s^2 with a periodic [cell]: every sphere falls "
+            "together, for no wall or floor holds them (a cell takes no walls); leave gravity "
+            "out",
+        )
     for i, stage in enumerate(scenario.stages):
         if stage.cell is None:
             continue

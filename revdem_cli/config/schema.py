@@ -786,7 +786,9 @@ class Scenario(_Model):
     walls: list[Wall] = Field(default_factory=list, description="walls")
     cell: PeriodicCell | None = Field(default=None, description="periodic boundaries in x, y and z")
     gravity: Vector3 = Field(
-        default=(0.0, 0.0, 0.0), description="gravitational acceleration, m/s^2"
+        default=(0.0, 0.0, 0.0),
+        description="gravitational acceleration, m/s^2; not with a periodic [cell], which has no "
+        "walls to hold the spheres",
     )
     damping: Damping = Field(default_factory=Damping)
     integrator: Integrator

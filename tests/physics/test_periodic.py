@@ -221,6 +221,22 @@ def test_a_strain_rate_that_inverts_the_cell_is_refused_before_it_runs():
     assert result.exit_code == 0, result.output
 
 
+def test_gravity_in_a_periodic_cell_is_refused():
+    """A cell takes no walls, so nothing holds spheres under gravity: the whole sample fell
+    together (smoke critical state: mean v_z -1.55 m/s), and no kinetic-energy stop was met."""
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+    from tests.conftest import assert_one_line_error
+
+    config = str(CONFIGS / "smoke" / "critical_state.toml")
+    assert_one_line_error(
+        CliRunner().invoke(app, ["validate", config, "--set", "gravity=[0, 0, -9.81]"]),
+        "gravity: [0.0, 0.0, -9.81] m/s^2 with a periodic [cell]: every sphere falls together, "
+        "for no wall or floor holds them",
+    )
+
+
 def test_a_stage_that_ends_with_its_servo_off_its_target_says_so(tmp_path):
     """The fcc lattice's inertial servo, given 20 steps of the 20 000 it takes to press the
     lattice to 150 kPa, ends near 64 kPa; a run said nothing of it (nor of a proportional
