@@ -554,7 +554,7 @@ def read(out: str | Path, name: str | None = None) -> Result:
     if paths["restart"] is not None:  # what the run said of its stages, which it keeps
         said = carried_summary(paths["restart"].parent, restart_summary(paths["restart"]))
         outputs.chosen_dt, outputs.stopped, outputs.unmet, outputs.unheld = said[:4]
-        outputs.stage_files = tuple(said[4])
+        outputs.stage_files, outputs.servo = tuple(said[4]), said[5]
     return Result(outputs)
 
 

@@ -49,6 +49,9 @@ class Outputs:
     # stages whose servo ended off its target stress (`_stress_not_held`): axis -> (stress
     # at the stage's end, target), Pa
     unheld: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
+    # the kind of the cell's servo, 'inertial' or 'proportional', which says what made it
+    # overshoot; None without a cell, or where a restart written before runs kept it lacks it
+    servo: str | None = None
     # what else the forward run wrote: its stages' information tapes and, where every stage
     # is reversed, their restarts, each (what it is, path)
     stage_files: tuple[tuple[str, Path], ...] = ()
@@ -237,7 +240,8 @@ def _forward(
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
     so_far = "{}" if resume is None else resume.resumption.so_far
-    chosen, stopped, unmet, unheld, stage_files = carried_summary(run.out_dir, so_far)
+    chosen, stopped, unmet, unheld, stage_files, _ = carried_summary(run.out_dir, so_far)
+    servo = scenario.servo  # the run's own: a checkpoint written before may not say it
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
             stage = scenario.stages[index]
@@ -266,7 +270,7 @@ def _forward(
             place = dict(
                 phase="forward", stage_index=index, reverse=reverse, source_restart="",
                 stop_step=-1, end_step=-1,
-                so_far=summary_so_far(chosen, stopped, unmet, unheld, stage_files),
+                so_far=summary_so_far(chosen, stopped, unmet, unheld, stage_files, servo),
             )  # fmt: skip
 
             def checkpoint(state, clock, events, place=place, tape=tape, files=files):
@@ -294,7 +298,7 @@ def _forward(
         writer.end()
     reversal_history(state, run.model, clock)  # a velocity predictor's, for the reversal
     last = _stage_files(run, len(scenario.stages) - 1)
-    said = summary_so_far(chosen, stopped, unmet, unheld, stage_files)
+    said = summary_so_far(chosen, stopped, unmet, unheld, stage_files, servo)
     write_restart(
         paths["restart"], run.restart(state, clock, paths["forward"], files=last, summary=said)
     )
@@ -303,15 +307,16 @@ def _forward(
     if reverse:
         restart = read_restart(paths["restart"])
         source = str(paths["restart"].resolve())
-        so_far = summary_so_far(chosen, stopped, unmet, unheld, stage_files)
+        so_far = summary_so_far(chosen, stopped, unmet, unheld, stage_files, servo)
         reversed_outputs = _reverse(run, restart, source, None, progress, so_far)
         reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
         reversed_outputs.chosen_dt, reversed_outputs.stopped = chosen, stopped
         reversed_outputs.unmet, reversed_outputs.unheld = unmet, unheld
+        reversed_outputs.servo = servo
         reversed_outputs.stage_files = outputs.stage_files
         return reversed_outputs
     outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
-    outputs.unheld = unheld
+    outputs.unheld, outputs.servo = unheld, servo
     run.checkpoints.discard()
     run.checkpoints.finish("its figures were drawn; its trajectory and restart are whole")
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
@@ -358,19 +363,20 @@ def _stress_not_held(state: State, model, stage) -> dict[str, tuple[float, float
 
 
 def summary_so_far(
-    chosen: dict, stopped: dict, unmet: dict, unheld: dict, stage_files: list
+    chosen: dict, stopped: dict, unmet: dict, unheld: dict, stage_files: list, servo: str | None
 ) -> str:
     """What a run's summary says of the stages run so far (`Outputs`' chosen_dt, stopped,
-    unmet, unheld and stage_files, the files by name), as JSON, which a checkpoint keeps so
-    that the run resumed says it too."""
+    unmet, unheld, stage_files, the files by name, and servo), as JSON, which a checkpoint
+    keeps so that the run resumed says it too."""
     files = [[label, Path(path).name] for label, path in stage_files]
     said = {"chosen_dt": chosen, "stopped": stopped, "unmet": unmet, "unheld": unheld}
-    return json.dumps(said | {"stage_files": files})
+    return json.dumps(said | {"stage_files": files, "servo": servo})
 
 
-def carried_summary(out_dir: Path, so_far: str) -> tuple[dict, dict, dict, dict, list]:
-    """`summary_so_far` read back: (chosen_dt, stopped, unmet, unheld, stage_files), the
-    files in the run's folder `out_dir` as it is named now."""
+def carried_summary(out_dir: Path, so_far: str) -> tuple[dict, dict, dict, dict, list, str | None]:
+    """`summary_so_far` read back: (chosen_dt, stopped, unmet, unheld, stage_files, servo),
+    the files in the run's folder `out_dir` as it is named now; servo None where the run
+    did not keep it (a checkpoint or restart written before runs did)."""
     said = json.loads(so_far)
     stopped = {name: tuple(counts) for name, counts in said.get("stopped", {}).items()}
     unheld = {
@@ -378,7 +384,8 @@ def carried_summary(out_dir: Path, so_far: str) -> tuple[dict, dict, dict, dict,
         for name, axes in said.get("unheld", {}).items()
     }
     files = [(label, out_dir / name) for label, name in said.get("stage_files", [])]
-    return dict(said.get("chosen_dt", {})), stopped, dict(said.get("unmet", {})), unheld, files
+    chosen, unmet = dict(said.get("chosen_dt", {})), dict(said.get("unmet", {}))
+    return chosen, stopped, unmet, unheld, files, said.get("servo")
 
 
 def _stage_files(run: Run, index: int) -> tuple[str, str]:
@@ -575,9 +582,9 @@ def resume_run(
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
         outputs = _reverse(run, resume, place.source_restart, None, progress, place.so_far)
-    chosen, stopped, unmet, unheld, stage_files = carried_summary(run.out_dir, place.so_far)
+    chosen, stopped, unmet, unheld, stage_files, _ = carried_summary(run.out_dir, place.so_far)
     outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
-    outputs.unheld = unheld
+    outputs.unheld, outputs.servo = unheld, run.scenario.servo
     outputs.stage_files = tuple(stage_files)
     for kind in ("forward", "restart"):  # named as the run's folder is named now
         path = getattr(outputs, kind)

@@ -38,6 +38,7 @@ from revdem_cli.kernels.integrate import (
 from revdem_cli.kernels.observables import Layout, observe
 from revdem_cli.kernels.stress import particle_stress
 from revdem_cli.kernels.tape import MECHANISMS, RECORD, Tape
+from revdem_cli.report.info import servo_overshoot
 from revdem_cli.state import (
     BlownUp,
     CellTooSmall,
@@ -392,12 +393,18 @@ def reversal_history(state: State, model: Model, clock: StageClock) -> None:
 
 
 def _servo_held(model: Model, clock: StageClock) -> str:
-    """The axes on which a stage holds a stress with the cell's servo, in words ("" where
-    none): "the stage's inertial servo holds a stress on x, y"."""
+    """The axes on which a stage holds a stress with the cell's servo, and what makes that
+    servo overshoot, in words ("" where none): "the inertial servo of stage isotropic holds
+    a stress on x, y and overshoots with a servo_mass too small for the packing's
+    stiffness"."""
     axes = list(clock.stage.held_stresses())
     if not axes:
         return ""
-    return f"the stage's {model.scenario.cell.servo} servo holds a stress on {', '.join(axes)}"
+    servo = model.scenario.cell.servo
+    return (
+        f"the {servo} servo of stage {clock.stage.name} holds a stress on {', '.join(axes)} "
+        f"and overshoots with {servo_overshoot(servo)} for the packing's stiffness"
+    )
 
 
 def _frames_held(writer: TrajectoryWriter, start: int, direction: int) -> str:
@@ -446,7 +453,7 @@ def _likely_cause(scenario: Scenario, dt: float, damping: str = "", servo: str =
             "took it out going forward (Hanley 2020 §5.2; an information tape, reversal.tape, "
             f"reverses it exactly); {of_dt}"
         )
-    cell = f"the cell ({servo}: a servo_mass too small or a servo_gain too large overshoots)"
+    cell = f"the cell ({servo})"
     causes = f"walls, {cell if servo else 'the cell'}, overlaps at the start, velocities"
     drives = f"what drives the spheres together ({causes})"
     crowded = limit / math.sqrt(CROWDED)

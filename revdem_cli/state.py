@@ -344,12 +344,7 @@ class CellTooSmall(RunFailed):
 
     def __init__(self, step: int, length: np.ndarray, servo: str = ""):
         edges = ", ".join(f"{edge:.4g}" for edge in length)
-        held = (
-            f"; or {servo} and overshoots: a servo_mass too small or a servo_gain too large "
-            "for the packing's stiffness swings an edge further at each step"
-            if servo
-            else ""
-        )
+        held = f"; or {servo}, swinging an edge further at each step" if servo else ""
         super().__init__(
             f"step {step}: the periodic cell ({edges} m) is no longer more than twice the "
             f"contact reach 2 r_max + skin on every axis; compress it less or start bigger{held}"

@@ -841,6 +841,12 @@ class Scenario(_Model):
         self._spheres = None
 
     @property
+    def servo(self) -> str | None:
+        """The kind of the periodic cell's servo, 'inertial' or 'proportional'; None without
+        a cell."""
+        return self.cell.servo if self.cell else None
+
+    @property
     def reversed_stage(self) -> Stage | None:
         return next((stage for stage in self.stages if stage.reverse), None)
 

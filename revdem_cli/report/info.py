@@ -207,14 +207,18 @@ def _restart(path: Path) -> dict:
 
 def _stages_ran(summary: str) -> dict:
     """What the run a restart ends said of its stages (`Restart.summary`), where it said
-    anything: `stages_ran`, {stopped, unmet, unheld, chosen_dt} of those it has."""
+    anything: `stages_ran`, {stopped, unmet, unheld, chosen_dt} of those it has, and with
+    unheld the kind of the cell's servo (None where the run did not keep it)."""
     import json
 
+    summary = json.loads(summary)
     said = {
         key: value
-        for key, value in json.loads(summary).items()
+        for key, value in summary.items()
         if key in ("stopped", "unmet", "unheld", "chosen_dt") and value
     }
+    if "unheld" in said:
+        said["servo"] = summary.get("servo")
     return {"stages_ran": said} if said else {}
 
 
@@ -227,10 +231,24 @@ def stresses_off(axes: dict) -> str:
     )
 
 
+SERVO_OVERSHOOT = {"inertial": "a servo_mass too small", "proportional": "a servo_gain too large"}
+"""What makes each kind of servo of [cell] overshoot its target stress: the parameter only it
+has (`PeriodicCell.servo_mass`, `servo_gain`)."""
+
+
+def servo_overshoot(servo: str | None) -> str:
+    """What makes a servo of kind `servo` overshoot, in words; both kinds' where the kind is
+    not known (None: a restart written before runs kept it)."""
+    if servo is None:
+        return " or ".join(f"{words} ({kind})" for kind, words in SERVO_OVERSHOOT.items())
+    return SERVO_OVERSHOOT[servo]
+
+
 def stage_lines(said: dict) -> list[tuple[str, str]]:
     """(label, text) of each thing a run said of its stages (`_stages_ran`'s keys, each
-    where there is any: `engine.Outputs` chosen_dt, stopped, unmet and unheld), as the run's
-    summary prints them and `info` of its restart gives them back."""
+    where there is any: `engine.Outputs` chosen_dt, stopped, unmet and unheld, with servo,
+    the kind of the servo that did not hold), as the run's summary prints them and `info` of
+    its restart gives them back."""
     lines = [
         ("time step", f"{dt:.6g} s in stage {stage} (dt = 'auto')")
         for stage, dt in said.get("chosen_dt", {}).items()
@@ -254,8 +272,9 @@ def stage_lines(said: dict) -> list[tuple[str, str]]:
             (
                 "not held",
                 f"stage {stage} ended with its servo off its target stress: "
-                f"{stresses_off(axes)} (more than {HELD:.0%} off: a servo_mass too small or "
-                "a servo_gain too large overshoots, a stage too short does not get there)",
+                f"{stresses_off(axes)} (more than {HELD:.0%} off: "
+                f"{servo_overshoot(said.get('servo'))} overshoots, a stage too short does not "
+                "get there)",
             )
             for stage, axes in unheld.items()
         ]

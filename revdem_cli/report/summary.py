@@ -92,6 +92,7 @@ def print_summary(outputs, console: Console | None = None) -> None:
         "stopped": outputs.stopped,
         "unmet": outputs.unmet,
         "unheld": outputs.unheld,
+        "servo": outputs.servo,
     }
     for label, text in stage_lines(said):
         console.print(f"  {label:<20} {text}", soft_wrap=True)

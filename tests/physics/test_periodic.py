@@ -264,8 +264,10 @@ def test_a_stage_that_ends_with_its_servo_off_its_target_says_so(tmp_path):
         "not held             stage isotropic ended with its servo off its target stress: "
         "σ_xx " in said
     )
-    kept = summary_so_far({}, {}, {}, short.unheld, [])  # what a checkpoint keeps, read back
-    assert carried_summary(tmp_path, kept)[3] == short.unheld
+    assert "off: a servo_mass too small overshoots" in said  # an inertial servo's
+    assert "servo_gain" not in said
+    kept = summary_so_far({}, {}, {}, short.unheld, [], "inertial")  # a checkpoint's, read back
+    assert carried_summary(tmp_path, kept)[3::2] == (short.unheld, "inertial")
     enough = revdem.run(experiment.changed({"stages.0.steps": 200}), tmp_path / "enough",
                         reverse=False, threads=1).outputs  # fmt: skip
     assert "isotropic" not in enough.unheld
@@ -301,4 +303,21 @@ def test_what_a_run_said_of_its_stages_is_read_back_from_its_restart(tmp_path):
             "condition held from its start" in lines
         )
         held = "not held:   stage shear ended with its servo off its target stress: σ_xx "
-        assert any(line.startswith(held) for line in lines)
+        (line,) = [line for line in lines if line.startswith(held)]
+        assert "off: a servo_mass too small overshoots" in line and "servo_gain" not in line
+
+
+def test_the_not_held_line_names_the_parameter_of_the_runs_servo():
+    """It named servo_mass and servo_gain together whatever the servo; a restart written
+    before runs kept the servo's kind names both, each with its kind."""
+    from revdem_cli.report.info import stage_lines
+
+    unheld = {"unheld": {"shear": {"x": (6.386e4, 1.5e5)}}}
+    for servo, words in [
+        ("inertial", "a servo_mass too small overshoots"),
+        ("proportional", "a servo_gain too large overshoots"),
+        (None, "a servo_mass too small (inertial) or a servo_gain too large (proportional)"),
+    ]:
+        said = unheld | ({"servo": servo} if servo else {})
+        ((label, text),) = stage_lines(said)
+        assert label == "not held" and f"(more than 5% off: {words}" in text

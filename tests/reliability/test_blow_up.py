@@ -155,13 +155,41 @@ def test_a_blow_up_under_a_servo_names_it(tmp_path):
     line = _failed(CliRunner().invoke(app, [*args, "--set", "cell.servo_mass=1e2", "--no-reverse"]))
     assert "blown up at step 1:" in line
     assert (
-        "the cell (the stage's inertial servo holds a stress on x, y, z: a servo_mass too "
-        "small or a servo_gain too large overshoots)" in line
+        "the cell (the inertial servo of stage isotropic holds a stress on x, y, z and "
+        "overshoots with a servo_mass too small for the packing's stiffness)" in line
     )
-    said = str(CellTooSmall(7, np.array([1.0, 1.0, -0.5]), "the stage's inertial servo holds "
-                            "a stress on z"))  # fmt: skip
+    assert "servo_gain" not in line
+    said = str(CellTooSmall(7, np.array([1.0, 1.0, -0.5]), "the inertial servo of stage "
+                            "press holds a stress on z"))  # fmt: skip
     assert said.endswith(
-        "start bigger; or the stage's inertial servo holds a stress on z and "
-        "overshoots: a servo_mass too small or a servo_gain too large for the "
-        "packing's stiffness swings an edge further at each step"
+        "start bigger; or the inertial servo of stage press holds a stress on z, swinging an "
+        "edge further at each step"
     )
+
+
+@pytest.mark.parametrize(
+    ("servo", "named", "not_named"),
+    [
+        ([], "the inertial servo of stage isotropic", "servo_gain"),
+        (
+            ["cell.servo=proportional", "cell.servo_gain=50", "cell.servo_mass="],
+            "the proportional servo of stage isotropic",
+            "servo_mass",
+        ),
+    ],
+)
+def test_a_cell_crushed_by_its_servo_names_the_servo_and_its_parameter(
+    tmp_path, servo, named, not_named
+):
+    """The smoke critical-state sample held at 5 kPa on x and y and 10 kPa on z: the cell
+    grows on x and y and is crushed on z. The line said "the stage's inertial servo ...: a
+    servo_mass too small or a servo_gain too large", naming neither the stage nor which of
+    the two parameters belongs to the servo the run has."""
+    args = ["run", str(CONFIGS / "smoke" / "critical_state.toml"), "--out", str(tmp_path)]
+    changes = ["stages.1.cell.x.stress=5e3", "stages.1.cell.y.stress=5e3", *servo]
+    sets = [a for change in changes for a in ("--set", change)]
+    result = CliRunner().invoke(app, [*args, "-q", "--no-reverse", "--threads", "1", *sets])
+    line = _failed(result)
+    assert "is no longer more than twice the contact reach" in line
+    assert f"; or {named} holds a stress on x, y, z and overshoots with " in line
+    assert not_named not in line
