@@ -201,10 +201,16 @@ def dotted(key: str) -> str:
     return re.sub(r"\[(\d+)\]", r".\1", key.strip())
 
 
+UNSET = "(unset)"
+"""How `fields_apart` shows the value of a field one scenario does not set."""
+
+
 def fields_apart(first: Scenario, second: Scenario) -> list[tuple[str, object, object]]:
     """(dotted path, first's value, second's) of each field where two scenarios differ, as
-    `--set` would name it (lists by index), in the order of the paths; '-' where one has no
-    such field."""
+    `--set` would name it (lists by index), in the order of the paths; UNSET where one sets
+    no such field. A field set to None is unset, and a table that is None has no fields: a
+    stage's contact = {friction = 0} against none differs in stages.K.contact.friction
+    alone."""
 
     def flat(value, path: str = "") -> dict[str, object]:
         if isinstance(value, dict | list):
@@ -213,13 +219,13 @@ def fields_apart(first: Scenario, second: Scenario) -> list[tuple[str, object, o
             for key, inner in items:
                 fields |= flat(inner, f"{path}.{key}" if path else str(key))
             return fields
-        return {path: value}
+        return {} if value is None else {path: value}
 
     a, b = (flat(s.model_dump(mode="json")) for s in (first, second))
     return [
-        (key, a.get(key, "-"), b.get(key, "-"))
+        (key, a.get(key, UNSET), b.get(key, UNSET))
         for key in sorted(set(a) | set(b))
-        if a.get(key, "-") != b.get(key, "-")
+        if a.get(key, UNSET) != b.get(key, UNSET)
     ]
 
 

@@ -130,3 +130,20 @@ def test_the_platens_are_the_planes_across_z():
     side = scenario.walls[1].model_copy(update={"normal": (1.0, 0.0, 0.5)})
     tilted = scenario.walls[1].model_copy(update={"normal": (0.3, -0.4, 0.6)})
     assert (side.across_z, tilted.across_z) == (False, True)
+
+
+def test_scenarios_apart_in_one_fields_value_name_that_field_alone():
+    """A stage's contact given in one run and not the other was listed as three garbled
+    fields: 'stages.2.contact = None and -; stages.2.contact.friction = - and 0.0;
+    stages.2.contact.normal_damping = - and None and 1 more'."""
+    from revdem_cli.config import fields_apart
+
+    smoke = CONFIGS / "smoke" / "critical_state.toml"
+    given = load_scenario(smoke, ["stages.2.contact.friction=0"])[0]
+    assert fields_apart(load_scenario(smoke)[0], given) == [
+        ("stages.2.contact.friction", "(unset)", 0.0)
+    ]
+    unset = load_scenario(smoke, ["stages.1.stop_when="])[0]  # a table set against none
+    assert fields_apart(unset, load_scenario(smoke)[0]) == [
+        ("stages.1.stop_when.kinetic_energy_below", "(unset)", 1.5e-7)
+    ]
