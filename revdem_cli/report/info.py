@@ -346,8 +346,9 @@ def info_lines(info: dict) -> list[str]:
     elif info["cell"] is not None:
         lines.append(f"cell:       periodic, {' x '.join(f'{e:.6g}' for e in info['cell'])} m")
     if info["kind"] == "trajectory":
+        steps = f", steps {info['first_step']} to {info['last_step']}"
         lines.append(
-            f"frames:     {info['frames']}, steps {info['first_step']} to {info['last_step']}"
+            f"frames:     {info['frames']}{steps if info['frames'] else ' (none written)'}"
         )
         if "checkpoint" in info:
             lines.append(
@@ -357,7 +358,8 @@ def info_lines(info: dict) -> list[str]:
         elif info.get("ended") is False:
             lines.append(
                 "unfinished: its run did not reach its end and left no checkpoint (it failed, "
-                "or was stopped at once): the frames are those it wrote"
+                "or was stopped at once): "
+                + ("the frames are those it wrote" if info["frames"] else "it wrote no frame")
             )
     elif info["kind"] == "checkpoint":
         lines.append(

@@ -46,6 +46,26 @@ def test_the_trajectory_of_a_stopped_run_says_so_and_how_to_go_on(tmp_path, smok
     assert "unfinished" not in info(smoke_run / "collision_smoke.forward.h5").output
 
 
+def test_a_trajectory_with_no_frames_says_none_were_written(tmp_path):
+    """A run killed before its first frame leaves a trajectory of none: info printed
+    'frames:     0, steps None to None'."""
+    from revdem_cli.config import load_scenario
+    from revdem_cli.engine import _writer
+    from revdem_cli.stage import Model
+    from revdem_cli.state import initial_state
+    from tests.conftest import CONFIGS
+
+    scenario, text = load_scenario(CONFIGS / "smoke" / "collision.yaml")
+    path = tmp_path / "collision_smoke.forward.h5"
+    _writer(path, initial_state(scenario), Model.of(scenario), text, "forward").close()
+    shown = info(path).output.splitlines()
+    assert "frames:     0 (none written)" in shown
+    assert any(line.endswith("(it failed, or was stopped at once): it wrote no frame")
+               for line in shown)  # fmt: skip
+    summary = json.loads(info(path, "--json").output)
+    assert (summary["frames"], summary["first_step"], summary["last_step"]) == (0, None, None)
+
+
 def test_json_summary_of_a_reversed_trajectory(smoke_run):
     result = info(smoke_run / "collision_smoke.reverse.h5", "--json")
     assert result.exit_code == 0, result.output
