@@ -425,6 +425,12 @@ def export(
     reads the radii and the box of a .gsd or a .dump as they are. A scenario reads a data
     file back in its particles_from table (lammps_data = FILE).
 
+    In a periodic cell that deforms, every format's velocities are the spheres' own, relative
+    to the cell's affine motion (as revdem keeps them, like Yade's homothetic cell), where
+    LAMMPS and LIGGGHTS read vx vy vz as total velocities: a sphere at x in a cell straining
+    at rate e (1/s, each axis's dL/dt / L) moves at v + e x. The trajectory keeps the cell's
+    edges at each frame but not their rates, so export does not add it.
+
     Example: revdem export out/collision.forward.h5 --format gsd
     """
     from revdem_cli.io import EXPORT_SUFFIXES, export_target
