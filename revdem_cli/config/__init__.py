@@ -3,7 +3,9 @@ fit together; run by the schema's validation), `geometry` (its spheres, generate
 checked where they start), `host` (whether a run fits this machine; `revdem run` alone) and
 `loader` (TOML and YAML files, `--set`, errors naming the file and the field path).
 
-Validating a stored scenario (`Scenario.model_validate_json`) runs the first two only.
+Validating a stored scenario (`Scenario.model_validate_json`) runs the schema and
+`checks.check_consistency` only: what `checks.check_given` refuses in a scenario given, a
+run's outputs stored before keep, and stay readable.
 """
 
 from revdem_cli.config.loader import (

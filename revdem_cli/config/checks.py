@@ -18,9 +18,10 @@ class FieldError(ValueError):
 
 def check_consistency(scenario) -> None:
     """How the fields of a scenario fit together: names that refer to materials, walls and
-    stages exist and are unique, one reversed stage and the last, friction and tangential
-    damping only with a tangential law, stop conditions that can be met, the cell and its
-    servo, the container of [solid_fraction]; FieldError at the first that does not."""
+    stages exist and are unique, one reversed stage and the last, stop conditions that can
+    be met, the cell and its servo, the container of [solid_fraction]; FieldError at the
+    first that does not. What a run would carry out without its doing what it says is
+    `check_given`'s."""
     for path, material in _materials_named(scenario):
         if material not in scenario.materials:
             raise FieldError(
@@ -31,7 +32,6 @@ def check_consistency(scenario) -> None:
     wall_names = [w.name for w in scenario.walls]
     check_solid_fraction(scenario)
     check_stop_conditions(scenario)
-    check_tangential_fields(scenario)
     for i, stage in enumerate(scenario.stages):
         for name in stage.wall_velocities:
             if name not in wall_names:
@@ -67,8 +67,7 @@ def check_consistency(scenario) -> None:
 
 
 def check_stop_conditions(scenario) -> None:
-    """Each stage's stop condition can be met: it is first checked before the stage ends, at
-    an observables row (`check_stop_rows`), the
+    """Each stage's stop condition can be met: it is first checked before the stage ends, the
     wall it watches exists, a wall whose travel it waits for moves in that stage (walls move
     only at their velocity, `Stage.wall_velocity`; a static wall's force may still rise), and
     a solid fraction has the container of [solid_fraction]."""
@@ -84,7 +83,6 @@ def check_stop_conditions(scenario) -> None:
                 f"{stop.after_steps} must be below the stage's steps, {stage.steps}: the "
                 "condition is first checked that many steps into the stage",
             )
-        check_stop_rows(stage, i)
         condition = "wall_force_above" if stop.wall_force_above else "wall_travel_above"
         if stop.wall is not None and stop.wall not in names:
             raise FieldError(f"{path}.{condition}.wall", f"no wall is named '{stop.wall}'")
@@ -112,6 +110,25 @@ def check_stop_conditions(scenario) -> None:
                 "needs a periodic [cell] (its solid fraction, 1 / (1 + void ratio)) or a "
                 "[solid_fraction] table saying which walls close the container",
             )
+
+
+def check_given(scenario) -> None:
+    """What a run would carry out but without its doing what it says: friction or tangential
+    damping without a tangential law (`check_tangential_fields`), a stop condition no
+    observables row checks (`check_stop_rows`), gravity in a periodic cell. Refused in a
+    scenario given (`loader.scenario_from_data`), not in one a run stored with its outputs,
+    which stay readable whatever a later version refuses; FieldError at the first."""
+    check_tangential_fields(scenario)
+    for i, stage in enumerate(scenario.stages):
+        if stage.stop_when is not None:
+            check_stop_rows(stage, i)
+    if scenario.cell is not None and any(scenario.gravity):
+        raise FieldError(
+            "gravity",
+            f"{list(scenario.gravity)} m/s^2 with a periodic [cell]: every sphere falls "
+            "together, for no wall or floor holds them (a cell takes no walls); leave gravity "
+            "out",
+        )
 
 
 TANGENTIAL_FIELDS = {"friction": "cap", "tangential_damping": "damp"}
@@ -275,17 +292,10 @@ def check_wall_materials(scenario) -> None:
 
 def check_cell(scenario) -> None:
     """Stages move the cell only if there is one, hold a stress only with the parameter of
-    its servo, and strain it at a rate that leaves each edge a length; walls and gravity do
-    not go with a periodic cell."""
+    its servo, and strain it at a rate that leaves each edge a length; walls and a periodic
+    cell do not go together."""
     if scenario.cell is not None and scenario.walls:
         raise FieldError("walls", "walls cannot be combined with a periodic [cell]")
-    if scenario.cell is not None and any(scenario.gravity):
-        raise FieldError(
-            "gravity",
-            f"{list(scenario.gravity)} m/s^2 with a periodic [cell]: every sphere falls "
-            "together, for no wall or floor holds them (a cell takes no walls); leave gravity "
-            "out",
-        )
     for i, stage in enumerate(scenario.stages):
         if stage.cell is None:
             continue

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ValidationError
 
-from revdem_cli.config.checks import FieldError
+from revdem_cli.config.checks import FieldError, check_given
 from revdem_cli.config.geometry import check_spheres
 from revdem_cli.config.host import check_host
 from revdem_cli.config.schema import Scenario
@@ -310,7 +310,8 @@ def scenario_from_text(
     text: str, suffix: str, origin: str, overrides: list[str] = (), host: bool = False
 ) -> Scenario:
     """A scenario from the text of a file, checked in layers: its schema and how its fields
-    fit together; with `host`, whether a run of it fits this machine (`revdem run`); then its
+    fit together, then what a run would carry out without its doing what it says
+    (`checks.check_given`, which a stored scenario is not held to); with `host`, whether a run of it fits this machine (`revdem run`); then its
     spheres, generated and checked where they start."""
     data = apply_overrides(parse_text(text, suffix, origin), list(overrides), origin)
     return scenario_from_data(data, origin, Path(origin).parent, host)
@@ -326,6 +327,7 @@ def scenario_from_data(data: dict, origin: str, base: Path, host: bool = False) 
     except ValidationError as exc:
         raise InputError(f"{origin}: {describe_validation_error(exc)}") from None
     try:
+        check_given(scenario)
         if host:
             check_host(scenario)
         check_spheres(scenario)

@@ -235,6 +235,12 @@ def test_gravity_in_a_periodic_cell_is_refused():
         "gravity: [0.0, 0.0, -9.81] m/s^2 with a periodic [cell]: every sphere falls together, "
         "for no wall or floor holds them",
     )
+    # a scenario a run stored before is not held to it: its outputs stay readable
+    from revdem_cli.config import Scenario, load_scenario
+
+    scenario, _ = load_scenario(config)
+    stored = scenario.model_dump_json().replace('"gravity":[0.0,0.0,0.0]', '"gravity":[0,0,-9.81]')
+    assert Scenario.model_validate_json(stored).gravity == (0.0, 0.0, -9.81)
 
 
 def test_a_stage_that_ends_with_its_servo_off_its_target_says_so(tmp_path):
