@@ -88,6 +88,18 @@ def test_velocity_verlet_limit_solves_its_stability_boundary():
     assert k * inverse_mass * dt**2 + 2.0 * c * inverse_mass * dt == pytest.approx(4.0)
 
 
+@pytest.mark.parametrize("xi", [1e2, 1e4, 1e6])
+def test_velocity_verlet_limit_keeps_its_digits_under_heavy_damping(xi):
+    """ξ = cA/(2ω) far above 1: the limit still solves kAΔt² + 2cAΔt = 4, and is
+    (2/ω)/(√(1 + ξ²) + ξ) (Peng 2020 Eq 30 by velocity Verlet), about 1/(cA)."""
+    k, inverse_mass = 1e10, 7.9e-4
+    omega = math.sqrt(k * inverse_mass)
+    c = 2.0 * xi * omega / inverse_mass
+    dt = criteria.dt_velocity_verlet(k, c, inverse_mass)
+    assert k * inverse_mass * dt**2 + 2.0 * c * inverse_mass * dt == pytest.approx(4.0, rel=1e-12)
+    assert dt == pytest.approx(2.0 / omega / (math.sqrt(1.0 + xi**2) + xi), rel=1e-12, abs=0.0)
+
+
 def test_b_max_and_the_rotation_dominant_time_step():
     sphere, ellipsoid = shapes.sphere(1.0, 1000.0), shapes.ellipsoid(3, 2, 1, 1000.0)
     assert criteria.b_max(sphere) == pytest.approx(0.0, abs=1e-12)

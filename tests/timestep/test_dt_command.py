@@ -333,3 +333,13 @@ def test_dt_verify_says_its_kernels_compile_only_when_they_will(monkeypatch):
             assert result.exit_code == 0, result.output
             said[compiled, len(args)] = progress.COMPILING in result.output
     assert said == {(True, 10): False, (True, 12): False, (False, 10): True, (False, 12): True}
+
+
+@pytest.mark.parametrize("number", [1e8, 1e9])
+def test_heavy_damping_recommends_the_velocity_verlet_limit(number):
+    """N far above 2: the limit 4/(ω(√(4 + N²) + N)) (Peng 2020 Eq 30 by velocity Verlet),
+    about 4/(Nω), neither above it nor refused as an overflow."""
+    data = as_json(*ELLIPSOID, "--damping", number)
+    omega = math.sqrt(1e10 * data["a_max"])
+    exact = 4.0 / (omega * (math.sqrt(4.0 + number**2) + number))
+    assert data["recommended_dt"] == pytest.approx(exact, rel=1e-9, abs=0.0)

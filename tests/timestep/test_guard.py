@@ -94,6 +94,17 @@ def test_damping_lowers_the_linear_limit_as_velocity_verlet_does():
     assert critical == pytest.approx(undamped * (math.sqrt(1 + 0.25) - 0.5), rel=1e-12)
 
 
+def test_heavy_damping_gives_a_positive_limit():
+    """β = 1e8 of critical: (2/ω)/(√(1 + β²) + β), about 1/(β ω), not the 0 s that the
+    difference √(1 + β²) − β rounds to (Peng 2020 Eq 30 by velocity Verlet)."""
+    case = scenario(
+        "collision", "contact.model=linear", "contact.kn=1e5", "contact.normal_damping=1e8"
+    )
+    critical, _ = guard.critical_time_step(case)
+    undamped = math.sqrt(2.0) * math.sqrt(SPHERE_MASS / 1e5)
+    assert critical == pytest.approx(undamped / (math.sqrt(1 + 1e16) + 1e8), rel=1e-12, abs=0.0)
+
+
 def test_a_stage_of_its_own_damping_bounds_the_limit_by_the_largest():
     """[contact] damped 0.1 and a stage damped 0.5 of critical: the guard holds every stage
     to the limit at 0.5, sqrt(2) sqrt(m / k_n) (sqrt(1 + 0.25) - 0.5) (Peng 2020 Eq 30)."""
