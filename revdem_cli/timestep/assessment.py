@@ -11,6 +11,9 @@ from revdem_cli.timestep.engine_pair import engine_limit
 from revdem_cli.timestep.shapes import Body
 
 AGREEMENT_RTOL = 1e-3  # the integration resolves a stability limit to a few 1e-4
+CONSERVATIVE_RATIO = 1.01
+"""An integrated limit of the bodies' own dynamics this far above the reference (well past the
+integrations' resolution) says the criteria are conservative for the pair."""
 
 
 @dataclass(frozen=True)
@@ -29,6 +32,9 @@ class Assessment:
 
     `reference` is the stability limit every translation criterion is compared with: the
     smallest integrated limit when checks ran, the velocity-Verlet formula otherwise.
+    `inverse_mass` is A_max, the shear direction's inverse mass and the one the damping
+    number N scales with; `normal_inverse_mass` the normal direction's (`criteria.inverse_masses`:
+    1/m₁ + 1/m₂ for two spheres, A_max otherwise).
     """
 
     bodies: tuple[Body, Body]
@@ -36,6 +42,7 @@ class Assessment:
     damping_number: float
     omega_max: float | None
     inverse_mass: float
+    normal_inverse_mass: float
     criteria: tuple[Estimate, ...]
     checks: tuple[Estimate, ...]
     reference: Estimate
@@ -55,6 +62,7 @@ class Assessment:
             "contact": asdict(self.contact) | {"damping_number": self.damping_number},
             "omega_max": self.omega_max,
             "a_max": self.inverse_mass,
+            "a_normal": self.normal_inverse_mass,
             "criteria": estimates(self.criteria),
             "checks": estimates(self.checks),
             "reference": self.reference.key,
@@ -74,25 +82,26 @@ def ratio_to(reference: Estimate, estimate: Estimate) -> float | None:
     return estimate.dt / reference.dt
 
 
-def _translation(formula, contact: Contact, inverse_mass: float) -> float | None:
-    """A per-direction criterion, taken in its more restrictive direction."""
-    return criteria.smallest(formula(k, c, inverse_mass) for k, c in contact.directions)
+def _translation(formula, contact: Contact, inverse_masses: tuple[float, float]) -> float | None:
+    """A per-direction criterion, each direction with its own inverse mass, taken in its more
+    restrictive direction."""
+    return criteria.smallest(formula(k, c, a) for k, c, a in contact.directions(inverse_masses))
 
 
-def _criteria(body1, body2, contact, inverse_mass, omega_max, order=0) -> tuple[Estimate, ...]:
+def _criteria(body1, body2, contact, inverse_masses, omega_max, order=0) -> tuple[Estimate, ...]:
     damped = contact.cn > 0.0 or contact.cs > 0.0
     items = (
         Estimate(
             "amplification",
             "amplification matrix",
             "Peng 2020 Eq 46" if damped else "Peng 2020 Eq 48",
-            _translation(criteria.dt_amplification, contact, inverse_mass),
+            _translation(criteria.dt_amplification, contact, inverse_masses),
         ),
         Estimate(
             "belytschko",
             "Belytschko, 2/ω",
             "Peng 2020 Eq 34" if damped else "Peng 2020 Eq 35",
-            _translation(criteria.dt_belytschko, contact, inverse_mass),
+            _translation(criteria.dt_belytschko, contact, inverse_masses),
         ),
         Estimate(
             "collision",
@@ -104,7 +113,7 @@ def _criteria(body1, body2, contact, inverse_mass, omega_max, order=0) -> tuple[
             "velocity_verlet",
             "velocity-Verlet limit",
             "Eq 30, velocity Verlet",
-            _translation(criteria.dt_velocity_verlet, contact, inverse_mass),
+            _translation(criteria.dt_velocity_verlet, contact, inverse_masses),
         ),
     )
     if order:
@@ -117,7 +126,7 @@ def _criteria(body1, body2, contact, inverse_mass, omega_max, order=0) -> tuple[
                 "velocity_predictor",
                 f"velocity-Verlet limit, trvp k = {order}",
                 "Eq 30, velocity Verlet, Kolafa & Lisal 2011",
-                _translation(limit, contact, inverse_mass),
+                _translation(limit, contact, inverse_masses),
             ),
         )
     if omega_max is None:
@@ -223,6 +232,17 @@ def _euler(body1, body2, contact) -> tuple[Estimate, ...]:
     )
 
 
+def _own_dynamics(checks) -> list[Estimate]:
+    """The integrated limits of the bodies themselves under the scheme in use: the engine's,
+    with the velocity predictor where one reads the damping, and under velocity Verlet the
+    two rigid bodies'."""
+    found = {c.key: c for c in checks}
+    keys = ("engine_predictor_integrated",)
+    if keys[0] not in found:
+        keys = ("engine_integrated", "rigid_body_integrated")
+    return [found[key] for key in keys if key in found]
+
+
 def _findings(items, checks, reference) -> tuple[str, ...]:
     """Plain sentences on every criterion that disagrees with the reference limit."""
     lines = []
@@ -248,6 +268,13 @@ def _findings(items, checks, reference) -> tuple[str, ...]:
             lines.append(
                 f"{estimate.source} ({estimate.label}) is {estimate.dt / rigid.dt:.3g} × the "
                 f"limit of the two rigid bodies integrated ({rigid.dt:.4e} s): unsafe for them."
+            )
+    for own in _own_dynamics(checks):
+        ratio = own.dt / reference.dt
+        if ratio > CONSERVATIVE_RATIO:
+            lines.append(
+                f"The {own.label} ({own.dt:.4e} s), the bodies' own dynamics, is {ratio:.3g} × "
+                f"the reference, {reference.label}: the criteria are conservative for this pair."
             )
     euler = {c.key: c.dt for c in checks}
     if "eq40_all_eigenvalues" in euler:
@@ -276,17 +303,20 @@ def assess(
 ) -> Assessment:
     """Every criterion for the pair; with `check`, the integrators' own limits beside them.
 
-    Damping follows the paper's number N: c_n = c_s = N √(k_n / A_max). The recommended Δt
+    Damping follows the paper's number N: c_n = c_s = N √(k_n / A_max), c_s = 0 for a
+    frictionless contact (ks = 0), which has no shear force. The recommended Δt
     is the smallest of the velocity-Verlet limit, the integrated limits (with `check`) and
     the rotation-dominant Δt (with omega_max). With `trvp_order` > 0 the damping reads the
     velocity predictor of that order (integrator.scheme = 'trvp'): its limit replaces the
     velocity-Verlet formula's in the recommendation, and the checks add the engine's with it.
     A criterion that leaves float64's range raises ArithmeticError (`_check_in_range`).
     """
-    inverse_mass = criteria.a_max(body1, body2)
+    inverse_masses = criteria.inverse_masses(body1, body2)
+    inverse_mass = inverse_masses[1]  # A_max
     damping = criteria.damping_from_number(damping_number, kn, inverse_mass)
-    contact = Contact(kn=kn, ks=ks, cn=damping, cs=damping)
-    items = _criteria(body1, body2, contact, inverse_mass, omega_max, trvp_order)
+    # frictionless (ks = 0): no shear spring and no shear dashpot
+    contact = Contact(kn=kn, ks=ks, cn=damping, cs=damping if ks > 0.0 else 0.0)
+    items = _criteria(body1, body2, contact, inverse_masses, omega_max, trvp_order)
     _check_in_range(items, body1, body2)
     rigid, lost = _rigid(body1, body2, contact) if check else ((), ())
     integrated = _integrated(body1, body2, contact, trvp_order) + rigid if check else ()
@@ -301,6 +331,7 @@ def assess(
         damping_number=damping_number,
         omega_max=omega_max,
         inverse_mass=inverse_mass,
+        normal_inverse_mass=inverse_masses[0],
         criteria=items,
         checks=checks,
         reference=reference,

@@ -341,11 +341,14 @@ def _print_table(assessment) -> None:
         "[bold]recommended[/bold]", "", f"[bold]{_seconds(assessment.recommended)}[/bold]"
     )
 
+    normal = ""
+    if assessment.normal_inverse_mass != assessment.inverse_mass:
+        normal = f", normal direction A_n = 1/m₁ + 1/m₂ = {assessment.normal_inverse_mass:.4e} 1/kg"
     console = Console()
     console.print(particles)
     console.print(
         f"A_max = {assessment.inverse_mass:.4e} 1/kg "
-        f"= {assessment.inverse_mass * bodies[0].mass:.4g} / m₁ (Peng 2020 Eq 26); "
+        f"= {assessment.inverse_mass * bodies[0].mass:.4g} / m₁ (Peng 2020 Eq 26){normal}; "
         f"k_n = {contact.kn:.4g} N/m, k_s = {contact.ks:.4g} N/m; "
         f"N = {assessment.damping_number:g}: c_n = c_s = {contact.cn:.4g} N s/m "
         f"(critical {critical_damping(contact.kn, assessment.inverse_mass):.4g}, Eq 37)",
@@ -459,11 +462,17 @@ def dt(
         float | None,
         typer.Option(
             help="Shear contact stiffness k_s (N/m); default k_n; 0: frictionless, the shear "
-            "direction left out."
+            "direction (spring and dashpot) left out, which for two spheres leaves the normal "
+            "one with A_n = 1/m1 + 1/m2."
         ),
     ] = None,
     damping: Annotated[
-        float, typer.Option(help="Damping number N: c_n = c_s = N √(k_n/A_max).")
+        float,
+        typer.Option(
+            help="Damping number N: c_n = c_s = N √(k_n/A_max), N/2 of critical across the "
+            "contact (k_s = k_n); along two equal spheres' normal (A_n = 2/m, A_max = 7/m) "
+            "N/(2√3.5), the engine's normal_damping β: β = 0.5 is N = 1.8708."
+        ),
     ] = 0.0,
     omega_max: Annotated[
         float | None, typer.Option(help="Largest angular speed (rad/s), for the rotation Δt.")

@@ -24,11 +24,16 @@ class Contact:
     cn: float = 0.0
     cs: float = 0.0
 
-    @property
-    def directions(self) -> tuple[tuple[float, float], ...]:
-        """(stiffness, damping) of the normal and the shear direction; the normal alone for a
-        frictionless contact (ks = 0), whose shear direction has no spring to bound Δt."""
-        return ((self.kn, self.cn),) + (((self.ks, self.cs),) if self.ks > 0.0 else ())
+    def directions(
+        self, inverse_masses: tuple[float, float]
+    ) -> tuple[tuple[float, float, float], ...]:
+        """(stiffness, damping, inverse mass) of the normal and the shear direction, given the
+        inverse masses of the two (`inverse_masses`); the normal alone for a frictionless
+        contact (ks = 0), whose shear direction has no spring to bound Δt."""
+        normal, shear = inverse_masses
+        return ((self.kn, self.cn, normal),) + (
+            ((self.ks, self.cs, shear),) if self.ks > 0.0 else ()
+        )
 
 
 def a_max(body1: Body, body2: Body) -> float:
@@ -46,6 +51,17 @@ def a_max(body1: Body, body2: Body) -> float:
     """
     # Peng 2020 Eq 26, a the farthest point of the surface
     return sum(b.reach**2 / b.moments[0] + 1.0 / b.mass for b in (body1, body2))
+
+
+def inverse_masses(body1: Body, body2: Body) -> tuple[float, float]:
+    """Comprehensive inverse inertia coefficient of the normal and of the shear direction
+    (1/kg). Two spheres: the normal force passes through both centres, r × n = 0, leaving
+    A_n = 1/m₁ + 1/m₂ (2/m for equal spheres, against A_max = 7/m across). Other bodies: A_max
+    in both, Peng's bound for a normal force off the centres (assumption 3)."""
+    shear = a_max(body1, body2)
+    if body1.shape == body2.shape == "sphere":
+        return 1.0 / body1.mass + 1.0 / body2.mass, shear  # Peng 2020 Eq 26 with r × n = 0
+    return shear, shear
 
 
 def damping_from_number(number: float, kn: float, inverse_mass: float) -> float:

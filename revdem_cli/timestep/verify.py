@@ -14,7 +14,7 @@ from functools import partial
 
 import numpy as np
 
-from revdem_cli.timestep.criteria import Contact, a_max, bisected
+from revdem_cli.timestep.criteria import Contact, bisected, inverse_masses
 from revdem_cli.timestep.engine_pair import engine_limit
 from revdem_cli.timestep.shapes import Body
 
@@ -111,9 +111,10 @@ def limit_1d(is_stable, k: float, c: float, inverse_mass: float) -> float:
 
 
 def limit_of_pair(is_stable, body1: Body, body2: Body, contact: Contact) -> float:
-    """Largest stable Δt of a two-particle contact: the smaller of its two directions."""
-    inverse_mass = a_max(body1, body2)
-    return min(limit_1d(is_stable, k, c, inverse_mass) for k, c in set(contact.directions))
+    """Largest stable Δt of a two-particle contact: the smaller of its two directions, each
+    with its own inverse mass (`criteria.inverse_masses`)."""
+    directions = set(contact.directions(inverse_masses(body1, body2)))
+    return min(limit_1d(is_stable, k, c, a) for k, c, a in directions)
 
 
 velocity_verlet_limit: Verifier = partial(limit_of_pair, velocity_verlet_is_stable)

@@ -83,23 +83,28 @@ def test_sphere_pair_recommends_eq49(paper):
 
 
 def test_frictionless_spheres_are_bounded_by_the_normal_spring_alone():
-    """--ks 0 (frictionless, refused before): no shear direction. Two spheres' normal force
-    has no moment, so the engine and the rigid pair integrated find the two-body limit of
-    the normal spring, 2 / sqrt(kn (1/m + 1/m)); the formulas keep Peng's A_max (Eq 26,
-    7/m with the lever arm), conservative by sqrt(3.5) for them, and recommend below both."""
+    """--ks 0 (frictionless): no shear direction. Two spheres' normal force has no moment,
+    A_n = 1/m + 1/m (Peng 2020 Eq 26 with r × n = 0): the formulas, the engine and the rigid
+    pair integrated all give 2 / sqrt(kn A_n) = sqrt(2) sqrt(m / kn), not Peng's 7/m bound,
+    sqrt(3.5) below. With shear springs the shear direction, A_max = 7/m, sets every limit.
+    Non-spherical bodies keep A_max in the normal direction too."""
     args = ("--shape", "sphere", "--radius", 0.01, "--density", 1000, "--kn", 1e6, "--verify")
     data = as_json(*args, "--ks", 0)
     mass = data["particles"][0]["mass"]
+    assert data["a_normal"] == pytest.approx(2.0 / mass, rel=1e-12)
     two_body = 2.0 / math.sqrt(1e6 * 2.0 / mass)
+    assert data["criteria"]["velocity_verlet"]["dt"] == pytest.approx(two_body, rel=1e-12)
     assert data["checks"]["engine_integrated"]["dt"] == pytest.approx(two_body, rel=1e-3)
     assert data["checks"]["rigid_body_integrated"]["dt"] == pytest.approx(two_body, rel=1e-3)
-    formula = data["criteria"]["velocity_verlet"]["dt"]
+    assert data["recommended_dt"] == pytest.approx(two_body, rel=1e-3)
+    sticking = as_json(*args)  # with shear springs: the shear direction's 7/m
+    formula = sticking["criteria"]["velocity_verlet"]["dt"]
     assert formula == pytest.approx(2.0 / math.sqrt(1e6 * 7.0 / mass), rel=1e-12)
-    assert data["recommended_dt"] <= two_body
-    sticking = as_json(*args)  # with shear springs the engine's limit is the formula's
     assert sticking["checks"]["engine_integrated"]["dt"] == pytest.approx(formula, rel=1e-3)
     ellipsoid = as_json(*ELLIPSOID, "--ks", 0)
-    assert ellipsoid["recommended_dt"] > 0.0
+    assert ellipsoid["a_normal"] == ellipsoid["a_max"]
+    undamped = 2.0 / math.sqrt(1e10 * ellipsoid["a_max"])
+    assert ellipsoid["recommended_dt"] == pytest.approx(undamped, rel=1e-12)
 
 
 def test_superquadric_with_unit_exponents_gives_the_ellipsoid_numbers():
@@ -343,3 +348,29 @@ def test_heavy_damping_recommends_the_velocity_verlet_limit(number):
     omega = math.sqrt(1e10 * data["a_max"])
     exact = 4.0 / (omega * (math.sqrt(4.0 + number**2) + number))
     assert data["recommended_dt"] == pytest.approx(exact, rel=1e-9, abs=0.0)
+
+
+def test_frictionless_damped_spheres_give_the_predictor_table_limit():
+    """Equal frictionless spheres at the engine's β = 0.5 (N = 2β√3.5, A_n = 2/m): velocity
+    Verlet 0.6180 and the predictor of order 2 0.3333 of 2/ω, ω² = k_n A_n (README's table);
+    the engine and the rigid pair, without a shear dashpot, confirm them."""
+    args = ("--shape", "sphere", "--radius", 0.01, "--density", 2500, "--kn", 1e6, "--ks", 0)
+    data = as_json(*args, "--damping", 2 * 0.5 * math.sqrt(3.5), "--trvp-order", 2, "--verify")
+    unit = 2.0 / math.sqrt(1e6 * data["a_normal"])
+    assert data["criteria"]["velocity_verlet"]["dt"] / unit == pytest.approx(0.6180, abs=1e-4)
+    assert data["recommended_dt"] / unit == pytest.approx(0.3333, abs=1e-4)
+    checks = {key: check["dt"] / unit for key, check in data["checks"].items()}
+    assert checks["engine_predictor_integrated"] == pytest.approx(0.3333, rel=3e-3)
+    assert checks["engine_integrated"] == pytest.approx(0.6180, rel=1e-3)
+    assert checks["rigid_body_integrated"] == pytest.approx(0.6180, rel=1e-3)
+
+
+def test_a_rigid_pair_far_above_the_criteria_is_named_conservative():
+    """The two ellipsoids integrated are stable 1.35 times longer than Eq 30 with A_max: a
+    finding says the criteria are conservative for them; for spheres (k_s = k_n) the engine
+    agrees with the criteria and none does."""
+    findings = as_json(*ELLIPSOID, "--verify")["findings"]
+    [line] = [f for f in findings if "conservative for this pair" in f]
+    assert line.startswith("The rigid pair, integrated")
+    spheres = as_json(*SPHERE, "--kn", 1e6, "--verify")["findings"]
+    assert not [f for f in spheres if "conservative for this pair" in f]
