@@ -175,10 +175,24 @@ def dt_damped(k: float, c: float, inverse_mass: float, order: int) -> float:
     return dt_velocity_verlet(k, c, inverse_mass)
 
 
+MOMENT_RTOL = 1e-12
+"""Principal moments closer than this, relative to the largest, are equal. Each comes from
+float64 sums (Gamma functions for a superquadric, a hull's tetrahedra and an eigensolver for a
+polyhedron) good to some 1e-15 of the largest, so a sphere-like superquadric or a turned cube
+differed by round-off and had Δt 2/(ω_max B_max) of 1e15 s instead of ∞; a real difference
+this small would give over 1e12/ω_max s, which bounds nothing."""
+
+
 def b_max(body: Body) -> float:
-    """Largest gyroscopic coefficient of a particle's principal moments."""
+    """Largest gyroscopic coefficient of a particle's principal moments; 0 where they are
+    equal (to MOMENT_RTOL)."""
     i1, i2, i3 = body.moments
-    return max(abs(i1 - i2) / i3, abs(i1 - i3) / i2, abs(i2 - i3) / i1)  # Peng 2020 Eq 54
+
+    def difference(a: float, b: float) -> float:
+        return 0.0 if abs(a - b) <= MOMENT_RTOL * i3 else abs(a - b)
+
+    gaps = (difference(i1, i2) / i3, difference(i1, i3) / i2, difference(i2, i3) / i1)
+    return max(gaps)  # Peng 2020 Eq 54
 
 
 def dt_rotation(omega_max: float, b1: float, b2: float) -> float:

@@ -100,6 +100,21 @@ def test_velocity_verlet_limit_keeps_its_digits_under_heavy_damping(xi):
     assert dt == pytest.approx(2.0 / omega / (math.sqrt(1.0 + xi**2) + xi), rel=1e-12, abs=0.0)
 
 
+def test_equal_principal_moments_have_no_rotation_limit():
+    """A sphere-like superquadric (semi-axes 1 1 1) and a cube turned at random have three
+    equal principal moments up to round-off: B_max = 0 (Peng 2020 Eq 54), Δt ∞ (Eq 56)."""
+    from scipy.spatial.transform import Rotation
+
+    corners = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    rounded = shapes.superquadric(1, 1, 1, 0.5, 0.5, 1000.0)
+    for seed in range(5):
+        turned = Rotation.random(random_state=seed).apply(corners)
+        cube = shapes.polyhedron(turned, 1000.0, "cube")
+        assert criteria.b_max(cube) == 0.0
+    assert criteria.b_max(rounded) == 0.0
+    assert math.isinf(criteria.dt_rotation(1.0, criteria.b_max(rounded), 0.0))
+
+
 def test_b_max_and_the_rotation_dominant_time_step():
     sphere, ellipsoid = shapes.sphere(1.0, 1000.0), shapes.ellipsoid(3, 2, 1, 1000.0)
     assert criteria.b_max(sphere) == pytest.approx(0.0, abs=1e-12)
