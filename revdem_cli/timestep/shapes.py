@@ -138,6 +138,36 @@ def _tetrahedra_moments(tetrahedra: np.ndarray) -> tuple[float, np.ndarray]:
     return float(volumes.sum()), np.einsum("n,nij->ij", volumes / 20.0, outer)
 
 
+SYMMETRY_BASES = 8  # hull vertices whose midpoints with every other propose a centre
+SYMMETRY_CANDIDATES = 16  # the most proposed centres, each tested
+
+
+def _symmetry_centre(corners: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """The centre of a centrally symmetric set of hull vertices and which of them have a
+    mirror image through it (within `tolerance`). Their mean where every vertex has one; else
+    the centre through which most do, so that a vertex without a mirror does not move it: each
+    vertex paired with its mirror proposes the centre as their midpoint, and the midpoints of
+    SYMMETRY_BASES vertices with every vertex proposed most often are tried."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(corners)
+
+    def mirrored(centre: np.ndarray) -> np.ndarray:
+        return tree.query(2.0 * centre - corners)[0] <= tolerance
+
+    centre = corners.mean(axis=0)
+    if mirrored(centre).all():
+        return centre, np.ones(len(corners), dtype=bool)
+    bases = corners[:SYMMETRY_BASES]
+    midpoints = (0.5 * (bases[:, None, :] + corners[None, :, :])).reshape(-1, 3)
+    _, first, counts = np.unique(
+        np.round(midpoints / tolerance), axis=0, return_index=True, return_counts=True
+    )
+    proposed = midpoints[first[np.argsort(-counts, kind="stable")[:SYMMETRY_CANDIDATES]]]
+    centre = max(proposed, key=lambda candidate: mirrored(candidate).sum())
+    return centre, mirrored(centre)
+
+
 def polyhedron(vertices: np.ndarray, density: float, source: str) -> Body:
     """Solid convex, centrally symmetric polyhedron: the convex hull of `vertices`.
 
@@ -146,7 +176,7 @@ def polyhedron(vertices: np.ndarray, density: float, source: str) -> Body:
     volume, that have a vertex strictly inside the hull of the others (not convex), or
     whose hull vertices have no mirror image through the centre (not centrally symmetric).
     """
-    from scipy.spatial import ConvexHull, QhullError, cKDTree
+    from scipy.spatial import ConvexHull, QhullError
 
     points = np.asarray(vertices, dtype=float)
     try:
@@ -166,9 +196,8 @@ def polyhedron(vertices: np.ndarray, density: float, source: str) -> Body:
             "the polyhedron is not convex"
         )
 
-    centre = corners.mean(axis=0)
-    mismatch, _ = cKDTree(corners).query(2.0 * centre - corners)
-    asymmetric = np.flatnonzero(mismatch > tolerance)
+    centre, mirrored = _symmetry_centre(corners, tolerance)
+    asymmetric = np.flatnonzero(~mirrored)
     if asymmetric.size:
         raise InputError(
             f"{source}: vertex {hull.vertices[asymmetric[0]] + 1} has no mirror image through "
