@@ -13,6 +13,7 @@ from typer.core import TyperGroup
 
 from revdem_cli import __version__
 from revdem_cli.errors import InputError, RunFailed, given_options, path_problem
+from revdem_cli.timestep.command import OnceEach
 from revdem_cli.timestep.command import dt as _dt
 
 
@@ -603,7 +604,7 @@ def report(
     typer.echo(f"wrote {written}")
 
 
-app.command("dt")(_dt)
+app.command("dt", cls=OnceEach)(_dt)
 
 
 def _reflowed(doc: str) -> str:

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer.core import TyperCommand
 
 from revdem_cli.errors import InputError, WriteFailed, given_options
 
@@ -247,6 +248,34 @@ def _sweep_values(spec: str) -> tuple[str, list[float]]:
     return name, values.tolist()
 
 
+class OnceEach(TyperCommand):
+    """A command whose options that take a value may each be given once: click keeps the last
+    of a repeated one and drops the others, which would leave their user believing they
+    counted."""
+
+    def parse_args(self, ctx, args: list[str]) -> list[str]:
+        _, _, order = self.make_parser(ctx).parse_args(args=list(args))
+        for param in dict.fromkeys(order):
+            times = order.count(param)
+            if times > 1 and not getattr(param, "is_flag", False):
+                raise InputError(f"{param.opts[0]} is given {times} times; give it once")
+        return super().parse_args(ctx, args)
+
+
+def _sweep_conflicts(ctx, spec: str, name: str) -> None:
+    """InputError where an option sets what --sweep sweeps: the swept option itself, or
+    --other-density, which leaves a swept --density to particle 1 alone."""
+    swept = name.replace("-", "_")
+    given = given_options(ctx, (swept,))
+    if given:
+        raise InputError(f"--sweep {spec!r} sets {given[0]}; leave out {given[0]}")
+    if swept == "density" and given_options(ctx, ("other_density",)):
+        raise InputError(
+            f"--sweep {spec!r} sweeps both particles' density, and --other-density sets "
+            "particle 2's; leave out --other-density"
+        )
+
+
 def _working(what: str, check: bool):
     """A spinner on standard error saying what `dt` is doing; with `check` (--verify: the
     pair integrated, seconds a case), first the line a run prints where numba's cache lacks
@@ -269,10 +298,9 @@ def _sweep_row(assessment, name: str, value: float) -> dict:
     return row | {f"dt_{e.key}": e.dt for e in assessment.criteria + assessment.checks}
 
 
-def _write_sweep(case: _Case, spec: str, check: bool, out: Path | None) -> None:
+def _write_sweep(case: _Case, name: str, values: list[float], check: bool, out) -> None:
     import csv
 
-    name, values = _sweep_values(spec)
     rows = []
     with _working(f"{name} = {values[0]:g}, 1 of {len(values)}", check) as shown:
         for k, value in enumerate(values):
@@ -491,7 +519,8 @@ def dt(
     sweep: Annotated[
         str | None,
         typer.Option(
-            help="Sweep one of kn, ks, density, damping, omega-max: NAME=START:STOP:COUNT."
+            help="Sweep one of kn, ks, density, damping, omega-max: NAME=START:STOP:COUNT; "
+            "the swept option is not given besides (density: nor --other-density)."
         ),
     ] = None,
     out: Annotated[Path | None, typer.Option(help="CSV file of a sweep (default stdout).")] = None,
@@ -575,6 +604,8 @@ def dt(
     )
     if out is not None and sweep is None:
         raise InputError("--out names the CSV file of a --sweep; give --sweep too")
+    if force and out is None:
+        raise InputError("--force writes over the file that --out names; give --out too")
     if out is not None:
         from revdem_cli.io import refuse_overwriting
 
@@ -582,7 +613,9 @@ def dt(
     if sweep is not None:
         if as_json:
             raise InputError("--sweep writes CSV; leave out --json")
-        _write_sweep(case, sweep, verify, out)
+        name, values = _sweep_values(sweep)
+        _sweep_conflicts(ctx, sweep, name)
+        _write_sweep(case, name, values, verify, out)
         return
     integrating = "integrating the pair: the engine's and the rigid bodies' limits"
     with _working(integrating, True) if verify else contextlib.nullcontext():

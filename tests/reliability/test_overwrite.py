@@ -182,7 +182,7 @@ def test_a_run_forward_only_is_reversed_without_force(tmp_path):
 @pytest.mark.parametrize(
     "command",
     [
-        ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "2500", "--kn", "1e6",
+        ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "2500",
          "--sweep", "kn=1e5:1e7:3"],
         ["report"],
     ],
