@@ -24,6 +24,18 @@ class Estimate:
     label: str
     source: str
     dt: float | None
+    not_applicable: str = "overdamped"
+    """Why `dt` is None: the contact is "overdamped" or "critically damped" for it."""
+
+    @property
+    def reason(self) -> str | None:
+        """Why there is no time step: where it does not apply, has no limit, or is never
+        stable (an integrated limit of 0); None where there is one."""
+        if self.dt is None:
+            return f"does not apply: {self.not_applicable}"
+        if math.isinf(self.dt):
+            return "no limit"
+        return "never stable" if self.dt == 0.0 else None
 
 
 @dataclass(frozen=True)
@@ -52,13 +64,15 @@ class Assessment:
     def to_dict(self) -> dict:
         """Plain JSON-ready data; infinite time steps become None."""
 
+        def estimate(e: Estimate) -> dict:
+            found = {"label": e.label, "source": e.source, "dt": _finite(e.dt)}
+            return found if e.reason is None else found | {"dt": None, "reason": e.reason}
+
         def estimates(items):
-            return {
-                e.key: {"label": e.label, "source": e.source, "dt": _finite(e.dt)} for e in items
-            }
+            return {e.key: estimate(e) for e in items}
 
         return {
-            "particles": [asdict(body) for body in self.bodies],
+            "particles": [asdict(b) | {"b_max": criteria.b_max(b)} for b in self.bodies],
             "contact": asdict(self.contact) | {"damping_number": self.damping_number},
             "omega_max": self.omega_max,
             "a_max": self.inverse_mass,
@@ -77,8 +91,8 @@ def _finite(value: float | None) -> float | None:
 
 def ratio_to(reference: Estimate, estimate: Estimate) -> float | None:
     """A translation estimate over the reference limit; None where there is nothing to compare."""
-    if estimate.dt is None or estimate.key == "rotation" or not reference.dt:
-        return None
+    if not estimate.dt or estimate.key == "rotation" or not reference.dt:
+        return None  # none, or never stable (0): no ratio to show
     return estimate.dt / reference.dt
 
 
@@ -88,13 +102,30 @@ def _translation(formula, contact: Contact, inverse_masses: tuple[float, float])
     return criteria.smallest(formula(k, c, a) for k, c, a in contact.directions(inverse_masses))
 
 
+def _undamped_source(contact: Contact, inverse_masses: tuple[float, float]) -> str:
+    """Eq 48, 2/√(k_n A_max), where the stricter direction gives it; else Eq 47 with that
+    direction's own stiffness and inverse mass (k_s > k_n, or two spheres' normal A_n)."""
+    stiffest = max(k * a for k, _, a in contact.directions(inverse_masses))
+    return "Peng 2020 Eq 48" if stiffest == contact.kn * inverse_masses[1] else "Peng 2020 Eq 47"
+
+
+def _damped_state(pairs) -> str:
+    """ "critically damped" where each (c, critical c) pair that is not underdamped is at its
+    critical value (to 1e-12), else "overdamped"."""
+    beyond = [(c, critical) for c, critical in pairs if c >= critical * (1.0 - 1e-12)]
+    exact = all(math.isclose(c, critical, rel_tol=1e-12) for c, critical in beyond)
+    return "critically damped" if exact else "overdamped"
+
+
 def _criteria(body1, body2, contact, inverse_masses, omega_max, order=0) -> tuple[Estimate, ...]:
     damped = contact.cn > 0.0 or contact.cs > 0.0
+    mass = min(body1.mass, body2.mass)
+    directions = contact.directions(inverse_masses)
     items = (
         Estimate(
             "amplification",
             "amplification matrix",
-            "Peng 2020 Eq 46" if damped else "Peng 2020 Eq 48",
+            "Peng 2020 Eq 46" if damped else _undamped_source(contact, inverse_masses),
             _translation(criteria.dt_amplification, contact, inverse_masses),
         ),
         Estimate(
@@ -102,12 +133,15 @@ def _criteria(body1, body2, contact, inverse_masses, omega_max, order=0) -> tupl
             "Belytschko, 2/ω",
             "Peng 2020 Eq 34" if damped else "Peng 2020 Eq 35",
             _translation(criteria.dt_belytschko, contact, inverse_masses),
+            _damped_state((c, criteria.critical_damping(k, a)) for k, c, a in directions),
         ),
         Estimate(
             "collision",
             "collision time (Silbert)",
             "Peng 2020 Eq 36",
-            criteria.dt_collision(contact.kn, contact.cn, min(body1.mass, body2.mass)),
+            criteria.dt_collision(contact.kn, contact.cn, mass),
+            # Eq 36's root vanishes at c_n² = 8 k_n m
+            _damped_state([(contact.cn, math.sqrt(8.0 * contact.kn * mass))]),
         ),
         Estimate(
             "velocity_verlet",

@@ -325,9 +325,9 @@ def _write_sweep(case: _Case, name: str, values: list[float], check: bool, out) 
         typer.echo(f"wrote {len(rows)} rows to {out}")
 
 
-def _seconds(dt: float | None) -> str:
+def _seconds(dt: float | None, not_applicable: str = "overdamped") -> str:
     if dt is None:
-        return "n/a (overdamped)"
+        return f"n/a ({not_applicable})"
     if math.isinf(dt):
         return "∞"
     return "never stable" if dt == 0.0 else f"{dt:.4e}"
@@ -363,7 +363,8 @@ def _print_table(assessment) -> None:
     for estimate in assessment.criteria + assessment.checks:
         ratio = ratio_to(reference, estimate)
         shown = "" if ratio is None else f"{ratio:.4g}"
-        steps.add_row(estimate.label, estimate.source, _seconds(estimate.dt), shown)
+        shown_dt = _seconds(estimate.dt, estimate.not_applicable)
+        steps.add_row(estimate.label, estimate.source, shown_dt, shown)
     steps.add_section()
     steps.add_row(
         "[bold]recommended[/bold]", "", f"[bold]{_seconds(assessment.recommended)}[/bold]"

@@ -397,3 +397,31 @@ def test_a_rigid_pair_far_above_the_criteria_is_named_conservative():
     assert line.startswith("The rigid pair, integrated")
     spheres = as_json(*SPHERE, "--kn", 1e6, "--verify")["findings"]
     assert not [f for f in spheres if "conservative for this pair" in f]
+
+
+def test_a_scheme_never_stable_is_null_with_its_reason_and_b_max_is_in_the_json():
+    """The Euler scheme of Eq 40 is stable at no Δt for the undamped ellipsoids: JSON gave
+    "dt": 0.0, a time step a script would take; it is null with the reason, and the table
+    shows no ratio. B_max (Peng 2020 Eq 54), in the table, is in each particle's object."""
+    data = as_json(*ELLIPSOID, "--verify")
+    assert data["checks"]["eq40_all_eigenvalues"]["dt"] is None
+    assert data["checks"]["eq40_all_eigenvalues"]["reason"] == "never stable"
+    assert [p["b_max"] for p in data["particles"]] == pytest.approx([0.8, 0.8])  # I = m(1, 2, 2.6)
+    [row] = [line for line in invoke(*ELLIPSOID, "--verify").output.splitlines() if "|λ|" in line]
+    assert "never stable" in row and not any(c.isdigit() for c in row.split("never stable")[1])
+
+
+def test_criteria_say_why_they_do_not_apply_and_which_equation_they_are():
+    """At N = 2 the contact is critically damped, not overdamped (Eq 34 has no root); with
+    k_s > k_n the undamped limit is Eq 47 in the shear direction, not Eq 48 (k_n)."""
+    critical = as_json(*ELLIPSOID, "--damping", 2)["criteria"]["belytschko"]
+    assert critical["dt"] is None and critical["reason"] == "does not apply: critically damped"
+    assert "n/a (critically damped)" in invoke(*ELLIPSOID, "--damping", 2).output
+    over = as_json(*ELLIPSOID, "--damping", 3)["criteria"]["belytschko"]
+    assert over["reason"] == "does not apply: overdamped"
+    stiff_shear = as_json(*ELLIPSOID, "--ks", 2e10)
+    assert stiff_shear["criteria"]["amplification"]["source"] == "Peng 2020 Eq 47"
+    assert stiff_shear["recommended_dt"] == pytest.approx(
+        2.0 / math.sqrt(2e10 * stiff_shear["a_max"]), rel=1e-12
+    )
+    assert as_json(*ELLIPSOID)["criteria"]["amplification"]["source"] == "Peng 2020 Eq 48"
