@@ -311,8 +311,9 @@ def scenario_from_text(
 ) -> Scenario:
     """A scenario from the text of a file, checked in layers: its schema and how its fields
     fit together, then what a run would carry out without its doing what it says
-    (`checks.check_given`, which a stored scenario is not held to); with `host`, whether a run of it fits this machine (`revdem run`); then its
-    spheres, generated and checked where they start."""
+    (`checks.check_given`, which a stored scenario is not held to); with `host`, whether a
+    run of it fits this machine (`revdem run`); then its spheres, generated and checked
+    where they start."""
     data = apply_overrides(parse_text(text, suffix, origin), list(overrides), origin)
     return scenario_from_data(data, origin, Path(origin).parent, host)
 
