@@ -366,13 +366,11 @@ def contacts(
         )
         touching = overlap > 0.0
         enter3(block, FORCE, k, f if touching else ZERO)
-        if shear_law or damped:  # the scatter counts the pairs touching (`scatter_pairs`)
+        if shear_law or damped:  # damped: its pairs touching counted (`count_touching`)
             enter(block, OVERLAP, k, overlap)
         if shear_law:
             enter3(block, NEW_SHEAR, k, shear if touching else ZERO)
-            # for its moment (`Pairs.normal`, `.moment`): n x f of f's tangential part, which
-            # is f + |f_n| n (Hanley 2020 Eq 5), exactly zero where the shear force is
-            kept = n if turned else cross(n, axpy(normal, n, f))
+            kept = n if turned else cross(n, f)  # for its moment (`Pairs.normal`, `.moment`)
             enter3(block, MOMENT, k, kept if touching else ZERO)
             enter(block, SLIPPED, k, slipped if touching else 0.0)
             if predicting:
@@ -497,11 +495,9 @@ def scatter_pairs(
     `Pairs.normal`; its histories and what was destroyed always; `predicting`, each pair whose
     history the reversed step would miss listed in `earlier` from row `listed` on,
     `list_missed`); returns the block's counts (`Destroyed`: slips, last pair that slipped,
-    losses, last pair that lost its shear force, the same for the rolling moment, and with
-    viscous damping the pairs touching and the last of them) and the next row of `earlier`.
-    A pair apart loses its histories (counted lost when stepping forward). A slip is counted
-    where it destroys information: not with mu = 0 where the pair carried no history in
-    (`contact.capped_away`)."""
+    losses, last pair that lost its shear force, and the same for the rolling moment) and
+    the next row of `earlier`. A pair apart loses its histories (counted lost when stepping
+    forward)."""
     slips = 0
     last_slip = -1
     losses = 0
@@ -510,18 +506,12 @@ def scatter_pairs(
     last_cap = -1
     drops = 0
     last_drop = -1
-    dashpots = 0
-    last_dashpot = -1
     shear_law = law.tangential != NO_SHEAR
-    damped = law.beta_n > 0.0 or law.beta_t > 0.0
     for k in range(size):
         p = first + k
         u = np.uint64(p)  # unsigned, as in `gather_pairs`
         if write:
             put(force, u, entries(block, FORCE, k))
-        if damped and entry(block, OVERLAP, k) > 0.0:
-            dashpots += 1
-            last_dashpot = p
         if shear_law:
             overlap = entry(block, OVERLAP, k)
             lost = norm(row(history, u)) if overlap <= 0.0 and mode == FORWARD else 0.0
@@ -535,7 +525,7 @@ def scatter_pairs(
                 overlaps[u] = overlap
             slipped = entry(block, SLIPPED, k)
             destroyed[p] = slipped  # this step's, 0 where nothing was: the sliding flag
-            if slipped > 0.0 and not capped_away(law, entries(block, SHEAR, k)):
+            if slipped > 0.0:
                 slips += 1
                 last_slip = p
             if lost > 0.0:
@@ -555,8 +545,36 @@ def scatter_pairs(
                 rolled[p] = dropped
                 drops += 1
                 last_drop = p
-    counts = (slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop)
-    return counts + (dashpots, last_dashpot), listed
+    return slips, last_slip, losses, last_loss, caps, last_cap, drops, last_drop, listed
+
+
+@inline
+def slips_destroying(block, first, size, law):
+    """(how many of the block's slips destroyed information, the last pair that slipped so;
+    -1 where none): with mu = 0 only those of pairs that carried a history in
+    (`contact.capped_away`), counted in a loop of their own, run for mu = 0 alone, in place
+    of `scatter_pairs`' count of every slip."""
+    count = 0
+    last = -1
+    for k in range(size):
+        if entry(block, SLIPPED, k) > 0.0 and not capped_away(law, entries(block, SHEAR, k)):
+            count += 1
+            last = max(last, first + k)
+    return count, last
+
+
+@inline
+def count_touching(block, first, size):
+    """(how many of the block's pairs touch, the last that does; -1 where none): where
+    viscous damping acts, which `events.note_destroyed` logs, in a loop of its own, which
+    LLVM vectorises, run only for a damped law."""
+    count = 0
+    last = -1
+    for k in range(size):
+        if entry(block, OVERLAP, k) > 0.0:
+            count += 1
+            last = max(last, first + k)
+    return count, last
 
 
 @inline
@@ -747,6 +765,7 @@ def _pair_loop(
     then = normals_then.shape[0] > 0 and (mode == FORWARD or mode == REVERSE)
     plain = is_plain(law)
     predicting = mode == FORWARD and earlier.shape[0] > 0 and plain
+    damped = law.beta_n > 0.0 or law.beta_t > 0.0  # its pairs touching counted (`count_touching`)
     chunks = min(threads_for(first_pair.shape[0] - 1, HEAVY), blocks.shape[0])
     slips = 0
     last_slip = -1
@@ -798,17 +817,23 @@ def _pair_loop(
                 force, history, moment, overlaps, destroyed, rolling, rolled, earlier,
                 predicting, listed, law, mode, keep,
             )  # fmt: skip
-            scattered, listed = scatter_pairs(block, first, size, *results)
-            slips += scattered[0]
-            last_slip = max(last_slip, scattered[1])
+            scattered = scatter_pairs(block, first, size, *results)
+            slipped = scattered[:2]
+            if law.mu == 0.0 and law.tangential != NO_SHEAR:
+                slipped = slips_destroying(block, first, size, law)
+            slips += slipped[0]
+            last_slip = max(last_slip, slipped[1])
             losses += scattered[2]
             last_loss = max(last_loss, scattered[3])
             caps += scattered[4]
             last_cap = max(last_cap, scattered[5])
             drops += scattered[6]
             last_drop = max(last_drop, scattered[7])
-            dashpots += scattered[8]
-            last_dashpot = max(last_dashpot, scattered[9])
+            listed = scattered[8]
+            if damped:
+                count, last = count_touching(block, first, size)
+                dashpots += count
+                last_dashpot = max(last_dashpot, last)
             sum_in_order(
                 block, first, size, pi, pj, radius, f_sum, t_sum, torques, rolls, beyond,
                 foreign, foreign_end, force, moment, overlaps, turned,

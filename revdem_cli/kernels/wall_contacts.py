@@ -126,8 +126,7 @@ def _wall_loop(
                     shear,
                     n_new,
                 )
-                # f's tangential part, f + |f_n| n, exactly zero where the shear force is
-                t = cross(scaled(arm, n), axpy(normal, n, f)) if shear_law else ZERO
+                t = cross(scaled(arm, n), f) if shear_law else ZERO
                 dropped = 0.0
                 if rolling_law:
                     old = cell_of(rolling, q, b)

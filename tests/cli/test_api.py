@@ -367,7 +367,7 @@ def test_critical_time_steps_are_the_command_lines(tmp_path):
     args = ["dt", "--shape", "ellipsoid", "--semi-axes", "3", "2", "1", "--density", "1000"]
     printed = CliRunner().invoke(app, [*args, "--kn", "1e10", "--damping", "0.5", "--json"])
     assert printed.exit_code == 0, printed.output
-    assert json.loads(json.dumps(given)) == json.loads(printed.output)  # tuples as lists
+    assert json.loads(json.dumps(given)) == json.loads(printed.stdout)  # tuples as lists
     sphere = {"shape": "sphere", "radius": 0.01, "density": 2500}
     pair = revdem.critical_time_step(sphere, {"radius": 0.02}, kn=1e6)
     alone = revdem.critical_time_step({**sphere, "radius": 0.02}, {"radius": 0.01}, kn=1e6)
@@ -394,7 +394,7 @@ def test_critical_time_steps_are_the_command_lines(tmp_path):
     )
     packing = revdem.packing_time_step(run.outputs.restart)
     printed = CliRunner().invoke(app, ["dt", "--restart", str(run.outputs.restart), "--json"])
-    timed = json.loads(printed.output)
+    timed = json.loads(printed.stdout)
     for report in (packing, timed):
         report["assembly"].pop("seconds")
     assert json.loads(json.dumps(packing)) == timed and packing["assembly"]["dt"] > 0.0

@@ -133,7 +133,7 @@ def test_run_writes_all_outputs_and_prints_the_comparison(scenario, tmp_path):
         "compare", out / "collision.forward.h5", out / "collision.reverse.h5", "--json"
     )
     assert compared.exit_code == 0
-    assert json.loads(compared.output)["frames_compared"] == 61
+    assert json.loads(compared.stdout)["frames_compared"] == 61
 
 
 def test_a_reversal_that_would_meet_no_frame_but_its_first_is_refused(
@@ -175,7 +175,7 @@ def test_reverse_of_a_file_that_is_not_a_restart_exits_2(tmp_path):
 
 def test_schema_describes_fields_with_units():
     result = invoke("schema")
-    schema = json.loads(result.output)
+    schema = json.loads(result.stdout)
     dt = schema["$defs"]["Integrator"]["properties"]["dt"]
     assert dt["description"].startswith("time step, s")
 
@@ -241,7 +241,7 @@ def test_info_system_names_the_threading_layer_loaded_and_the_threads():
 
     result = CliRunner().invoke(app, ["info", "--system", "--json"])
     assert result.exit_code == 0, result.output
-    system = json.loads(result.output)
+    system = json.loads(result.stdout)
     assert system["threading_layer"] in LAYERS
     assert 1 <= system["threads"] <= system["thread_pool"]
     assert system["pool_helpers"] == system["thread_pool"] - 1  # the regions' threads

@@ -41,7 +41,7 @@ def test_the_trajectory_of_a_stopped_run_says_so_and_how_to_go_on(tmp_path, smok
         f"unfinished: {tmp_path / 'collision_smoke.checkpoint.h5'} is beside it (the run "
         f"stopped, or goes on); continue with revdem run --resume {tmp_path}"
     ) in result.output
-    summary = json.loads(info(tmp_path / "collision_smoke.forward.h5", "--json").output)
+    summary = json.loads(info(tmp_path / "collision_smoke.forward.h5", "--json").stdout)
     assert summary["checkpoint"] == str(tmp_path / "collision_smoke.checkpoint.h5")
     assert "unfinished" not in info(smoke_run / "collision_smoke.forward.h5").output
 
@@ -62,14 +62,14 @@ def test_a_trajectory_with_no_frames_says_none_were_written(tmp_path):
     assert "frames:     0 (none written)" in shown
     assert any(line.endswith("(it failed, or was stopped at once): it wrote no frame")
                for line in shown)  # fmt: skip
-    summary = json.loads(info(path, "--json").output)
+    summary = json.loads(info(path, "--json").stdout)
     assert (summary["frames"], summary["first_step"], summary["last_step"]) == (0, None, None)
 
 
 def test_json_summary_of_a_reversed_trajectory(smoke_run):
     result = info(smoke_run / "collision_smoke.reverse.h5", "--json")
     assert result.exit_code == 0, result.output
-    summary = json.loads(result.output)
+    summary = json.loads(result.stdout)
     assert summary["kind"] == "trajectory" and summary["direction"] == "reverse"
     assert (summary["first_step"], summary["last_step"], summary["frames"]) == (1000, 0, 21)
     assert summary["particles"] == 2
@@ -89,7 +89,7 @@ def test_json_summary_of_a_reversed_trajectory(smoke_run):
 def test_a_restart_shows_its_step_and_trajectory(smoke_run):
     result = info(smoke_run / "collision_smoke.restart.h5", "--json")
     assert result.exit_code == 0, result.output
-    summary = json.loads(result.output)
+    summary = json.loads(result.stdout)
     assert summary["kind"] == "restart" and summary["step"] == 1000
     assert summary["trajectory"].endswith("collision_smoke.forward.h5")
     assert "comparison" not in summary
@@ -181,7 +181,7 @@ def test_a_fixed_point_trajectory_shows_its_grids(tmp_path, smoke_run):
         f"cell), velocity {v:.3g} m/s, angular velocity {w:.3g} rad/s, force {force:.3g} N, "
         f"moment {moment:.3g} N m, edge {edge:.3g} m, edge rate {rate:.3g} m/s"
     ) in shown
-    assert json.loads(info(path, "--json").output)["grids"][3] == v
+    assert json.loads(info(path, "--json").stdout)["grids"][3] == v
     assert "grids:" not in info(smoke_run / "collision_smoke.forward.h5").output
 
 
@@ -226,5 +226,5 @@ def test_a_trajectory_whose_run_did_not_end_says_so(tmp_path):
     reverse = info(tmp_path / "oedometer_settle.reverse.h5").output
     assert "unfinished: its run did not reach its end and left no checkpoint" in reverse
     assert "unfinished" not in info(tmp_path / "oedometer_settle.forward.h5").output
-    summary = json.loads(info(tmp_path / "oedometer_settle.forward.h5", "--json").output)
+    summary = json.loads(info(tmp_path / "oedometer_settle.forward.h5", "--json").stdout)
     assert summary["ended"] is True

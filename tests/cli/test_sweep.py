@@ -82,7 +82,7 @@ def test_six_variants_on_two_workers_give_one_table(tmp_path):
         "/", "diameter", f"{float(rows[4]['max_position_error_rel']):.3g})",
     ]  # fmt: skip
     # --json: each variant's values and every result, where it gave four of them
-    shown = json.loads(runner.invoke(app, ["info", str(tmp_path / "sweep.h5"), "--json"]).output)
+    shown = json.loads(runner.invoke(app, ["info", str(tmp_path / "sweep.h5"), "--json"]).stdout)
     fifth = shown["variants"][4]
     assert fifth["values"] == {
         "stages.0.steps": 200,

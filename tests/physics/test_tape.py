@@ -555,7 +555,7 @@ def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
     pair = [str(result.trajectory()), str(result.trajectory("reverse"))]
     again = CliRunner().invoke(app, ["compare", *pair, "--json"])
     assert again.exit_code == 0, again.output
-    assert json.loads(again.output) == json.loads(json.dumps(verdict))
+    assert json.loads(again.stdout) == json.loads(json.dumps(verdict))
     partial = revdem.reverse(result.outputs.restart, out=tmp_path / "part", steps=500)
     assert partial.comparison["information_tape"]["file"] == "resting.tape.h5"
     assert "information_tapes" not in partial.comparison

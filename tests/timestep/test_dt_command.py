@@ -28,7 +28,7 @@ def invoke(*args):
 def as_json(*args) -> dict:
     result = invoke(*args, "--json")
     assert result.exit_code == 0, result.output
-    return json.loads(result.output)
+    return json.loads(result.stdout)
 
 
 def test_ellipsoid_example_prints_mass_a_max_and_time_step(paper):

@@ -187,7 +187,7 @@ def fcc_restart(tmp_path_factory):
 def test_dt_restart_reports_the_assembly_beside_the_single_contact_estimates(fcc_restart):
     result = invoke("dt", "--restart", fcc_restart, "--verify", "--json")
     assert result.exit_code == 0, result.output
-    report = json.loads(result.output)
+    report = json.loads(result.stdout)
     dt = report["assembly"]["dt"]
     estimates = report["estimates"]
     # a sphere of the lattice has 12 contacts: one alone has ω² = 2k/m, the lattice 8k/m
@@ -273,7 +273,7 @@ def test_a_packing_that_still_moves_is_not_bracketed(tmp_path):
     restart = tmp_path / "box.restart.h5"
     result = invoke("dt", "--restart", restart, "--verify", "--json")
     assert result.exit_code == 0, result.output
-    report = json.loads(result.output)
+    report = json.loads(result.stdout)
     engine = report["engine_integrated"]
     assert report["assembly"]["contacts"] > 0
     assert not engine["measured"] and engine["divergence"] > 1e3 * PARTED
@@ -297,7 +297,7 @@ def test_a_collision_caught_mid_contact_is_not_bracketed(tmp_path):
     restart = tmp_path / "collision.restart.h5"
     result = invoke("dt", "--restart", restart, "--verify", "--json")
     assert result.exit_code == 0, result.output
-    report = json.loads(result.output)
+    report = json.loads(result.stdout)
     engine = report["engine_integrated"]
     assert report["assembly"]["contacts"] == 1 and report["assembly"]["dt"] > 0.0
     assert not engine["measured"] and engine["divergence"] <= packing.PARTED
@@ -434,7 +434,7 @@ def test_dt_restart_says_its_damped_limit_reads_the_velocity_predictor(tmp_path)
     outputs = run_scenario(Scenario.model_validate(data), "", ".toml", tmp_path)
     result = invoke("dt", "--restart", str(outputs.restart), "--json")
     assert result.exit_code == 0, result.output
-    report = json.loads(result.output)
+    report = json.loads(result.stdout)
     assert report["predictor_order"] == 2
     shown = CliRunner().invoke(
         app, ["dt", "--restart", str(outputs.restart)], env={"COLUMNS": "300"}

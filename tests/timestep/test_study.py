@@ -55,7 +55,7 @@ def read_csv(path) -> dict[str, np.ndarray]:
 def dt_json(*args) -> dict:
     result = invoke("dt", *args, "--json")
     assert result.exit_code == 0, result.output
-    return json.loads(result.output)
+    return json.loads(result.stdout)
 
 
 @pytest.fixture(scope="module")
