@@ -302,24 +302,27 @@ def _forward(
     write_restart(
         paths["restart"], run.restart(state, clock, paths["forward"], files=last, summary=said)
     )
-    outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
-    outputs.stage_files = tuple(stage_files)
+    told = (chosen, stopped, unmet, unheld, stage_files, servo)
     if reverse:
         restart = read_restart(paths["restart"])
         source = str(paths["restart"].resolve())
-        so_far = summary_so_far(chosen, stopped, unmet, unheld, stage_files, servo)
-        reversed_outputs = _reverse(run, restart, source, None, progress, so_far)
-        reversed_outputs.forward, reversed_outputs.restart = outputs.forward, outputs.restart
-        reversed_outputs.chosen_dt, reversed_outputs.stopped = chosen, stopped
-        reversed_outputs.unmet, reversed_outputs.unheld = unmet, unheld
-        reversed_outputs.servo = servo
-        reversed_outputs.stage_files = outputs.stage_files
-        return reversed_outputs
-    outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
-    outputs.unheld, outputs.servo = unheld, servo
+        outputs = _reverse(run, restart, source, None, progress, said)
+        outputs.forward, outputs.restart = paths["forward"], paths["restart"]
+        return _stages_said(outputs, *told)
+    outputs = Outputs(forward=paths["forward"], restart=paths["restart"])
+    _stages_said(outputs, *told)
     run.checkpoints.discard()
     run.checkpoints.finish("its figures were drawn; its trajectory and restart are whole")
     outputs.figures = _figures(scenario, paths["forward"], None, run.out_dir)
+    return outputs
+
+
+def _stages_said(
+    outputs: Outputs, chosen, stopped, unmet, unheld, stage_files, servo: str | None
+) -> Outputs:
+    """`outputs` told what the run says of its stages (`summary_so_far`'s, in its order)."""
+    outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
+    outputs.unheld, outputs.stage_files, outputs.servo = unheld, tuple(stage_files), servo
     return outputs
 
 
@@ -582,10 +585,8 @@ def resume_run(
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
         outputs = _reverse(run, resume, place.source_restart, None, progress, place.so_far)
-    chosen, stopped, unmet, unheld, stage_files, _ = carried_summary(run.out_dir, place.so_far)
-    outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
-    outputs.unheld, outputs.servo = unheld, run.scenario.servo
-    outputs.stage_files = tuple(stage_files)
+    carried = carried_summary(run.out_dir, place.so_far)[:5]
+    _stages_said(outputs, *carried, run.scenario.servo)
     for kind in ("forward", "restart"):  # named as the run's folder is named now
         path = getattr(outputs, kind)
         if path is not None and path.resolve() == run.paths[kind].resolve():
