@@ -302,7 +302,7 @@ def check_cell(scenario) -> None:
         if scenario.cell is None:
             raise FieldError(f"stages[{i}].cell", "needs a periodic [cell] to move")
         holds = bool(stage.held_stresses())
-        needed = "servo_mass" if scenario.cell.servo == "inertial" else "servo_gain"
+        needed = scenario.cell.servo_parameter
         if holds and getattr(scenario.cell, needed) is None:
             raise FieldError(
                 f"cell.{needed}",

@@ -536,6 +536,14 @@ class SolidFraction(_Model):
     planes: tuple[str, str] = Field(description="names of the two plane walls closing it")
 
 
+SERVO_PARAMETERS = {
+    "inertial": ("servo_mass", "too small"),
+    "proportional": ("servo_gain", "too large"),
+}
+"""Each kind of servo of [cell]: the parameter only it has, and which way that parameter
+makes an edge overshoot its target stress (a light edge mass, a high gain)."""
+
+
 class PeriodicCell(_Model):
     """A periodic box [0, Lx) x [0, Ly) x [0, Lz), repeated in x, y and z: a sphere leaving
     through a face comes back through the opposite one, and contacts reach across faces to
@@ -557,6 +565,11 @@ class PeriodicCell(_Model):
         gt=0,
         description="proportional servo: strain rate per relative stress error, 1/s",
     )
+
+    @property
+    def servo_parameter(self) -> str:
+        """The parameter only this kind of servo has, which it needs to hold a stress."""
+        return SERVO_PARAMETERS[self.servo][0]
 
     @model_validator(mode="after")
     def _positive(self) -> PeriodicCell:

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import h5py
 
+from revdem_cli.config.schema import SERVO_PARAMETERS
 from revdem_cli.errors import InputError
 from revdem_cli.io import open_hdf5
 
@@ -231,17 +232,13 @@ def stresses_off(axes: dict) -> str:
     )
 
 
-SERVO_OVERSHOOT = {"inertial": "a servo_mass too small", "proportional": "a servo_gain too large"}
-"""What makes each kind of servo of [cell] overshoot its target stress: the parameter only it
-has (`PeriodicCell.servo_mass`, `servo_gain`)."""
-
-
 def servo_overshoot(servo: str | None) -> str:
-    """What makes a servo of kind `servo` overshoot, in words; both kinds' where the kind is
-    not known (None: a restart written before runs kept it)."""
+    """What makes a servo of kind `servo` overshoot, in words (`SERVO_PARAMETERS`); both
+    kinds' where the kind is not known (None: a restart written before runs kept it)."""
     if servo is None:
-        return " or ".join(f"{words} ({kind})" for kind, words in SERVO_OVERSHOOT.items())
-    return SERVO_OVERSHOOT[servo]
+        return " or ".join(f"{servo_overshoot(kind)} ({kind})" for kind in SERVO_PARAMETERS)
+    parameter, way = SERVO_PARAMETERS[servo]
+    return f"a {parameter} {way}"
 
 
 def stage_lines(said: dict) -> list[tuple[str, str]]:
