@@ -183,7 +183,8 @@ class _Case:
     def _outside_float64(self, first, other, kn: float) -> InputError:
         """The error for criteria that left float64's range, naming the options whose
         products do: k A_max enters every translation criterion times 4 and under a root,
-        c A_max squared (Peng 2020 Eq 26, 30, 34, 46), ω_max B_max divides 2 (Eq 54, 56)."""
+        2 k_n Eq 36 on its own, c A_max squared (Peng 2020 Eq 26, 30, 34, 36, 46), ω_max
+        B_max divides 2 (Eq 54, 56)."""
         from revdem_cli.timestep.criteria import a_max, b_max, damping_from_number
 
         largest = sys.float_info.max
@@ -192,7 +193,7 @@ class _Case:
         named = [
             f"--{name} {k:g}"
             for name, k in stiffnesses.items()
-            if k and not 0.0 < k * inverse_mass <= largest / 4.0
+            if k and not (0.0 < k * inverse_mass <= largest / 4.0 and 2.0 * k <= largest)
         ]
         damping = damping_from_number(self.damping, kn, inverse_mass) * inverse_mass
         if not damping * damping <= largest:

@@ -65,8 +65,9 @@ def inverse_masses(body1: Body, body2: Body) -> tuple[float, float]:
 
 
 def damping_from_number(number: float, kn: float, inverse_mass: float) -> float:
-    """Damping coefficient c_n = c_s for the paper's dimensionless damping number N."""
-    return number * math.sqrt(kn / inverse_mass)  # Peng 2020 Section 6.2
+    """Damping coefficient c_n = c_s for the paper's dimensionless damping number N: exactly
+    0 for N = 0, whatever k / A_max (whose root may leave float64 where k A_max does not)."""
+    return number * math.sqrt(kn / inverse_mass) if number else 0.0  # Peng 2020 Section 6.2
 
 
 def critical_damping(k: float, inverse_mass: float) -> float:

@@ -329,6 +329,10 @@ def test_figures_take_no_other_option(tmp_path, extra, named):
         ((*SPHERE, "--kn", 1e6, "--ks", 1e307), "--ks 1e+307 with"),
         ((*SPHERE, "--kn", 1e6, "--damping", 1e300), "--damping 1e+300 with"),  # blamed --kn
         ((*ELLIPSOID, "--omega-max", 1.5e308), "--omega-max 1.5e+308 with"),  # showed 0
+        (
+            (*ELLIPSOID_SIZE, "--density", 1000, "--kn", 1e308),
+            "error: --kn 1e+308 with",
+        ),  # blamed --damping 0
         ((*SPHERE, "--sweep", "kn=1:1e307:2"), "--kn 1e+307 with"),
     ],
 )
