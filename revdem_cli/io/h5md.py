@@ -440,7 +440,22 @@ def frame_steps(f: h5py.File) -> np.ndarray:
 
 
 def read_frame(f: h5py.File, field: str, index: int) -> np.ndarray:
-    return _read(f, f"particles/all/{field}/value", index)
+    return _finite(f, field, _read(f, f"particles/all/{field}/value", index)[None], [index])[0]
+
+
+def _finite(f: h5py.File, field: str, rows: np.ndarray, indices) -> np.ndarray:
+    """Rows of a field at frames `indices`, refused where a value is not finite: a run
+    writes none (`kernels.health` stops it at the last sound state), so one is damage,
+    which a comparison would otherwise pass (NaN exceeds no tolerance) and an export
+    carry into every frame's box."""
+    if rows.dtype.kind != "f" or np.isfinite(rows).all():
+        return rows
+    frame, *where = np.argwhere(~np.isfinite(rows))[0]
+    step = int(_read(f, f"particles/all/{field}/step", int(indices[frame])))
+    of = f" of particle {where[0]}" if rows.ndim == 3 else ""  # (frames, particles, 3)
+    raise InputError(
+        f"{f.filename}: damaged revdem trajectory: {field}{of} at step {step} is not finite"
+    )
 
 
 BLOCK_VALUES = 1 << 20
@@ -467,7 +482,7 @@ def read_frames(f: h5py.File, field: str, indices: np.ndarray) -> np.ndarray:
         rows = _read(f, f"particles/all/{field}/value", slice(low, high + 1))[ascending - low]
     else:
         rows = _read(f, f"particles/all/{field}/value", ascending)
-    return rows[np.searchsorted(ascending, indices)]
+    return _finite(f, field, rows[np.searchsorted(ascending, indices)], indices)
 
 
 def observable_names(f: h5py.File) -> list[str]:

@@ -154,6 +154,8 @@ def export_vtk(
     trajectory, out_dir = Path(trajectory), Path(out_dir)
     stem = trajectory.stem
     writing = writing_folder(out_dir, stem)
+    made = next((p for p in reversed([out_dir, *out_dir.parents]) if not p.exists()), None)
+    moved = False  # `made`, the first folder the export makes, is removed if it fails
     with open_trajectory(trajectory) as f:  # checked before anything is written
         try:
             shutil.rmtree(writing, ignore_errors=True)  # left by an export that was killed
@@ -163,11 +165,12 @@ def export_vtk(
                 path.unlink()
             for _, frame in spheres + chains:
                 frame.replace(out_dir / frame.name)
+            moved = True
         except OSError as exc:  # named as the file it was to become
             name = out_dir / Path(exc.filename).name if exc.filename else out_dir
             raise WriteFailed(name, exc) from None
         finally:
-            shutil.rmtree(writing, ignore_errors=True)
+            shutil.rmtree(writing if moved or made is None else made, ignore_errors=True)
     written = {out_dir / f"{stem}.pvd": spheres}
     if chains:
         written[out_dir / f"{stem}{CHAINS}.pvd"] = chains

@@ -50,7 +50,7 @@ def invoke(command: str, path: Path, run: Path, out: Path):
         "reverse": ["reverse", path, "--out", out, "-q"],
         "compare": ["compare", path, run / f"{NAME}.reverse.h5"],
         "info": ["info", path],
-        "export": ["export", "--vtk", path, "--out", out],
+        "export": ["export", "--vtk", path, "--out", out, "-q"],
     }[command]
     return runner.invoke(app, [str(a) for a in args])
 
@@ -287,3 +287,19 @@ def test_a_damaged_verdict_beside_a_trajectory_is_named(run, tmp_path, text, why
     report = ["report", str(tmp_path), "--paper", str(paper), "--out", str(tmp_path / "r.md")]
     assert_one_line_error(runner.invoke(app, report), f"{verdict}: {why}")
     assert not (tmp_path / "r.md").exists()
+
+
+@pytest.mark.parametrize("command", ["compare", "export"])
+@pytest.mark.parametrize("field", ["position", "velocity"])
+def test_a_frame_not_finite_is_damage(run, tmp_path, command, field):
+    """A run writes no frame that is not finite (`kernels.health` stops it first), so one is
+    damage: `compare` passed a NaN error as within tolerance ("reversible") and an export
+    carried it into every frame's box."""
+    path = copy(run, "forward", tmp_path)
+    with h5py.File(path, "r+") as f:
+        values = f[f"particles/all/{field}/value"]
+        frames = values[()]
+        frames[3, 1, 0] = np.nan
+        values[...] = frames
+        step = int(f[f"particles/all/{field}/step"][3])
+    refused(command, path, run, f"{field} of particle 1 at step {step} is not finite")
