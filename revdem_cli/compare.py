@@ -12,7 +12,15 @@ from revdem_cli.config import Reversal, Scenario
 from revdem_cli.errors import InputError, check_regular
 from revdem_cli.io import GRID_FIELDS
 from revdem_cli.io.h5md import frame_steps, frames_per_block, open_trajectory, read_frames
-from revdem_cli.kernels.events import AMOUNT, COUNT, KINDS, LAST, PARTICLE, PARTNER
+from revdem_cli.kernels.events import (
+    AMOUNT,
+    COUNT,
+    KINDS,
+    LAST,
+    MOTION_LOST,
+    PARTICLE,
+    PARTNER,
+)
 from revdem_cli.state import particle_named, partner_named
 
 VERDICT_KEYS = (
@@ -305,7 +313,10 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     the reversed run's division by gamma_d where the run has drag, which amplifies round-off
     exponentially, and a time step above the critical one or the kinematic limit where the
     run was let go on at one (`--allow-unstable-dt`); otherwise nothing is named (round-off
-    growth alone).
+    growth alone). A motion rounded away (`motion_below_round_off`: x + dt v == x) is never
+    named: the reversed drift rounds x - dt v to x the same way (round to nearest is
+    symmetric), so it destroys no more than any rounding; a rolling sphere at rest logs it
+    every step and reverses to 1e-19 m without its rolling law.
     """
     if divergence_step is None or "observables/events" not in forward:
         return []
@@ -319,7 +330,9 @@ def divergence_causes(forward, divergence_step: int | None) -> list[dict]:
     for frame in (int(later[0]), -1):  # just before it parted, else any time after
         log = forward["observables/events/value"][frame]
         window = [
-            k for k in range(len(KINDS)) if log[k, COUNT] > 0 and log[k, LAST] > divergence_step
+            k
+            for k in range(len(KINDS))
+            if k != MOTION_LOST and log[k, COUNT] > 0 and log[k, LAST] > divergence_step
         ]
         if window:
             break
@@ -481,9 +494,6 @@ def _cause(kind: int, entry, walls: list[str], ids: np.ndarray, velocity_read: s
         f"removed {amount:.3g} N m of rolling moment, which cannot be recovered",
         "contact_lost_with_rolling_moment": f"{contact} lost rolling moment {amount:.3g} N m "
         f"at step {step}: the moment zeroed at separation cannot be recovered",
-        "motion_below_round_off": f"{particle} moved {amount:.3g} m in a step at step {step}, "
-        "too little to change its position in floating point: the motion is lost (the "
-        "particle is at rest to round-off)",
     }
     paired = KINDS[kind] in CONTACTS
     return {
