@@ -13,6 +13,7 @@ from typer.core import TyperGroup
 
 from revdem_cli import __version__
 from revdem_cli.errors import InputError, RunFailed, given_options, path_problem
+from revdem_cli.options import named_file, named_folder
 from revdem_cli.timestep.command import OnceEach
 from revdem_cli.timestep.command import dt as _dt
 
@@ -80,16 +81,6 @@ class _Commands(TyperGroup):
             raise typer.Exit(1) from None
 
 
-def _named_path(value: str | Path) -> Path:
-    """An --out as given (or its default); an empty one is refused, not read as the current
-    directory."""
-    if isinstance(value, Path):
-        return value
-    if not value.strip():
-        raise typer.BadParameter("an empty path; give a directory (. for this one)")
-    return Path(value)
-
-
 app = typer.Typer(
     cls=_Commands,
     name="revdem",
@@ -148,7 +139,7 @@ def run(
         Path | None, typer.Argument(help="Scenario file (.toml, .yaml or .yml).")
     ] = None,
     out: Annotated[
-        Path, typer.Option("--out", parser=_named_path, help="Output directory.")
+        Path, typer.Option("--out", parser=named_folder, help="Output directory.")
     ] = Path("out"),
     overrides: Annotated[
         list[str] | None,
@@ -237,7 +228,7 @@ def reverse(
     out: Annotated[
         Path | None,
         typer.Option(
-            "--out", parser=_named_path, help="Output directory (default: beside the restart)."
+            "--out", parser=named_folder, help="Output directory (default: beside the restart)."
         ),
     ] = None,
     steps: Annotated[
@@ -394,10 +385,10 @@ def export(
     vtk: Annotated[bool, typer.Option("--vtk", help="The same as --format vtk.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
     out: Annotated[
-        Path | None,
+        str | None,
         typer.Option(
             "--out",
-            parser=_named_path,
+            parser=named_file,
             help="Output directory (vtk) or file (default: TRAJECTORY without .h5, + .vtk, "
             ".gsd, .dump or .data).",
         ),
@@ -448,7 +439,7 @@ def export(
     from revdem_cli.io import particles, refuse_overwriting
     from revdem_cli.io.vtk import export_vtk, own_files
 
-    target = out or export_target(trajectory, format)
+    target = out or export_target(trajectory, format)  # as given: see options.named_file
     keep = out is not None and not force
     if format != "vtk":
         refuse_overwriting("export", target, keep, trajectory)
@@ -488,7 +479,7 @@ def sweep(
         ),
     ] = None,
     out: Annotated[
-        Path, typer.Option("--out", parser=_named_path, help="Output directory.")
+        Path, typer.Option("--out", parser=named_folder, help="Output directory.")
     ] = Path("out/sweep"),
     scheduler: Annotated[
         str | None,
@@ -581,9 +572,9 @@ def report(
         ),
     ] = None,
     out: Annotated[
-        Path | None,
+        str | None,
         typer.Option(
-            "--out", parser=_named_path, help="Markdown file (default: DIRECTORY/report.md)."
+            "--out", parser=named_file, help="Markdown file (default: DIRECTORY/report.md)."
         ),
     ] = None,
     force: Annotated[

@@ -50,19 +50,21 @@ def write_text(path, text: str) -> None:
 
 def refuse_overwriting(command: str, target, keep: bool, reading=None) -> None:
     """InputError where `command` (export, dt, report) would write the file --out names,
-    `target`, over: a folder; the file it reads, `reading`; an HDF5 file (a run's
-    trajectory, restart or tape, which none of their outputs is); or, where `keep` (an --out
-    given without --force), any file, a run's verdict or figure say. A command's default
-    target is its own to write again."""
+    `target`, over: a folder, one that is there or a path that ends in a separator (as
+    given: `options.named_file`), which names one; the file it reads, `reading`; an HDF5
+    file (a run's trajectory, restart or tape, which none of their outputs is); or, where
+    `keep` (an --out given without --force), any file, a run's verdict or figure say. A
+    command's default target is its own to write again."""
+    import os
     from pathlib import Path
 
     import h5py
 
     from revdem_cli.errors import InputError
 
-    target = Path(target)
-    if target.is_dir():
-        raise InputError(f"{command}: --out {target}: a folder; name a file")
+    given, target = str(target), Path(target)
+    if given.endswith(tuple(filter(None, (os.sep, os.altsep)))) or target.is_dir():
+        raise InputError(f"{command}: --out {given}: a folder; name a file")
     if not target.is_file():
         return
     read = reading is not None and target.resolve() == Path(reading).resolve()

@@ -13,6 +13,7 @@ import typer
 from typer.core import TyperCommand
 
 from revdem_cli.errors import InputError, WriteFailed, given_options
+from revdem_cli.options import named_file
 
 SHAPES = ("sphere", "ellipsoid", "superquadric", "polyhedron")
 SIZES = {
@@ -525,7 +526,10 @@ def dt(
             "the swept option is not given besides (density: nor --other-density)."
         ),
     ] = None,
-    out: Annotated[Path | None, typer.Option(help="CSV file of a sweep (default stdout).")] = None,
+    out: Annotated[
+        str | None,
+        typer.Option(parser=named_file, help="CSV file of a sweep (default stdout)."),
+    ] = None,
     force: Annotated[
         bool, typer.Option("--force", help="Write over a file that --out names and exists.")
     ] = False,
@@ -612,6 +616,7 @@ def dt(
         from revdem_cli.io import refuse_overwriting
 
         refuse_overwriting("dt", out, not force)
+        out = Path(out)
     if sweep is not None:
         if as_json:
             raise InputError("--sweep writes CSV; leave out --json")

@@ -205,3 +205,26 @@ def test_a_table_or_page_named_by_out_keeps_a_run_and_any_file_without_force(out
     forced = invoke(*args, "--out", mine, "--force")
     assert forced.exit_code == 0, forced.output
     assert mine.read_text() != "mine\n"
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "2500",
+         "--sweep", "kn=1e5:1e7:3"],
+        ["report"],
+        ["export", "--format", "gsd"],
+        ["export", "--format", "lammps-dump"],
+        ["export", "--format", "lammps-data"],
+    ],
+    ids=["dt --sweep", "report", "export gsd", "export lammps-dump", "export lammps-data"],
+)  # fmt: skip
+def test_an_out_ending_in_a_separator_names_a_folder_not_a_file(out, command):
+    """`export --out slashdir/` wrote a file named slashdir where no such folder was: a
+    path ending in / names a folder, refused where a file is wanted as one that exists is."""
+    argument = {"report": [out], "export": [out / f"{NAME}.forward.h5"]}.get(command[0], [])
+    kept = snapshot(out)
+    folder = f"{out / 'new'}/"
+    result = invoke(*command[:1], *argument, *command[1:], "--out", folder)
+    assert_one_line_error(result, f"{command[0]}: --out {folder}: a folder; name a file")
+    assert snapshot(out) == kept
