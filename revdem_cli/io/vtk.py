@@ -157,18 +157,18 @@ def export_vtk(
     made = next((p for p in reversed([out_dir, *out_dir.parents]) if not p.exists()), None)
     moved = False  # `made`, the first folder the export makes, is removed if it fails
     with open_trajectory(trajectory) as f:  # checked before anything is written
-        try:
+        out_dir.mkdir(parents=True, exist_ok=True)  # a path that cannot be a folder (a file
+        try:  # there or above, no permission) is the caller's to name: `errors.path_problem`
             shutil.rmtree(writing, ignore_errors=True)  # left by an export that was killed
-            writing.mkdir(parents=True)
+            writing.mkdir()
             spheres, chains = _write_frames(f, trajectory, writing, progress)
             for path in own_files(out_dir, stem):
                 path.unlink()
             for _, frame in spheres + chains:
                 frame.replace(out_dir / frame.name)
             moved = True
-        except OSError as exc:  # named as the file it was to become
-            name = out_dir / Path(exc.filename).name if exc.filename else out_dir
-            raise WriteFailed(name, exc) from None
+        except OSError as exc:
+            raise WriteFailed(_as_the_user_knows_it(exc, out_dir, writing), exc) from None
         finally:
             shutil.rmtree(writing if moved or made is None else made, ignore_errors=True)
     written = {out_dir / f"{stem}.pvd": spheres}
@@ -179,6 +179,18 @@ def export_vtk(
     return {
         series: [out_dir / frame.name for _, frame in frames] for series, frames in written.items()
     }
+
+
+def _as_the_user_knows_it(exc: OSError, out_dir: Path, writing: Path) -> Path:
+    """The path a failed write of an export names, as its user knows it: a frame in the
+    hidden `writing` folder by the file it was to become in `out_dir`, that folder itself by
+    `out_dir`, any other as it is."""
+    if exc.filename is None:
+        return out_dir
+    path = Path(exc.filename)
+    if path == writing:
+        return out_dir
+    return out_dir / path.name if path.parent == writing else path
 
 
 def writing_folder(out_dir: Path, stem: str) -> Path:

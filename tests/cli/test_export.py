@@ -156,6 +156,55 @@ def test_a_vtk_export_removes_its_earlier_frames_and_nothing_else(smoke_run, tmp
     assert (tmp_path / "forward.vtk" / "forward.00777.vtp").read_text() == "mine"
 
 
+def test_a_vtk_export_into_a_file_is_refused_as_the_other_formats_are(smoke_run, tmp_path):
+    """A file where the vtk folder goes (--out, a folder above it, or the default
+    NAME.vtk) failed with exit 1 naming the hidden folder the frames are written into; it is
+    bad input, refused in one line naming the file in the way, as the other formats do."""
+    forward = smoke_run / "collision_smoke.forward.h5"
+    mine = tmp_path / "mine.txt"
+    mine.write_text("mine")
+    refused = {
+        mine: f"{mine}: a file, not a folder",
+        mine / "sub": f"{mine / 'sub'}: {mine} is a file, not a folder",
+    }
+    for out, line in refused.items():
+        result = runner.invoke(app, ["export", str(forward), "--vtk", "--out", str(out), "-q"])
+        assert_one_line_error(result, line)
+    local = tmp_path / "forward.h5"
+    local.symlink_to(forward)
+    (tmp_path / "forward.vtk").write_text("mine")
+    result = runner.invoke(app, ["export", str(local), "--vtk", "-q"])
+    assert_one_line_error(result, f"{tmp_path / 'forward.vtk'}: a file, not a folder")
+    assert mine.read_text() == (tmp_path / "forward.vtk").read_text() == "mine"
+
+
+def test_a_vtk_export_that_cannot_write_names_the_folder_once(smoke_run, tmp_path, monkeypatch):
+    """A folder where no folder may be made said `cannot write rodir/vtkout/vtkout`. Now a
+    new --out folder that cannot be made is named as given (exit 2, as a path of the user's
+    that cannot be used), and one that is there but takes no files is named itself."""
+    import errno
+    import os
+
+    forward = smoke_run / "collision_smoke.forward.h5"
+    read_only = tmp_path / "rodir"
+    read_only.mkdir()
+    (read_only / "there").mkdir()
+    make_folder = os.mkdir
+
+    def refused_inside(path, *args, **kwargs):
+        if Path(path).parent in (read_only, read_only / "there"):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        make_folder(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "mkdir", refused_inside)
+    new, there = read_only / "vtkout", read_only / "there"
+    result = runner.invoke(app, ["export", str(forward), "--vtk", "--out", str(new), "-q"])
+    assert_one_line_error(result, f"error: {new}: Permission denied")
+    result = runner.invoke(app, ["export", str(forward), "--vtk", "--out", str(there), "-q"])
+    assert result.exit_code == 1
+    assert result.output == f"failed: cannot write {there}: Permission denied (errno 13)\n"
+
+
 @pytest.mark.parametrize("stop", [KeyboardInterrupt, OSError])
 def test_a_vtk_export_stopped_on_the_way_leaves_the_earlier_one_whole(smoke_run, tmp_path, stop):
     """The export removed the earlier export's files and then wrote its frames in place: a
