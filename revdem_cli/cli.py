@@ -13,8 +13,7 @@ from typer.core import TyperGroup
 
 from revdem_cli import __version__
 from revdem_cli.errors import InputError, RunFailed, given_options, path_problem
-from revdem_cli.options import named_file, named_folder
-from revdem_cli.timestep.command import OnceEach
+from revdem_cli.options import OnceEach, named_file, named_folder
 from revdem_cli.timestep.command import dt as _dt
 
 
@@ -595,7 +594,7 @@ def report(
     typer.echo(f"wrote {written}")
 
 
-app.command("dt", cls=OnceEach)(_dt)
+app.command("dt")(_dt)
 
 
 def _reflowed(doc: str) -> str:
@@ -607,6 +606,7 @@ def _reflowed(doc: str) -> str:
 
 
 for _command in app.registered_commands:
+    _command.cls = OnceEach  # an option given twice is refused, not taken last-wins
     if _command.help is None and _command.callback.__doc__:
         _command.help = _reflowed(_command.callback.__doc__)
 

@@ -1,11 +1,12 @@
 """What the command line's options take, shared by `cli` and the commands in modules of
-their own (`timestep.command`): an --out as the user gave it."""
+their own (`timestep.command`): an --out as the user gave it, and each option once."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import typer
+from typer.core import TyperCommand
 
 
 def _given(value: str, hint: str) -> str:
@@ -29,3 +30,22 @@ def named_file(value: str | Path) -> str | Path:
     if isinstance(value, Path):
         return value
     return _given(value, "name a file")
+
+
+class OnceEach(TyperCommand):
+    """A command whose options that take a value may each be given once: click keeps the last
+    of a repeated one and drops the others, which would leave their user believing they
+    counted. An option meant to be repeated (`--set`, click's `multiple`) may be."""
+
+    def parse_args(self, ctx, args: list[str]) -> list[str]:
+        from revdem_cli.errors import InputError
+
+        _, _, order = self.make_parser(ctx).parse_args(args=list(args))
+        for param in dict.fromkeys(order):
+            times = order.count(param)
+            repeatable = getattr(param, "is_flag", False) or getattr(param, "multiple", False)
+            if times > 1 and not repeatable:
+                raise InputError(
+                    f"{ctx.info_name}: {param.opts[0]} is given {times} times; give it once"
+                )
+        return super().parse_args(ctx, args)

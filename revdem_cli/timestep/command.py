@@ -10,7 +10,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from typer.core import TyperCommand
 
 from revdem_cli.errors import InputError, WriteFailed, given_options
 from revdem_cli.options import named_file
@@ -248,20 +247,6 @@ def _sweep_values(spec: str) -> tuple[str, list[float]]:
         check(f"--sweep {spec!r}: {name}", end)
     values = np.linspace(start, stop, count)
     return name, values.tolist()
-
-
-class OnceEach(TyperCommand):
-    """A command whose options that take a value may each be given once: click keeps the last
-    of a repeated one and drops the others, which would leave their user believing they
-    counted."""
-
-    def parse_args(self, ctx, args: list[str]) -> list[str]:
-        _, _, order = self.make_parser(ctx).parse_args(args=list(args))
-        for param in dict.fromkeys(order):
-            times = order.count(param)
-            if times > 1 and not getattr(param, "is_flag", False):
-                raise InputError(f"{param.opts[0]} is given {times} times; give it once")
-        return super().parse_args(ctx, args)
 
 
 def _sweep_conflicts(ctx, spec: str, name: str) -> None:

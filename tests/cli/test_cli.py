@@ -265,6 +265,17 @@ def test_more_threads_than_the_pool_is_refused_naming_the_option(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+def test_a_single_valued_option_given_twice_is_refused_and_set_may_repeat(scenario, tmp_path):
+    """Every command takes an option that holds one value once (a second --out was taken,
+    the first dropped); --set, meant to repeat, still does."""
+    path = scenario()
+    result = invoke("run", path, "--out", tmp_path / "a", "--out", tmp_path / "b", "-q")
+    assert_one_line_error(result, "run: --out is given 2 times; give it once")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+    result = invoke("validate", path, "--set", "stages.0.steps=20", "--set", "integrator.dt=1e-8")
+    assert result.exit_code == 0 and "at most 20 steps" in result.output, result.output
+
+
 def test_a_field_path_as_an_error_names_it_is_taken_by_set(tmp_path):
     """Errors name a field `stages[0].steps`, --set took only `stages.0.steps`: the path
     copied from an error into --set was "not a table or a list". Both are taken, as one."""

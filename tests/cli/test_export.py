@@ -71,6 +71,25 @@ def test_export_needs_a_format_and_a_trajectory(smoke_run):
         assert result.exit_code == 2 and message in result.output, result.output
 
 
+@pytest.mark.parametrize(
+    "repeated, option",
+    [(["--format", "gsd", "--format", "vtk"], "--format"),
+     (["--format", "gsd", "--out", "{tmp}/a.gsd", "--out", "{tmp}/b.gsd"], "--out"),
+     (["--format", "lammps-data", "--step", "0", "--step", "1000"], "--step")],
+)  # fmt: skip
+def test_an_option_given_twice_is_refused_not_taken_last_wins(
+    smoke_run, tmp_path, repeated, option
+):
+    """`--format gsd --format vtk` wrote VTK and `--out a --out b` wrote b, where `--vtk
+    --format gsd` was refused: each option of export is taken once, as dt's are."""
+    forward = smoke_run / "collision_smoke.forward.h5"
+    before = sorted(smoke_run.iterdir())
+    args = [arg.format(tmp=tmp_path) for arg in repeated]
+    result = runner.invoke(app, ["export", str(forward), *args, "-q"])
+    assert_one_line_error(result, f"export: {option} is given 2 times; give it once")
+    assert sorted(smoke_run.iterdir()) == before and not list(tmp_path.iterdir())
+
+
 @pytest.mark.parametrize("fmt", ["gsd", "lammps-data"])
 def test_an_export_never_writes_over_the_trajectory_or_another_runs_file(smoke_run, fmt):
     forward, restart = (smoke_run / f"collision_smoke.{kind}.h5" for kind in ("forward", "restart"))
