@@ -346,7 +346,8 @@ def info(
     """Summarise a revdem trajectory, restart, tape or sweep table, or (--system) this machine.
 
     Kind, direction, scenario, stages, particles, frames and steps, dt, and the reversal
-    verdict when the run's NAME.compare.json lies beside the trajectory; of a sweep's
+    verdict when the run's NAME.compare.json lies beside the trajectory and names it among
+    the files it compared (else that it compares other files); of a sweep's
     sweep.h5, each variant's status and verdict. --system: the
     threading layer numba loaded, the threads and cores, numba's version, the kernel caches
     and what they hold.
@@ -355,8 +356,12 @@ def info(
     """
     import json
 
-    if system == (file is not None):
-        raise InputError("give a trajectory or restart file, or --system")
+    if system and file is not None:
+        raise InputError(
+            f"info: --system describes this machine, {file} a file: give them separately"
+        )
+    if not system and file is None:
+        raise InputError("info: give a trajectory or restart file, or --system")
     if system:
         from revdem_cli.report.info import system_lines, system_summary
 

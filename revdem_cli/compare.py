@@ -33,6 +33,23 @@ VERDICT_KEYS = (
 """What every NAME.compare.json holds (`compare_trajectories`), which its readers rely on."""
 
 
+PAIRED = "{reverse} reverses {restart}, the restart that ends {forward}"
+"""The pairing a comparison records where it found the reversal's restart (`check_pairing`):
+the files it compared, by name, which its readers tell its trajectories by
+(`compared_files`)."""
+
+
+def compared_files(verdict: dict) -> tuple[str, ...]:
+    """The names of the forward and the reversed trajectory a comparison's pairing names;
+    none where it names no trajectory (its reversal's restart was gone: it checked that the
+    runs were of one scenario, not which)."""
+    import re
+
+    pattern = PAIRED.format(reverse="(?P<reverse>.+)", restart=".+", forward="(?P<forward>.+)")
+    found = re.fullmatch(pattern, str(verdict.get("pairing", "")))
+    return (found["forward"], found["reverse"]) if found else ()
+
+
 def read_verdict(path: Path) -> dict:
     """A run's NAME.compare.json, as `compare_trajectories` wrote it; InputError naming the
     file where it is not one (FileNotFoundError where it is missing)."""
@@ -285,7 +302,7 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
                 f"ends the forward run {ends}, whose last frame (step {step}) {first} does not "
                 "hold"
             )
-    return f"{second.name} reverses {source.name}, the restart that ends {first.name}"
+    return PAIRED.format(reverse=second.name, restart=source.name, forward=first.name)
 
 
 def first_divergence_of(rows, tolerance: Reversal) -> int | None:

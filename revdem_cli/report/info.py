@@ -90,7 +90,7 @@ def stop_condition(condition: dict | None) -> str:
 
 def _trajectory(path: Path, f: h5py.File) -> dict:
     from revdem_cli.checkpoint import checkpoint_path
-    from revdem_cli.compare import read_verdict
+    from revdem_cli.compare import compared_files, read_verdict
     from revdem_cli.io.h5md import ended
 
     attrs = f["parameters/revdem"].attrs
@@ -122,15 +122,15 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
     comparison = path.with_name(f"{info['scenario']}.compare.json")
     if comparison.exists():
         verdict = read_verdict(comparison)
-        info["comparison"] = {
-            key: verdict[key]
-            for key in (
-                "reversible",
-                "max_position_error_rel",
-                "first_divergence_step",
-                "bitwise_identical",
-            )
-        }
+        if path.name in compared_files(verdict):
+            shown = ("reversible", "max_position_error_rel", "first_divergence_step",
+                     "bitwise_identical")  # fmt: skip
+            info["comparison"] = {key: verdict[key] for key in shown}
+        else:  # another run's, copied or left there: its verdict is not this trajectory's
+            info["comparison_of_other_files"] = {
+                "file": str(comparison),
+                "pairing": verdict.get("pairing"),
+            }
     return info
 
 
@@ -374,6 +374,12 @@ def info_lines(info: dict) -> list[str]:
     lines += [
         f"{label + ':':<11} {text}" for label, text in stage_lines(info.get("stages_ran", {}))
     ]
+    other = info.get("comparison_of_other_files")
+    if other is not None:
+        lines.append(
+            f"reversal:   not known: {Path(other['file']).name} beside it compares other "
+            f"files ({other['pairing'] or 'it names none'})"
+        )
     verdict = info.get("comparison")
     if verdict is not None:
         if verdict["reversible"]:

@@ -1,12 +1,14 @@
 """`revdem info`: a summary of any revdem file, one line and exit 2 for anything else."""
 
 import json
+from pathlib import Path
 
 import h5py
 import numpy as np
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
+from tests.conftest import assert_one_line_error
 
 runner = CliRunner()
 
@@ -64,6 +66,41 @@ def test_a_trajectory_with_no_frames_says_none_were_written(tmp_path):
                for line in shown)  # fmt: skip
     summary = json.loads(info(path, "--json").stdout)
     assert (summary["frames"], summary["first_step"], summary["last_step"]) == (0, None, None)
+
+
+def test_a_verdict_beside_a_trajectory_is_shown_only_where_it_compared_that_trajectory(
+    smoke_run, tmp_path
+):
+    """Another run's NAME.compare.json copied beside a trajectory had its verdict shown as
+    the trajectory's ("not reversible, the runs part at step 36250" of a run of 1000 steps).
+    A verdict is shown where its pairing names the trajectory; else info says it compares
+    other files."""
+    import shutil
+
+    forward = Path(shutil.copy(smoke_run / "collision_smoke.forward.h5", tmp_path))
+    verdict = json.loads((smoke_run / "collision_smoke.compare.json").read_text())
+    other = (
+        "oedometer_smoke.reverse.h5 reverses oedometer_smoke.restart.h5, the restart that "
+        "ends oedometer_smoke.forward.h5"
+    )
+    verdict |= {"reversible": False, "first_divergence_step": 36250, "pairing": other}
+    (tmp_path / "collision_smoke.compare.json").write_text(json.dumps(verdict))
+    shown = info(forward).output.splitlines()
+    assert not any("36250" in line for line in shown)
+    assert (
+        "reversal:   not known: collision_smoke.compare.json beside it compares other files "
+        f"({other})"
+    ) in shown
+    summary = json.loads(info(forward, "--json").stdout)
+    assert "comparison" not in summary
+    assert summary["comparison_of_other_files"]["pairing"] == other
+    for name in ("forward", "reverse"):  # the run's own verdict, beside its trajectories
+        assert "reversal:   reversible" in info(smoke_run / f"collision_smoke.{name}.h5").output
+
+
+def test_info_of_a_file_and_of_the_system_is_asked_for_apart(smoke_run):
+    result = info("--system", smoke_run / "collision_smoke.forward.h5")
+    assert_one_line_error(result, "info: --system describes this machine", "separately")
 
 
 def test_json_summary_of_a_reversed_trajectory(smoke_run):
