@@ -452,7 +452,11 @@ def _finite(f: h5py.File, field: str, rows: np.ndarray, indices) -> np.ndarray:
         return rows
     frame, *where = np.argwhere(~np.isfinite(rows))[0]
     step = int(_read(f, f"particles/all/{field}/step", int(indices[frame])))
-    of = f" of particle {where[0]}" if rows.ndim == 3 else ""  # (frames, particles, 3)
+    of = ""
+    if rows.ndim == 3:  # (frames, particles, 3)
+        from revdem_cli.state import particle_named
+
+        of = f" of {particle_named(int(where[0]), _read(f, 'particles/all/id'))}"
     raise InputError(
         f"{f.filename}: damaged revdem trajectory: {field}{of} at step {step} is not finite"
     )

@@ -43,6 +43,7 @@ class Frame:
     position: np.ndarray  # m, (N, 3)
     velocity: np.ndarray  # m/s, (N, 3)
     angular_velocity: np.ndarray  # rad/s, (N, 3)
+    force: np.ndarray  # N, (N, 3)
     contacts: dict[str, np.ndarray] | None  # the frame's contact list, if the run wrote it
 
 
@@ -50,7 +51,7 @@ FrameProgress = Callable[[str, int, int], None]
 """progress(label, done, total), called as each frame is written (`report.progress`)."""
 
 
-PER_FRAME = ("position", "velocity", "angular_velocity")
+PER_FRAME = ("position", "velocity", "angular_velocity", "force")
 """The per-sphere fields a Frame holds, read a block of frames at a time."""
 
 
@@ -58,8 +59,10 @@ def frames(
     trajectory: str | Path, at_step: int | None = None, progress: FrameProgress | None = None
 ) -> Iterator[Frame]:
     """The frames of a revdem trajectory (`at_step`: the one at that step alone; -1, its
-    last), checked by `open_trajectory` first; `progress` told of each once its consumer
-    has it done. InputError naming the steps it has where none is at `at_step`."""
+    last), checked by `open_trajectory` first, and each frame's per-sphere values by
+    `h5md.read_frames` (finite); `progress` told of each once its consumer has it done. InputError
+    naming the steps it has where none is at `at_step`. Every export reads its frames
+    here."""
     with open_trajectory(trajectory) as f:
         particles = f["particles/all"]
         radius, mass, ids = particles["radius"][:], particles["mass"][:], particles["id"][:]
@@ -79,11 +82,11 @@ def frames(
         for start in range(first, stop, per_block):  # read a block of frames at once
             block = np.arange(start, min(stop, start + per_block))
             fields = [read_frames(f, name, block) for name in PER_FRAME]
-            for k, position, velocity, spin in zip(block, *fields, strict=True):
+            for k, position, velocity, spin, force in zip(block, *fields, strict=True):
                 if periodic:
                     lower, upper = np.zeros(3), edges[k]
                 yield Frame(int(steps[k]), float(times[k]), lower, upper, periodic, ids,
-                            species + 1, radius, mass, position, velocity, spin,
+                            species + 1, radius, mass, position, velocity, spin, force,
                             read_contacts(f, k))  # fmt: skip
                 if progress is not None:  # of the frames exported: one alone, 1 of 1
                     progress(Path(trajectory).name, int(k) + 1 - first, stop - first)
@@ -201,8 +204,9 @@ def export_gsd(
         tmp.chmod(_file_mode())  # the gsd library makes its files rw-r-----
         tmp.replace(path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         raise WriteFailed(path, exc) from None
+    finally:  # a failed write, a frame refused or Ctrl-C leaves no temporary
+        tmp.unlink(missing_ok=True)
     return path
 
 

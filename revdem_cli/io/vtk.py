@@ -20,14 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from revdem_cli.io.h5md import (
-    FRAME_FIELDS,
-    frame_steps,
-    open_trajectory,
-    read_contacts,
-    read_frame,
-)
-from revdem_cli.io.particles import FrameProgress
+from revdem_cli.io.h5md import frame_steps, open_trajectory
+from revdem_cli.io.particles import FrameProgress, frames
 
 CHAINS = ".contacts"
 """What the force chains' names add to the spheres': STEM.contacts.pvd and its frames."""
@@ -161,7 +155,7 @@ def export_vtk(
         try:  # there or above, no permission) is the caller's to name: `errors.path_problem`
             shutil.rmtree(writing, ignore_errors=True)  # left by an export that was killed
             writing.mkdir()
-            spheres, chains = _write_frames(f, trajectory, writing, progress)
+            spheres, chains = _write_frames(trajectory, len(frame_steps(f)), writing, progress)
             for path in own_files(out_dir, stem):
                 path.unlink()
             for _, frame in spheres + chains:
@@ -174,10 +168,10 @@ def export_vtk(
     written = {out_dir / f"{stem}.pvd": spheres}
     if chains:
         written[out_dir / f"{stem}{CHAINS}.pvd"] = chains
-    for series, frames in written.items():
-        write_file(series, _series(frames))
+    for series, listed in written.items():
+        write_file(series, _series(listed))
     return {
-        series: [out_dir / frame.name for _, frame in frames] for series, frames in written.items()
+        series: [out_dir / frame.name for _, frame in listed] for series, listed in written.items()
     }
 
 
@@ -200,31 +194,28 @@ def writing_folder(out_dir: Path, stem: str) -> Path:
 
 
 def _write_frames(
-    f, trajectory: Path, folder: Path, progress: FrameProgress | None
+    trajectory: Path, count: int, folder: Path, progress: FrameProgress | None
 ) -> tuple[list[tuple[float, Path]], list[tuple[float, Path]]]:
-    """Every frame of the open trajectory `f` as a .vtp file in `folder`, and with contacts
+    """Every frame of `trajectory`, of `count`, as a .vtp file in `folder`, and with contacts
     its force chains: (time, file) of the spheres' frames and of the chains'."""
     stem = trajectory.stem
     spheres, chains = [], []
-    particles = f["particles/all"]
-    constant = {"radius": particles["radius"][:], "id": particles["id"][:]}
-    if "species" in particles:  # the material, numbered from 1 as the other exports do
-        constant["type"] = particles["species"][:] + 1
-    periodic = "periodic" in str(particles["box"].attrs["boundary"][0])
-    times = particles["position/time"][:]
-    width = max(DIGITS, len(str(len(times) - 1)))
-    for frame in range(len(frame_steps(f))):
-        fields = {name: read_frame(f, name, frame) for name in FRAME_FIELDS}
-        position = fields.pop("position")
-        path = folder / f"{stem}.{frame:0{width}d}.vtp"
-        _polydata(position, {**constant, **fields}).write(path, xml_declaration=True)
-        spheres.append((float(times[frame]), path))
-        contacts = read_contacts(f, frame)
-        if contacts is not None:
-            box = particles["box/edges/value"][frame] if periodic else None
-            path = folder / f"{stem}{CHAINS}.{frame:0{width}d}.vtp"
-            _force_chains(position, box, contacts).write(path, xml_declaration=True)
-            chains.append((float(times[frame]), path))
-        if progress is not None:
-            progress(trajectory.name, frame + 1, len(times))
+    width = max(DIGITS, len(str(count - 1)))
+    for index, frame in enumerate(frames(trajectory, progress=progress)):
+        point_data = {
+            "radius": frame.radius,
+            "id": frame.id,
+            "type": frame.type,
+            "velocity": frame.velocity,
+            "angular_velocity": frame.angular_velocity,
+            "force": frame.force,
+        }
+        path = folder / f"{stem}.{index:0{width}d}.vtp"
+        _polydata(frame.position, point_data).write(path, xml_declaration=True)
+        spheres.append((frame.time, path))
+        if frame.contacts is not None:
+            box = frame.upper if frame.periodic else None  # a periodic cell's lower corner is 0
+            path = folder / f"{stem}{CHAINS}.{index:0{width}d}.vtp"
+            _force_chains(frame.position, box, frame.contacts).write(path, xml_declaration=True)
+            chains.append((frame.time, path))
     return spheres, chains

@@ -247,6 +247,40 @@ def test_a_vtk_export_stopped_on_the_way_leaves_the_earlier_one_whole(smoke_run,
     assert {p.name: p.read_text() for p in tmp_path.iterdir()} == before
 
 
+@pytest.mark.parametrize(
+    "fmt, field",
+    [("lammps-dump", "position"), ("gsd", "velocity"), ("vtk", "position"),
+     ("lammps-data", "velocity")],
+)  # fmt: skip
+def test_a_frame_that_is_not_finite_is_refused_by_every_format(smoke_run, tmp_path, fmt, field):
+    """One nan position made an open system's bounding box, which a LAMMPS dump gives every
+    frame, nan nan in all of them; the other formats wrote the nan as a value. The frame is
+    refused, named by its step and the sphere, and what --out held before is kept."""
+    import shutil
+
+    trajectory = Path(shutil.copy(smoke_run / "collision_smoke.forward.h5", tmp_path))
+    with h5py.File(trajectory, "r+") as f:
+        values = f[f"particles/all/{field}/value"]
+        frame = values[7]
+        frame[1, 0] = np.nan
+        values[7] = frame
+        step = int(f["particles/all/position/step"][7])
+    target = tmp_path / ("vtk" if fmt == "vtk" else "earlier.txt")
+    if fmt != "vtk":
+        target.write_text("earlier")
+    args = ["export", str(trajectory), "--format", fmt, "--out", str(target), "--force", "-q"]
+    if fmt == "lammps-data":
+        args += ["--step", str(step)]
+    before = sorted(tmp_path.iterdir())
+    assert_one_line_error(
+        runner.invoke(app, args),
+        f"{trajectory}: damaged revdem trajectory: {field} of particle 1 (id 2) at step "
+        f"{step} is not finite",
+    )
+    assert sorted(tmp_path.iterdir()) == before
+    assert fmt == "vtk" or target.read_text() == "earlier"
+
+
 @pytest.fixture(scope="module")
 def packings(tmp_path_factory) -> dict[str, Path]:
     """Runs of the smoke oedometer (walls, open boundaries; its compression short) and of

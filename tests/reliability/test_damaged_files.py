@@ -302,4 +302,4 @@ def test_a_frame_not_finite_is_damage(run, tmp_path, command, field):
         frames[3, 1, 0] = np.nan
         values[...] = frames
         step = int(f[f"particles/all/{field}/step"][3])
-    refused(command, path, run, f"{field} of particle 1 at step {step} is not finite")
+    refused(command, path, run, f"{field} of particle 1 (id 2) at step {step} is not finite")
