@@ -12,15 +12,19 @@ as numpy arrays.
 Bad input raises `revdem_cli.errors.InputError` with the one line the command line prints;
 a run that cannot go on raises `RunFailed`; SIGINT or SIGTERM stops a run with
 `revdem_cli.checkpoint.Interrupted` once its checkpoint is written (`resume` goes on), or
-after its last step with `Unfinished`. No progress is shown unless asked for
-(`progress=True`). `read` gives the Result of a run written before. A folder given as an
-empty text is refused, not taken for the working folder, as `revdem run --out ''` is.
+after its last step with `Unfinished`, and stops a sweep with `SweepInterrupted` (an
+Interrupted) once its table is written; these derive from BaseException, as
+KeyboardInterrupt does, so that `except Exception:` does not take them for a failure. No
+progress is shown unless asked for (`progress=True`). `read` gives the Result of a run
+written before. A folder given as an empty text is refused, not taken for the working
+folder, as `revdem run --out ''` is.
 """
 
 from __future__ import annotations
 
 import copy
 import functools
+import signal
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from revdem_cli.checkpoint import Interrupted
 from revdem_cli.config import Scenario
 from revdem_cli.engine import Outputs
 from revdem_cli.errors import InputError, path_problem, whole_number
@@ -698,8 +703,10 @@ def sweep(
     """Run every combination of `values` ({dotted path: [value, ...]}, Python values) of a
     scenario file (or every variant of a sweep file, with `values` added), each forward and
     reversed, on a dask cluster, as `revdem sweep` does: its table (sweep.csv, sweep.h5)
-    in `out`, whose rows it returns (`sweep_table`). A signal stops it as it stops the
-    command (the variants not done say so in their status; `resume=True` goes on)."""
+    in `out`, whose rows it returns (`sweep_table`). SIGINT or SIGTERM stops it as it stops
+    the command: the table is written (the variants not done say so in their status;
+    `resume=True` goes on), then `SweepInterrupted` is raised with its rows, as `run` raises
+    `Interrupted`, so that a script stops there rather than go on to its next sweep."""
     from revdem_cli.sweep import read_sweep, run_sweep
 
     _check_switches(force=force, resume=resume, allow_unstable_dt=allow_unstable_dt,
@@ -722,9 +729,30 @@ def sweep(
     out = _folder(out, "out")
     plan = read_sweep(_path(scenario, "scenario"), sets)
     with _progress(progress, "variants", scheduler is None) as shown:
-        run_sweep(plan, out, scheduler, int(workers), shown, threads, allow_unstable_dt, force,
-                  resume)  # fmt: skip
-    return sweep_table(out)
+        _, tables, signum = run_sweep(plan, out, scheduler, int(workers), shown, threads,
+                                      allow_unstable_dt, force, resume)  # fmt: skip
+    rows = sweep_table(out)
+    if signum:
+        raise SweepInterrupted(signum, rows, tables)
+    return rows
+
+
+class SweepInterrupted(Interrupted):
+    """A sweep (`sweep`) stopped on a signal, its table written: `rows` as `sweep_table`
+    gives them (each variant's status: done, stopped with a checkpoint, not started),
+    `tables` the files written, `path` its sweep.h5; `step` is None, the variants' own
+    steps being in their rows' errors. `resume=True` goes on with it."""
+
+    def __init__(self, signum: int, rows: list[dict], tables: list[Path]):
+        from revdem_cli.sweep import stop_summary
+
+        self.exit_code = 128 + signum
+        self.rows, self.tables = rows, tables
+        self.step, self.path = None, Path(tables[-1])
+        BaseException.__init__(
+            self, f"{signal.Signals(signum).name}: {stop_summary(rows)}; the table "
+            f"{self.path} written; go on with resume=True"
+        )  # fmt: skip
 
 
 def sweep_table(out: str | Path) -> list[dict]:

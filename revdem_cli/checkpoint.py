@@ -37,8 +37,11 @@ def checkpoint_path(out_dir: Path, name: str) -> Path:
     return Path(out_dir) / f"{name}{SUFFIX}"
 
 
-class Interrupted(Exception):
-    """The run stopped on a signal after writing a checkpoint at `step`, into `path`."""
+class Interrupted(BaseException):
+    """The run stopped on a signal after writing a checkpoint at `step`, into `path`.
+
+    A BaseException, as KeyboardInterrupt is: a script's `except Exception:` around a run
+    (to note a failed variant and go on) does not take Ctrl-C for a failure and go on."""
 
     def __init__(self, signum: int, step: int, path: Path):
         self.exit_code = 128 + signum
@@ -46,9 +49,10 @@ class Interrupted(Exception):
         super().__init__(f"{signal.Signals(signum).name} at step {step}: checkpoint {path} written")
 
 
-class Unfinished(Exception):
+class Unfinished(BaseException):
     """The run stopped on a signal after its last step, before what it writes then (a
-    comparison, figures) was written: its trajectories and restart are whole."""
+    comparison, figures) was written: its trajectories and restart are whole. A
+    BaseException, as `Interrupted` is."""
 
     def __init__(self, signum: int, what: str):
         self.exit_code = 128 + signum

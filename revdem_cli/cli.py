@@ -526,7 +526,7 @@ def sweep(
     Example: revdem sweep configs/collision_shear.toml --set contact.friction=0.1,0.3,inf
     """
     from revdem_cli.report.progress import kernels_compiled
-    from revdem_cli.sweep import DONE, FAILED, NOT_STARTED, STOPPED, read_sweep, run_sweep
+    from revdem_cli.sweep import FAILED, read_sweep, run_sweep, stop_summary
 
     if resume and force:
         raise InputError(
@@ -541,26 +541,22 @@ def sweep(
         rows, tables, signum = run_sweep(
             plan, out, scheduler, workers, shown, threads, allow_unstable_dt, force, resume
         )
-    count = {
-        status: sum(row["status"] == status for row in rows)
-        for status in (DONE, FAILED, STOPPED, NOT_STARTED)
-    }
+    failed = sum(row["status"] == FAILED for row in rows)
     for path in tables:
         typer.echo(f"wrote {path}")
     if not signum:  # stopped, the line below counts each status
-        typer.echo(f"{len(rows)} variant{'s' * (len(rows) != 1)}, {count[FAILED]} failed")
+        typer.echo(f"{len(rows)} variant{'s' * (len(rows) != 1)}, {failed} failed")
     for row in rows:
         if row["status"] == FAILED:
             typer.echo(f"failed: {row['folder']}: {row['error']}", err=True)
     if signum:
         typer.echo(
-            f"stopped: {signal.Signals(signum).name}: {count[DONE]} variants done, "
-            f"{count[STOPPED]} stopped with a checkpoint, {count[NOT_STARTED]} not started; "
-            "continue with the same command and --resume",
+            f"stopped: {signal.Signals(signum).name}: {stop_summary(rows)}; continue with the "
+            "same command and --resume",
             err=True,
         )
         raise typer.Exit(128 + signum)
-    if count[FAILED]:
+    if failed:
         raise typer.Exit(1)
 
 

@@ -456,6 +456,17 @@ def _run_pending(
         stop_file.unlink(missing_ok=True)
 
 
+def stop_summary(rows: list[dict]) -> str:
+    """How the variants of a sweep a signal stopped stand, by their rows' status: what
+    `revdem sweep` prints and `api.sweep`'s Interrupted says."""
+    count = {status: sum(row["status"] == status for row in rows) for status in
+             (DONE, STOPPED, NOT_STARTED)}  # fmt: skip
+    return (
+        f"{count[DONE]} variants done, {count[STOPPED]} stopped with a checkpoint, "
+        f"{count[NOT_STARTED]} not started"
+    )
+
+
 def _result_of(future) -> dict:
     """A variant's row from its future; one that raised where `run_variant` records no
     failure (a worker lost, a defect) is a failed row saying so, so that the table keeps

@@ -651,6 +651,19 @@ def test_a_signal_while_the_sweeps_cluster_starts_stops_it_before_any_variant_be
     table. The first signal now writes the stop file from before the cluster starts: no
     variant begins, the table says so and the sweep exits 130, as it does when stopped
     later."""
+    _signal_while_the_cluster_starts(monkeypatch)
+    result = CliRunner().invoke(app, [*SWEEP, "--out", str(tmp_path)])
+    assert result.exit_code == 130, result.output
+    assert result.output.strip().splitlines()[-1] == (
+        "stopped: SIGINT: 0 variants done, 0 stopped with a checkpoint, 4 not started; "
+        "continue with the same command and --resume"
+    )
+    assert [row["status"] for row in _sweep_rows(tmp_path)] == ["not started"] * 4
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.csv", "sweep.h5"]
+
+
+def _signal_while_the_cluster_starts(monkeypatch) -> None:
+    """Have the next sweep's local cluster send SIGINT to this process as it starts."""
     from revdem_cli import sweep
 
     starting = sweep._client
@@ -662,14 +675,46 @@ def test_a_signal_while_the_sweeps_cluster_starts_stops_it_before_any_variant_be
             yield client
 
     monkeypatch.setattr(sweep, "_client", signalled_while_starting)
-    result = CliRunner().invoke(app, [*SWEEP, "--out", str(tmp_path)])
-    assert result.exit_code == 130, result.output
-    assert result.output.strip().splitlines()[-1] == (
-        "stopped: SIGINT: 0 variants done, 0 stopped with a checkpoint, 4 not started; "
-        "continue with the same command and --resume"
+
+
+def test_a_signal_stops_a_script_at_the_sweep_or_run_it_came_in(tmp_path, monkeypatch):
+    """A script's `revdem.sweep` stopped by Ctrl-C returned its rows, and the script went
+    on to its next sweep; and Interrupted, an Exception, was taken for a failure by the
+    `except Exception:` a script puts round a run to go on with the next. The sweep now
+    raises Interrupted once its table is written, and neither is an Exception."""
+    from revdem_cli import api as revdem
+    from revdem_cli.checkpoint import Interrupted
+    from revdem_cli.engine import run_scenario
+
+    _signal_while_the_cluster_starts(monkeypatch)
+    values = {"stages.0.steps": [200, 300]}
+    scenario = CONFIGS / "smoke" / "collision.yaml"
+    with pytest.raises(Interrupted) as stopped:
+        try:
+            revdem.sweep(scenario, values, tmp_path / "sweep", workers=1, threads=1)
+        except Exception:  # noqa: BLE001  (a script's guard against a failed variant)
+            pytest.fail("Ctrl-C taken for a failure")
+    assert stopped.value.exit_code == 130
+    assert str(stopped.value).startswith(
+        "SIGINT: 0 variants done, 0 stopped with a checkpoint, 2 not started; the table "
     )
-    assert [row["status"] for row in _sweep_rows(tmp_path)] == ["not started"] * 4
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.csv", "sweep.h5"]
+    assert stopped.value.rows == revdem.sweep_table(tmp_path / "sweep")
+    assert [row["status"] for row in stopped.value.rows] == ["not started"] * 2
+    assert stopped.value.path == tmp_path / "sweep" / "sweep.h5"
+
+    experiment = revdem.load(scenario, {"stages.0.steps": 2000, "stages.0.output_every": 100})
+    experiment = experiment.changed({"output.checkpoint_interval": 0.0})
+
+    def interrupt(label, done, total, particles):
+        if done == 300:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(Interrupted):
+        try:
+            run_scenario(experiment.scenario, experiment.text, experiment.suffix,
+                         tmp_path / "run", True, interrupt)  # fmt: skip
+        except Exception:  # noqa: BLE001
+            pytest.fail("Ctrl-C taken for a failure")
 
 
 def _spawned_in_group(group: int) -> bool:
