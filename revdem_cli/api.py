@@ -757,7 +757,8 @@ class SweepInterrupted(Interrupted):
 
 def sweep_table(out: str | Path) -> list[dict]:
     """The rows of the sweep table in the folder `out` (sweep.h5), as `revdem sweep` wrote
-    it: each variant's folder, the values it set (`values`) and its results (status,
+    it: each variant's folder, the values it set (`values`, as Python values: True, [0.9,
+    0.1, 0.0], not their text) and its results (status,
     reversible, max_position_error_rel, first_divergence_step, kinetic_energy, total_energy,
     seconds, error); a variant's run is `read(out / row["folder"])`."""
     from revdem_cli.sweep import table_rows

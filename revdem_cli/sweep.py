@@ -643,7 +643,7 @@ def table_rows(path: Path) -> list[dict]:
 
 def read_values(path: Path) -> dict[str, dict]:
     """The values each variant of the table STEM.h5 at `path` set, by folder: {field: value}
-    as the table holds them (numbers, or the text given)."""
+    as Python's, the values the variant's scenario took (`_plain`)."""
     try:
         with h5py.File(path, "r") as f:
             table = f["sweep"]
@@ -658,16 +658,21 @@ def read_values(path: Path) -> dict[str, dict]:
     except (OSError, KeyError) as exc:
         raise InputError(f"{path}: cannot read the sweep's table ({exc})") from None
     return {
-        folder: {field: _plain(columns[field][k]) for field in fields}
+        folder: {field: _plain(columns[field][k], f"{path}: {field}") for field in fields}
         for k, folder in enumerate(folders)
     }
 
 
-def _plain(value):
-    """A value of a table's column as Python's: the text, a whole number as an int (a
-    table's number columns are float64: 700000.0 steps), else a float."""
+def _plain(value, where: str):
+    """A value of a table's column as Python's: a text column holds each value as `--set`
+    was given it, read back as `--set` reads it (`config.read_value`: true, [0.9, 0.1, 0.0],
+    "a, b" as a bool, a list, the text a, b; hertz as the text), not left as that text; in
+    a column of numbers, a whole number as an int (a table's number columns are float64:
+    700000.0 steps), else a float."""
+    from revdem_cli.config import read_value
+
     if isinstance(value, str):
-        return value
+        return read_value(value, where)
     number = float(value)
     return int(number) if number.is_integer() else number
 

@@ -86,7 +86,7 @@ def test_six_variants_on_two_workers_give_one_table(tmp_path):
     fifth = shown["variants"][4]
     assert fifth["values"] == {
         "stages.0.steps": 200,
-        "particles.0.velocity": VELOCITIES[1],
+        "particles.0.velocity": json.loads(VELOCITIES[1]),
         "stages.0.output_every": 50,
     }
     assert fifth["kinetic_energy"] == float(rows[4]["kinetic_energy"])
@@ -345,7 +345,7 @@ def test_a_sweep_from_python_is_the_command_lines(tmp_path):
             == expected["values"]
             == {
                 "stages.0.steps": int(got["folder"][-3:]),
-                "particles.0.velocity": "[0.9, 0.1, 0.0]",
+                "particles.0.velocity": [0.9, 0.1, 0.0],
             }
         )
         for key in ("status", "reversible", "max_position_error_rel", "kinetic_energy"):
@@ -364,3 +364,25 @@ def test_a_sweep_from_python_is_the_command_lines(tmp_path):
     assert not (tmp_path / "bad").exists()
     with pytest.raises(InputError, match="no sweep table there"):
         revdem.sweep_table(tmp_path)
+
+
+def test_a_tables_values_are_read_back_as_the_values_the_variants_took(tmp_path):
+    """`sweep_table` gave each value that is not a number as the text `--set` was given,
+    'true', '[0.9, 0.1, 0.0]', '"a, b"': they are the Python values the variant's scenario
+    took, a bare word its text."""
+    from revdem_cli import api as revdem
+    from revdem_cli.sweep import RESULTS, write_table
+
+    given = {
+        "output.contacts": ("true", True),
+        "particles.0.velocity": ("[0.9, 0.1, 0.0]", [0.9, 0.1, 0.0]),
+        "description": ('"a, b"', "a, b"),
+        "contact.model": ("hertz", "hertz"),
+        "stages.0.stop_when": ("{kinetic_energy_below = 1e-09}", {"kinetic_energy_below": 1e-9}),
+        "stages.0.steps": ("200", 200),
+    }
+    row = {"folder": "000", **{key: text for key, (text, _) in given.items()}}
+    write_table([row | dict.fromkeys(RESULTS) | {"status": "done"}], tmp_path / "sweep")
+    values = revdem.sweep_table(tmp_path)[0]["values"]
+    assert values == {key: value for key, (_, value) in given.items()}
+    assert type(values["stages.0.steps"]) is int
