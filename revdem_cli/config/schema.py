@@ -25,6 +25,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from pydantic.json_schema import GenerateJsonSchema
 
 from revdem_cli import laws, wall_shapes
 
@@ -79,10 +80,45 @@ Int = Annotated[int, BeforeValidator(_number)]
 Vector3 = Annotated[tuple[Float, Float, Float], Field(description="three components (x, y, z)")]
 
 
+BOUNDS = {"ge": "minimum", "gt": "exclusiveMinimum", "le": "maximum", "lt": "exclusiveMaximum"}
+"""A bound of a field as pydantic names it, and as JSON Schema does."""
+
+
+class _StandardBounds(GenerateJsonSchema):
+    """pydantic's JSON schema with every bound under JSON Schema's keyword. A bound on an
+    optional field of a type with a validator of its own (`Float | None = Field(ge=0)`) is
+    checked by a validator pydantic wraps round the type, which writes the bound into the
+    schema under its own name ("ge": 0), a keyword JSON Schema does not know, so that an
+    editor or a validator of scenario files ignored it; every other bound is written as
+    "minimum" and the like."""
+
+    def generate(self, schema, mode="validation"):
+        return _standard_bounds(super().generate(schema, mode))
+
+
+def _standard_bounds(node):
+    """A JSON schema (a part of one) with the bounds of each number's schema (one that says
+    its type: not `properties`, whose keys are field names) under JSON Schema's keywords."""
+    if isinstance(node, list):
+        return [_standard_bounds(item) for item in node]
+    if not isinstance(node, dict):
+        return node
+    bounded = node.get("type") in ("number", "integer")
+    return {
+        (BOUNDS.get(key, key) if bounded else key): _standard_bounds(value)
+        for key, value in node.items()
+    }
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(
         extra="forbid", allow_inf_nan=False, frozen=True, ser_json_inf_nan="constants"
     )
+
+    @classmethod
+    def model_json_schema(cls, *args, schema_generator=_StandardBounds, **kwargs) -> dict:
+        """pydantic's, with every bound under JSON Schema's keyword (`_StandardBounds`)."""
+        return super().model_json_schema(*args, schema_generator=schema_generator, **kwargs)
 
 
 class Material(_Model):

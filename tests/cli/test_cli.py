@@ -180,6 +180,31 @@ def test_schema_describes_fields_with_units():
     assert dt["description"].startswith("time step, s")
 
 
+def test_every_bound_in_the_schema_has_json_schemas_keyword():
+    """An optional field's bounds were written as pydantic names them, inside its anyOf
+    (Contact.friction: {"ge": 0, "type": "number"}), keywords JSON Schema does not know;
+    a field that must be given had "minimum". Every bound is a JSON Schema keyword now."""
+    schema = json.loads(invoke("schema").stdout)
+    unknown = []
+
+    def walk(node, where: str) -> None:
+        if isinstance(node, list):
+            for k, item in enumerate(node):
+                walk(item, f"{where}/{k}")
+        elif isinstance(node, dict):
+            for key, value in node.items():
+                if key in ("ge", "gt", "le", "lt") and not where.endswith("/properties"):
+                    unknown.append(f"{where}/{key}")
+                walk(value, f"{where}/{key}")
+
+    walk(schema, "")
+    assert unknown == []
+    defs = schema["$defs"]
+    assert defs["Contact"]["properties"]["friction"]["anyOf"][0] == {"minimum": 0, "type": "number"}
+    assert defs["Region"]["properties"]["radius"]["anyOf"][0]["exclusiveMinimum"] == 0
+    assert defs["Material"]["properties"]["poisson_ratio"]["exclusiveMaximum"] == 0.5
+
+
 def test_version():
     assert invoke("--version").output.startswith("revdem ")
 
