@@ -59,6 +59,8 @@ KIND_OF_TABLE = "revdem sweep"
 """The `kind` attribute of a sweep's STEM.h5, which `revdem info` summarises."""
 STOP_FILE = ".stop"
 """In the sweep's folder while it stops: the variants' runs poll it (`checkpoint.polling`)."""
+LOCK_FILE = ".lock"
+"""In the sweep's folder while a sweep runs there, locked by it (`_sole_sweep`)."""
 
 
 @dataclass(frozen=True)
@@ -385,23 +387,68 @@ def run_sweep(
         folder_name(index, {key: variant[key] for key in varying})
         for index, variant in enumerate(variants)
     ]
-    if resume:
-        results = _earlier_results(out_dir, loaded, folders)
-    else:
-        _keep_earlier(out_dir, loaded, folders, force)
-        results = {}
-    stopped = _run_pending(
-        [(loaded[i], out_dir / folders[i], i) for i in range(len(variants)) if i not in results],
-        results,
-        len(variants),
-        out_dir / STOP_FILE,
-        (scheduler, workers, threads),
-        sweep.scenario.suffix.lower(),
-        allow_unstable_dt,
-        progress,
-    )
-    rows = [{"folder": folders[i], **variants[i], **results[i]} for i in range(len(variants))]
-    return rows, write_table(rows, out_dir / "sweep"), stopped
+    with _sole_sweep(out_dir):
+        if resume:
+            results = _earlier_results(out_dir, loaded, folders)
+        else:
+            _keep_earlier(out_dir, loaded, folders, force)
+            results = {}
+        stopped = _run_pending(
+            [
+                (loaded[i], out_dir / folders[i], i)
+                for i in range(len(variants))
+                if i not in results
+            ],
+            results,
+            len(variants),
+            out_dir / STOP_FILE,
+            (scheduler, workers, threads),
+            sweep.scenario.suffix.lower(),
+            allow_unstable_dt,
+            progress,
+        )
+        rows = [{"folder": folders[i], **variants[i], **results[i]} for i in range(len(variants))]
+        return rows, write_table(rows, out_dir / "sweep"), stopped
+
+
+@contextmanager
+def _sole_sweep(out_dir: Path):
+    """While inside, this sweep is the only one in `out_dir` (made if need be): it holds an
+    exclusive lock of its LOCK_FILE, which it removes as it leaves; InputError, before
+    anything there is read or written, if another sweep holds it. Two sweeps into one
+    folder each replaced and removed the other's files (each variant of both failed); a
+    check of what is there, made before either wrote anything, let both through. The lock
+    is the system's (flock): a sweep killed, even with SIGKILL, holds it no more. A folder
+    made here and left empty (the sweep refused) is removed."""
+    import fcntl
+    import os
+
+    made = not out_dir.exists()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / LOCK_FILE
+    while True:
+        lock = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(lock)
+            raise InputError(
+                f"--out {out_dir}: another sweep is running there (it holds {path}); wait "
+                "for it to end, or give another --out"
+            ) from None
+        try:  # the file locked is still the one there: not one a sweep ending removed
+            if os.stat(path).st_ino == os.fstat(lock).st_ino:
+                break
+        except FileNotFoundError:
+            pass
+        os.close(lock)
+    try:
+        yield
+    finally:
+        path.unlink(missing_ok=True)  # before the lock is let go: no sweep locks it after
+        os.close(lock)
+        if made and not any(out_dir.iterdir()):
+            out_dir.rmdir()
 
 
 def _run_pending(

@@ -386,3 +386,27 @@ def test_a_tables_values_are_read_back_as_the_values_the_variants_took(tmp_path)
     values = revdem.sweep_table(tmp_path)[0]["values"]
     assert values == {key: value for key, (_, value) in given.items()}
     assert type(values["stages.0.steps"]) is int
+
+
+def test_a_sweep_into_the_folder_of_one_running_is_refused_before_it_writes(tmp_path):
+    """Two sweeps started together into one --out each replaced and removed the other's
+    files, and every variant of both failed; the second was refused only once the first
+    had written its first files. A sweep now holds its folder from before it writes there
+    (as this test holds it), and one into it meanwhile is refused, from the command line as
+    from Python, leaving what is there as it was; the folder is free again after."""
+    from revdem_cli import api as revdem
+    from revdem_cli.sweep import _sole_sweep
+
+    scenario = str(CONFIGS / "smoke" / "collision.yaml")
+    args = ["sweep", scenario, "--set", "stages.0.steps=10,20", "--out", str(tmp_path)]
+    (tmp_path / "sweep.csv").write_text("the running sweep's")
+    with _sole_sweep(tmp_path):
+        refused = runner.invoke(app, [*args, "--workers", "1", "-q", "--force"])
+        assert_one_line_error(refused, f"--out {tmp_path}: another sweep is running there")
+        with pytest.raises(InputError, match="another sweep is running there"):
+            revdem.sweep(scenario, {"stages.0.steps": [10]}, tmp_path, workers=1, force=True)
+        assert sorted(p.name for p in tmp_path.iterdir()) == [".lock", "sweep.csv"]
+        assert (tmp_path / "sweep.csv").read_text() == "the running sweep's"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.csv"]
+    with _sole_sweep(tmp_path):  # free again
+        pass
