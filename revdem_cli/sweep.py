@@ -161,15 +161,24 @@ def read_sweep_file(path: Path, sets: list[str]) -> Sweep | None:
 
 def _sweep_fields(path: Path) -> dict | None:
     """The fields of the sweep file at `path`; None if it is not one (a scenario, a study, a
-    file that cannot be read: their readers say what is wrong)."""
+    file that cannot be read: their readers say what is wrong). InputError for a file of
+    another format that says it is one (`config.check_no_kind`), before it is taken for a
+    scenario that sets no kind."""
+    from revdem_cli.config import parse_text
+    from revdem_cli.config.loader import check_no_kind
+
     check_regular(path, "scenario file")
-    if path.suffix.lower() != ".toml":
-        return None
+    toml = path.suffix.lower() == ".toml"
     try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        text = path.read_text()
+        data = tomllib.loads(text) if toml else parse_text(text, path.suffix.lower(), str(path))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, InputError):
         return None
-    return data if data.get("kind") == KIND else None
+    if data.get("kind") != KIND:
+        return None
+    if not toml:
+        check_no_kind(data, str(path))
+    return data
 
 
 def folder_name(index: int, variant: dict[str, str]) -> str:
@@ -348,8 +357,8 @@ def load_variants(sweep: Sweep, host: bool = False, allow_unstable_dt: bool = Fa
             scenario, text = load_scenario(sweep.scenario, sets, host)
             if not allow_unstable_dt:
                 check_time_step(scenario, str(sweep.scenario))
-        except InputError as exc:
-            raise InputError(f"variant {', '.join(sets)}: {exc}") from None
+        except InputError as exc:  # a sweep of no values has one variant, the file's
+            raise InputError(f"variant {', '.join(sets)}: {exc}" if sets else str(exc)) from None
         loaded.append((scenario, text))
     return loaded
 

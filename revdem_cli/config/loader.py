@@ -284,7 +284,9 @@ def read_particle_files(data: dict, base: Path, origin: str) -> None:
 
 def check_no_kind(data: dict, origin: str) -> None:
     """A scenario file says no kind; InputError if this one does: a time-step study or a sweep
-    file named with the command that runs it, another kind with the kinds known."""
+    file named with the command that runs it, another kind with the kinds known. A sweep
+    file is read as TOML only (`sweep.read_sweep_file`): one in YAML is told so, not sent to
+    `revdem sweep`, which took it for a scenario."""
     if "kind" not in data:
         return
     from revdem_cli import sweep
@@ -295,6 +297,12 @@ def check_no_kind(data: dict, origin: str) -> None:
         sweep.KIND: ("a sweep file", "revdem sweep"),
     }
     kind = data["kind"]
+    if kind == sweep.KIND and not origin.lower().endswith(".toml"):
+        toml = Path(origin).with_suffix(".toml").name
+        raise InputError(
+            f"{origin}: a sweep file is TOML, not {Path(origin).suffix or 'this'}; write it as "
+            f'{toml} (kind = "sweep", scenario = "...", set = ["field=v1,v2"])'
+        )
     if isinstance(kind, str) and kind in kinds:
         what, command = kinds[kind]
         raise InputError(

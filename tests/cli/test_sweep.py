@@ -198,6 +198,20 @@ def test_a_misspelt_kind_is_named_with_the_kinds_known(command, tmp_path):
     )
 
 
+@pytest.mark.parametrize("command", ["sweep", "validate", "run"])
+def test_a_sweep_file_in_yaml_is_told_that_a_sweep_file_is_toml(command, tmp_path):
+    """A sweep file written in YAML was taken for a scenario: `revdem sweep` said "variant
+    : sw.yaml: kind: 'sweep' is a sweep file, not a scenario; run it with revdem sweep"."""
+    path = tmp_path / "sw.yaml"
+    scenario = CONFIGS / "smoke" / "collision.yaml"
+    path.write_text(f"kind: sweep\nscenario: {scenario}\nset: [stages.0.steps=200,300]\n")
+    out = ["--out", str(tmp_path / "out")] if command != "validate" else []
+    for sets in ([], ["--set", "contact.friction=0.1,0.2"]):
+        result = runner.invoke(app, [command, str(path), *out, *sets])
+        assert_one_line_error(result, f"error: {path}: a sweep file is TOML, not .yaml; write ")
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_sweep_file_given_to_run_is_sent_to_revdem_sweep(tmp_path):
     path = sweep_file(tmp_path, 'set = ["contact.friction=0.1"]')
     result = runner.invoke(app, ["run", str(path), "--out", str(tmp_path / "out")])
