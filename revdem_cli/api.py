@@ -75,13 +75,25 @@ def _check_switches(**switches) -> None:
 def _use_threads(threads: int | None) -> None:
     """Compute with at most `threads` threads from here on (None: the cores this process may
     use), as `--threads` sets them; the progress display's first line says how many.
-    InputError for a count that is not a whole number from 1 to numba's pool."""
+    InputError for a count that is not a whole number from 1 to numba's pool
+    (`check_threads`)."""
     from revdem_cli import threads as pool
 
-    if threads is not None and not whole_number(threads):
+    check_threads(threads)
+    pool.use(threads)
+
+
+def check_threads(threads: int | None) -> None:
+    """InputError for a `--threads` count that is not a whole number from 1 to numba's pool
+    (`threads.check`): of a run, or of each variant of a sweep on this machine."""
+    from revdem_cli import threads as pool
+
+    if threads is None:
+        return
+    if not whole_number(threads):
         raise InputError(f"--threads {threads!r}: must be a whole number, 1 or more")
     try:
-        pool.use(threads)
+        pool.check(threads)
     except ValueError as exc:
         raise InputError(f"--threads {threads}: {exc}") from None
 
@@ -724,8 +736,6 @@ def sweep(
         sets.append(f"{key}=" + ",".join(_set_text(value) for value in listed))
     if not whole_number(workers) or workers < 1:
         raise InputError(f"workers={workers!r}: a whole number, 1 or more")
-    if threads is not None and (not whole_number(threads) or threads < 1):
-        raise InputError(f"--threads {threads!r}: must be a whole number, 1 or more")
     out = _folder(out, "out")
     plan = read_sweep(_path(scenario, "scenario"), sets)
     with _progress(progress, "variants", scheduler is None) as shown:

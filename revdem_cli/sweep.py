@@ -385,6 +385,10 @@ def run_sweep(
     SIGINT or SIGTERM stops the sweep: each running variant at its next whole step with a
     checkpoint, none begins after, and the table says which are done, stopped or not
     started; a second signal stops at once."""
+    from revdem_cli.api import check_threads
+
+    if scheduler is None:  # each variant's count, on this machine's workers
+        check_threads(threads)
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():  # before its stop file is named in an error
         raise InputError(f"--out {out_dir}: a file, not a folder")

@@ -39,13 +39,20 @@ def most() -> int:
     return numba.config.NUMBA_NUM_THREADS
 
 
+def check(count: int) -> None:
+    """ValueError for a thread count outside 1 to numba's pool, which a run cannot use: a
+    run's own (`use`), or each of a local sweep's variants', whose workers would make a
+    pool of that many."""
+    if not 1 <= count <= most():
+        raise ValueError(f"{count} threads: between 1 and {most()} (NUMBA_NUM_THREADS)")
+
+
 def use(threads: int | None = None) -> int:
     """Compute with at most `threads` threads (default: the cores this process may use, at
     most the pool) from here on, in this thread and in the stage loops `Stepper` drives."""
     global _count
     count = min(available(), most()) if threads is None else threads
-    if not 1 <= count <= most():
-        raise ValueError(f"{count} threads: between 1 and {most()} (NUMBA_NUM_THREADS)")
+    check(count)
     numba.set_num_threads(count)
     _count = count
     return count

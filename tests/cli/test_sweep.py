@@ -372,7 +372,7 @@ def test_a_sweep_from_python_is_the_command_lines(tmp_path):
     ):
         with pytest.raises(InputError, match=re.escape(message)):
             revdem.sweep(scenario, bad, tmp_path / "bad")
-    for threads in (0, 2.5, "2"):  # each variant's count, passed to workers unchecked before
+    for threads in (2.5, "2"):  # each variant's count, passed to workers unchecked before
         with pytest.raises(InputError, match=rf"^--threads {threads!r}: must be a whole number"):
             revdem.sweep(scenario, values, tmp_path / "bad", threads=threads)
     assert not (tmp_path / "bad").exists()
@@ -424,3 +424,24 @@ def test_a_sweep_into_the_folder_of_one_running_is_refused_before_it_writes(tmp_
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.csv"]
     with _sole_sweep(tmp_path):  # free again
         pass
+
+
+def test_a_thread_count_a_run_refuses_is_refused_for_a_sweeps_variants(tmp_path):
+    """`revdem sweep --threads 64` on two cores set NUMBA_NUM_THREADS=64 on its workers,
+    where `revdem run --threads 64` and `revdem.run(threads=64)` are refused: the count of
+    each variant is checked as a run's is, from the command line and from Python."""
+    from revdem_cli import api as revdem
+    from revdem_cli.threads import most
+
+    scenario = str(CONFIGS / "smoke" / "collision.yaml")
+    out = tmp_path / "out"
+    for count in (most() + 1, 0):
+        problem = f"--threads {count}: {count} threads: between 1 and {most()} (NUMBA_NUM_THREADS)"
+        with pytest.raises(InputError, match=re.escape(problem)):
+            revdem.run(scenario, out, threads=count)
+        with pytest.raises(InputError, match=re.escape(problem)):
+            revdem.sweep(scenario, {"stages.0.steps": [10]}, out, workers=1, threads=count)
+    args = ["sweep", scenario, "--set", "stages.0.steps=10", "--out", str(out), "-q"]
+    result = runner.invoke(app, [*args, "--workers", "1", "--threads", str(most() + 1)])
+    assert_one_line_error(result, f"error: --threads {most() + 1}: {most() + 1} threads: between")
+    assert not out.exists()
