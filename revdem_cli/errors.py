@@ -83,6 +83,20 @@ PATH_ERRORS = frozenset(
 opposed to a failure of the machine (a full disk, a lost mount)."""
 
 
+def not_a_folder(path) -> str | None:
+    """Why a folder cannot be at `path`, or be made there: a file there, or at a folder
+    above it, named in one line; None if nothing is in the way."""
+    from pathlib import Path
+
+    path = Path(path)
+    blocking = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
+    if blocking == path:
+        return f"{path}: a file, not a folder"
+    if blocking is not None:
+        return f"{path}: {blocking} is a file, not a folder"
+    return None
+
+
 def path_problem(exc: OSError) -> str | None:
     """What is wrong with the path an OSError names, in one line that says where: a file
     where a folder is needed (the path itself or one above it), a folder where a file is,
@@ -92,12 +106,8 @@ def path_problem(exc: OSError) -> str | None:
     if exc.filename is None or exc.errno not in PATH_ERRORS:
         return None
     path = Path(exc.filename)
-    if exc.errno in (errno.ENOTDIR, errno.EEXIST):
-        blocking = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
-        if blocking == path:
-            return f"{path}: a file, not a folder"
-        if blocking is not None:
-            return f"{path}: {blocking} is a file, not a folder"
+    if exc.errno in (errno.ENOTDIR, errno.EEXIST) and (problem := not_a_folder(path)):
+        return problem
     if exc.errno == errno.EISDIR:
         return f"{path}: a folder, not a file"
     return f"{path}: {os.strerror(exc.errno)}"

@@ -35,7 +35,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from revdem_cli.errors import InputError, check_regular
+from revdem_cli.errors import InputError, check_regular, not_a_folder
 
 KIND = "sweep"
 RESULTS = (
@@ -390,8 +390,8 @@ def run_sweep(
     if scheduler is None:  # each variant's count, on this machine's workers
         check_threads(threads)
     out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():  # before its stop file is named in an error
-        raise InputError(f"--out {out_dir}: a file, not a folder")
+    if problem := not_a_folder(out_dir):  # before its stop file is named in an error
+        raise InputError(f"--out {problem}")
     variants = sweep.variants()
     # bad input stops the sweep before it starts; a local cluster runs on this machine
     loaded = load_variants(sweep, scheduler is None, allow_unstable_dt)
@@ -400,6 +400,9 @@ def run_sweep(
         folder_name(index, {key: variant[key] for key in varying})
         for index, variant in enumerate(variants)
     ]
+    for folder in folders:  # as `revdem run` refuses its --out, before any variant runs
+        if problem := not_a_folder(out_dir / folder):
+            raise InputError(problem)
     with _sole_sweep(out_dir):
         if resume:
             results = _earlier_results(out_dir, loaded, folders)

@@ -445,3 +445,16 @@ def test_a_thread_count_a_run_refuses_is_refused_for_a_sweeps_variants(tmp_path)
     result = runner.invoke(app, [*args, "--workers", "1", "--threads", str(most() + 1)])
     assert_one_line_error(result, f"error: --threads {most() + 1}: {most() + 1} threads: between")
     assert not out.exists()
+
+
+def test_a_file_in_the_way_of_a_variants_folder_is_refused_before_any_variant_runs(tmp_path):
+    """A file where a variant's folder goes failed that variant as it ran, with a raw
+    FileExistsError and exit status 1, the other variants run; `revdem run` refuses such an
+    --out in one line, exit status 2, and so the sweep does now, before it starts."""
+    blocking = tmp_path / "000_steps=200"
+    blocking.write_text("mine")
+    args = ["sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--out", str(tmp_path)]
+    result = runner.invoke(app, [*args, "--set", "stages.0.steps=200,300", "--workers", "1"])
+    assert_one_line_error(result, f"error: {blocking}: a file, not a folder")
+    assert [p.name for p in tmp_path.iterdir()] == [blocking.name]
+    assert blocking.read_text() == "mine"
