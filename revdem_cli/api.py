@@ -679,8 +679,10 @@ def packing_time_step(restart: str | Path, verify: bool = False) -> dict:
 
 def _set_text(value) -> str:
     """A Python value as `--set` writes it, which the sweep reads back as that value (TOML:
-    true, 1e-07, inf, [0.9, 0.1, 0.0], hertz, "a, b")."""
+    true, 1e-07, inf, [0.9, 0.1, 0.0], hertz, "a, b", a dict as an inline table,
+    {kinetic_energy_below = 1e-09}, as `--set` takes a table)."""
     import json
+    import re
 
     from revdem_cli.config import read_value
 
@@ -691,11 +693,18 @@ def _set_text(value) -> str:
         return repr(float(value)) if isinstance(value, float) else str(value)
     if isinstance(value, list):
         return "[" + ", ".join(_set_text(inner) for inner in value) + "]"
+    if isinstance(value, dict):
+        bare = re.compile(r"[A-Za-z0-9_-]+")  # a key that is not a bare TOML key, quoted
+        fields = [
+            f"{key if bare.fullmatch(str(key)) else json.dumps(str(key))} = {_set_text(inner)}"
+            for key, inner in value.items()
+        ]
+        return "{" + ", ".join(fields) + "}"
     if isinstance(value, str):  # as it is where `--set` would read it back as this text
         plain = read_value(value, "values") == value and not set(value) & set(",[]{}\"'")
         return value if plain else json.dumps(value)
     raise InputError(
-        f"values: {value!r}: a number, a bool, a text or a list, not {type(value).__name__}"
+        f"values: {value!r}: a number, a bool, a text, a list or a dict, not {type(value).__name__}"
     )
 
 

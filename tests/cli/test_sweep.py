@@ -458,3 +458,20 @@ def test_a_file_in_the_way_of_a_variants_folder_is_refused_before_any_variant_ru
     assert_one_line_error(result, f"error: {blocking}: a file, not a folder")
     assert [p.name for p in tmp_path.iterdir()] == [blocking.name]
     assert blocking.read_text() == "mine"
+
+
+def test_a_sweep_from_python_takes_tables_as_set_does(tmp_path):
+    """`--set 'stages.0.stop_when={kinetic_energy_below = 1e-9}'` sweeps a table; the API
+    refused a dict ("a number, a bool, a text or a list, not dict"). Each variant takes it,
+    and the table gives it back as the dict."""
+    from revdem_cli import api as revdem
+
+    stops = [{"kinetic_energy_below": 1e-9}, {"kinetic_energy_below": 1.0}]
+    values = {"stages.0.stop_when": stops, "stages.0.steps": [300]}
+    scenario = CONFIGS / "smoke" / "collision.yaml"
+    rows = revdem.sweep(scenario, values, tmp_path, workers=1, threads=1)
+    assert [row["values"]["stages.0.stop_when"] for row in rows] == stops
+    assert [row["status"] for row in rows] == ["done", "done"]
+    for row, stop in zip(rows, stops, strict=True):
+        said = revdem.read(tmp_path / row["folder"]).outputs
+        assert ("collide" in said.stopped) == (stop["kinetic_energy_below"] == 1.0), said
