@@ -500,6 +500,8 @@ def reverse(
     with _progress(progress) as shown:
         outputs = reverse_run(restart, out, steps, shown)
     outputs.stale_exports = stale
+    if outputs.restart is None:  # what it ran from, as `read` of its folder gives it
+        outputs.restart = restart
     return Result(outputs)
 
 

@@ -334,6 +334,15 @@ def test_a_result_gives_every_per_sphere_field_the_run_keeps_and_whether_it_ende
         revdem.read(tmp_path / "b").frames("stress")
 
 
+def test_a_reversal_gives_the_restart_it_ran_from_as_reading_it_back_does(tmp_path):
+    """`reverse(restart).outputs.restart` was None, where `read` of its folder gives it."""
+    short = revdem.load(CONFIGS / "collision.toml", {"stages.0.steps": 200})
+    restart = revdem.run(short, tmp_path / "run", reverse=False).outputs.restart
+    reversed_ = revdem.reverse(restart, tmp_path / "back", steps=100)
+    assert reversed_.outputs.restart == restart
+    assert revdem.read(tmp_path / "back").outputs.restart.resolve() == restart.resolve()
+
+
 def test_a_reversal_into_a_folder_of_its_own_is_read_back_with_its_forward_run(tmp_path):
     """`revdem.reverse(restart, out=elsewhere)` wrote a reversal that `read` refused: its
     folder held no NAME.forward.h5. It now comes with the forward run its restart ends."""
