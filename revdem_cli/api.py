@@ -744,6 +744,8 @@ def sweep(
             or not isinstance(listed, Sequence | np.ndarray)
         ):
             raise InputError(f"values[{key!r}]: a list of the values to take, not {listed!r}")
+        if len(listed) == 0:
+            raise InputError(f"values[{key!r}]: no values; give a list of one or more")
         sets.append(f"{key}=" + ",".join(_set_text(value) for value in listed))
     if not whole_number(workers) or workers < 1:
         raise InputError(f"workers={workers!r}: a whole number, 1 or more")

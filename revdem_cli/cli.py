@@ -528,10 +528,6 @@ def sweep(
     from revdem_cli.report.progress import kernels_compiled
     from revdem_cli.sweep import FAILED, read_sweep, run_sweep, stop_summary
 
-    if resume and force:
-        raise InputError(
-            "--resume goes on with the sweep in --out, --force starts it over: give one"
-        )
     plan = read_sweep(scenario, sets or [])
     from contextlib import nullcontext
 

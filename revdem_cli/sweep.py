@@ -387,6 +387,10 @@ def run_sweep(
     started; a second signal stops at once."""
     from revdem_cli.api import check_threads
 
+    if resume and force:
+        raise InputError(
+            "--resume goes on with the sweep in --out, --force starts it over: give one"
+        )
     if scheduler is None:  # each variant's count, on this machine's workers
         check_threads(threads)
     out_dir = Path(out_dir)

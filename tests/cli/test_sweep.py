@@ -475,3 +475,20 @@ def test_a_sweep_from_python_takes_tables_as_set_does(tmp_path):
     for row, stop in zip(rows, stops, strict=True):
         said = revdem.read(tmp_path / row["folder"]).outputs
         assert ("collide" in said.stopped) == (stop["kinetic_energy_below"] == 1.0), said
+
+
+def test_what_a_sweep_from_python_is_given_wrongly_is_said_in_its_terms(tmp_path):
+    """An empty list of values was refused in the command line's terms ("--set
+    contact.friction=: expected key=value"), and force=True with resume=True on a new
+    folder was "no sweep there", where the command line says to give one of them."""
+    from revdem_cli import api as revdem
+
+    scenario = CONFIGS / "smoke" / "collision.yaml"
+    out = tmp_path / "new"
+    with pytest.raises(InputError, match=r"^values\['contact.friction'\]: no values; give a"):
+        revdem.sweep(scenario, {"contact.friction": []}, out)
+    with pytest.raises(InputError, match="^--resume goes on .*--force starts it over: give one"):
+        revdem.sweep(scenario, {"stages.0.steps": [10]}, out, force=True, resume=True)
+    args = ["sweep", str(scenario), "--set", "stages.0.steps=10", "--out", str(out)]
+    assert_one_line_error(runner.invoke(app, [*args, "--force", "--resume"]), "give one")
+    assert not out.exists()
