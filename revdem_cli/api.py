@@ -475,21 +475,20 @@ def reverse(
 ) -> Result:
     """Run the stage that ended at a restart backwards and compare it with its forward
     trajectory, as `revdem reverse` does, on at most `threads` threads (`_use_threads`)."""
+    from revdem_cli.compare import forward_of
     from revdem_cli.engine import output_paths, reverse_run
-    from revdem_cli.io.h5md import open_trajectory
     from revdem_cli.io.restart import read_restart, restart_scenario
 
     _check_switches(force=force, progress=progress)
     _use_threads(threads)
     restart = _path(restart, "restart")
-    spec, forward = restart_scenario(restart)
+    spec = restart_scenario(restart)[0]
     read_restart(restart)  # every dataset checked before earlier outputs are replaced
     folder = _folder(out, "out") if out is not None else restart.parent
     paths = output_paths(folder, spec.name)
     written, figures = [paths["reverse"]], []
-    if forward.is_file():  # compared with, and drawn beside, the reversed run
-        open_trajectory(forward).close()  # checked before the reversal, not after it
-        written.append(paths["compare"])
+    if forward_of(restart)[0] is not None:  # compared with, and drawn beside, the reversed
+        written.append(paths["compare"])  # run: checked before the reversal, not after it
         figures = figure_paths(folder, spec)
     keep_checkpoint(folder, spec.name, force)
     keep_outputs(written, force, "reversal")

@@ -250,12 +250,10 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
     of one scenario, the reversal from a restart that ends `first` (when that restart is
     still there: else said so). The restart is looked for beside `second` first, then where
     it was written, a restart of another scenario there not taken for it, and it ends
-    `first` where it names it or where its state is `first`'s last frame (a run's folder
-    copied or moved keeps the paths it was written with).
+    `first` where it names it or where `restart_ends` finds it does (a run's folder copied
+    or moved keeps the paths it was written with).
     InputError naming what does not fit; returns one line on what was checked."""
-    import json
-
-    from revdem_cli.io.restart import restart_positions, restart_scenario
+    from revdem_cli.io.restart import restart_scenario
 
     if first.resolve() == second.resolve():
         raise InputError(f"{first}: compared with itself; give its reversed trajectory second")
@@ -267,42 +265,81 @@ def check_pairing(forward, reverse, first: Path, second: Path) -> str:
             f"{first} and {second}: a comparison takes a forward trajectory and its reversal, "
             f"in that order; these are {directions[0]} and {directions[1]}"
         )
-    scenarios = [
-        json.loads(run["parameters/revdem"].attrs["scenario_json"]) for run in (forward, reverse)
-    ]
-    if scenarios[0] != scenarios[1]:
-        from revdem_cli.config import fields_apart
-
-        apart = fields_apart(*(Scenario.model_validate(s) for s in scenarios))
-        named = "; ".join(f"{key} = {a} and {b}" for key, a, b in apart[:3])
-        more = f" and {len(apart) - 3} more" if len(apart) > 3 else ""
-        raise InputError(
-            f"{first} and {second}: runs of different scenarios (or of other --set): {named}{more}"
-        )
+    scenarios = [_scenario_of(run) for run in (forward, reverse)]
+    if apart := runs_apart(*scenarios):
+        raise InputError(f"{first} and {second}: {apart}")
     written = Path(str(reverse["parameters/revdem"].attrs.get("source_restart", "")))
-    reversed_scenario = Scenario.model_validate(scenarios[1]).model_dump(mode="json")
     source = ends = None
     for path in restart_places(reverse, second):
         stored, trajectory = restart_scenario(path)
-        if stored.model_dump(mode="json") == reversed_scenario:
+        if not runs_apart(stored, scenarios[1]):
             source, ends = path, trajectory
             break
     if source is None:  # names only: the same words wherever the runs were made
         return f"one scenario; the reversal's restart {written.name} is not there to say more"
-    if ends.resolve() != first.resolve():
-        step, positions = restart_positions(source)
-        last = frame_steps(forward)
-        if not (
-            len(last)
-            and last[-1] == step
-            and np.array_equal(read_frames(forward, "position", [len(last) - 1])[0], positions)
-        ):
-            raise InputError(
-                f"{first}: not the forward run that {second} reverses: its restart {source} "
-                f"ends the forward run {ends}, whose last frame (step {step}) {first} does not "
-                "hold"
-            )
+    if ends.resolve() != first.resolve() and (why := restart_ends(source, forward, first)):
+        raise InputError(
+            f"{first}: not the forward run that {second} reverses: its restart {source} ends "
+            f"the forward run {ends}; {why}"
+        )
     return PAIRED.format(reverse=second.name, restart=source.name, forward=first.name)
+
+
+def restart_ends(restart: Path, forward, first: Path) -> str:
+    """'' where the restart file `restart` ends the forward run whose trajectory `forward`
+    (the open file `first`) holds; else why not, in words. It does where both store one
+    scenario (`runs_apart`) and `first` has a frame at the restart's step holding its
+    positions: the run's own trajectory, copied or moved with it or not, or that of the run
+    made again (revdem is deterministic), whatever the path the restart names; a stage's
+    restart (`[reversal] all_stages`) holds the frame at its stage's end."""
+    from revdem_cli.io.restart import restart_positions, restart_scenario
+
+    if apart := runs_apart(restart_scenario(restart)[0], _scenario_of(forward)):
+        return apart
+    step, positions = restart_positions(restart)
+    at = np.flatnonzero(frame_steps(forward) == step)[-1:]
+    if not len(at) or not np.array_equal(read_frames(forward, "position", at)[0], positions):
+        return f"{first} holds no frame at step {step} with the restart's state"
+    return ""
+
+
+def forward_of(restart: Path) -> tuple[Path | None, tuple[Path, ...]]:
+    """(the forward trajectory of the run the restart file `restart` ends, the places looked
+    for it at): the one the restart names, where it is there, and holds that run
+    (`restart_ends`); None where it is not there. InputError naming the restart and the
+    trajectory where that is of another run: a reversal refuses it before its first step,
+    where its comparison, after the last, would refuse it and leave a reversed trajectory
+    with no verdict."""
+    from revdem_cli.io.restart import restart_scenario
+
+    named = restart_scenario(restart)[1]
+    places = (named,) if named.name else ()
+    for path in places:
+        if not path.is_file():
+            continue
+        with open_trajectory(path) as f:
+            why = restart_ends(restart, f, path)
+        if why:
+            raise InputError(
+                f"{restart}: the forward trajectory it names, {path}, is of another run: {why}"
+            )
+        return path, places
+    return None, places
+
+
+def runs_apart(first: Scenario, second: Scenario) -> str:
+    """What sets apart the runs of two stored scenarios, in words: 'runs of different
+    scenarios (or of other --set): key = a and b; ...', up to three fields (`fields_apart`);
+    '' where they are one. Two files of one run store the same scenario, whatever their
+    paths: a comparison, a reversal and a resumption each refuse a file of another run."""
+    from revdem_cli.config import fields_apart
+
+    apart = fields_apart(first, second)
+    if not apart:
+        return ""
+    named = "; ".join(f"{key} = {a} and {b}" for key, a, b in apart[:3])
+    more = f" and {len(apart) - 3} more" if len(apart) > 3 else ""
+    return f"runs of different scenarios (or of other --set): {named}{more}"
 
 
 def first_divergence_of(rows, tolerance: Reversal) -> int | None:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from revdem_cli.checkpoint import Checkpoints, checkpoint_path, find_checkpoint
-from revdem_cli.compare import compare_trajectories, refuse_nothing_to_compare
+from revdem_cli.compare import compare_trajectories, forward_of, refuse_nothing_to_compare
 from revdem_cli.config import Scenario
 from revdem_cli.errors import InputError, RunFailed, whole_number
 from revdem_cli.io import open_hdf5, write_text
@@ -464,12 +464,15 @@ def _reverse(
                 "steps"
             )
         stop = clock.first_step if steps is None else start.state.step - steps
-        if Path(start.trajectory).exists():
-            refuse_nothing_to_compare(Path(start.trajectory), start.state.step, stop)
+        forward = forward_of(Path(source))[0]  # one of another run refused before stepping
+        if forward is not None:
+            refuse_nothing_to_compare(forward, start.state.step, stop)
         events, began = None, None
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:
         stop, events = resumption.stop_step, resumption.events
+        forward = Path(start.trajectory)
+        forward = forward if forward.is_file() else None
         clock = _reverse_clock(scenario, start, resumption.end_step)
         began = _source_restart(paths["reverse"])  # where the reversal began: `source` is
         writer = _continued_writer(  # the restart of the stage it goes on in
@@ -487,12 +490,11 @@ def _reverse(
         writer.end()
     # resumed, the restart the reversal began from (`resume_run` reports it)
     outputs = Outputs(reverse=paths["reverse"], restart=Path(began) if began else None)
-    forward = Path(start.trajectory)
     run.checkpoints.finish(
         "its comparison and figures were written; its trajectories and restart are whole "
         "(revdem compare FORWARD REVERSE gives the verdict)"
     )
-    if forward.exists():
+    if forward is not None:
         outputs.forward = forward
         verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
         write_text(paths["compare"], json.dumps(verdict, indent=2) + "\n")

@@ -202,7 +202,8 @@ def test_a_comparison_takes_a_forward_run_and_its_own_reversal(two_runs, tmp_pat
     assert_one_line_error(
         invoke("compare", other, reverse),
         f"{other}: not the forward run that {reverse} reverses",
-        f"ends the forward run {forward}, whose last frame (step 200) {other} does not hold",
+        f"ends the forward run {forward}; {other} holds no frame at step 200 with the "
+        "restart's state",
     )
     result = invoke("compare", forward, reverse, "--json")
     assert result.exit_code == 0
@@ -232,6 +233,29 @@ def test_a_comparison_of_runs_of_other_settings_is_refused(two_runs, tmp_path):
     assert_one_line_error(
         result, "runs of different scenarios (or of other --set): stages.0.steps = 200 and 100"
     )
+
+
+def test_a_restart_whose_forward_run_was_replaced_is_refused_before_reversing(tmp_path):
+    """A restart kept from a run whose folder was then reused for a run of other settings:
+    its reversal ran every step, then its comparison refused the pair and left a reversed
+    trajectory with no verdict. It is refused before its first step now, nothing written;
+    the restart of the run there still reverses."""
+    made, kept = tmp_path / "made", tmp_path / "kept.restart.h5"
+    args = ["run", COLLISION, "--out", made, "-q", "--no-reverse", "--set", "stages.0.steps=200"]
+    assert invoke(*args).exit_code == 0
+    kept.write_bytes((made / "collision.restart.h5").read_bytes())
+    assert invoke(*args[:-1], "stages.0.steps=300", "--force").exit_code == 0
+    result = invoke("reverse", kept, "-q", "--out", tmp_path / "reversed")
+    forward = (made / "collision.forward.h5").resolve()
+    assert_one_line_error(
+        result,
+        f"{kept}: the forward trajectory it names, {forward}, is of another run: runs of "
+        "different scenarios (or of other --set): stages.0.steps = 200 and 300",
+    )
+    assert not (tmp_path / "reversed").exists()
+    result = invoke("reverse", made / "collision.restart.h5", "-q", "--out", tmp_path / "own")
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "own" / "collision.compare.json").exists()
 
 
 def test_a_forced_run_that_fails_leaves_none_of_the_earlier_runs_files(tmp_path):
