@@ -578,17 +578,16 @@ def read(out: str | Path, name: str | None = None) -> Result:
 
 def _reversed_from(reverse: Path) -> tuple[Path | None, Path | None]:
     """(the restart, the forward trajectory) a reversed trajectory was run from, where they
-    are still there (`compare.restart_places`); None for what is not."""
-    from revdem_cli.compare import restart_places
+    are still there (`compare.restart_places`, `compare.forward_of`); None for what is
+    not."""
+    from revdem_cli.compare import forward_of, restart_places
     from revdem_cli.io.h5md import open_trajectory
-    from revdem_cli.io.restart import restart_scenario
 
     with open_trajectory(reverse) as f:
         places = restart_places(f, reverse)
     if not places:
         return None, None
-    forward = restart_scenario(places[0])[1]
-    return places[0], forward if forward.is_file() else None
+    return places[0], forward_of(places[0])[0]
 
 
 def _number(name: str, value, optional: bool = True):

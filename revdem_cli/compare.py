@@ -305,26 +305,33 @@ def restart_ends(restart: Path, forward, first: Path) -> str:
 
 def forward_of(restart: Path) -> tuple[Path | None, tuple[Path, ...]]:
     """(the forward trajectory of the run the restart file `restart` ends, the places looked
-    for it at): the one the restart names, where it is there, and holds that run
-    (`restart_ends`); None where it is not there. InputError naming the restart and the
-    trajectory where that is of another run: a reversal refuses it before its first step,
-    where its comparison, after the last, would refuse it and leave a reversed trajectory
-    with no verdict."""
+    for it at): where the restart names it, then the file of that name beside the restart
+    (a run's folder copied or moved keeps the paths it was written with); of those there,
+    the first that holds that run (`restart_ends`); None where none is there. InputError
+    naming the restart and each place where those there are all of another run: a
+    reversal refuses it before its first step, where its comparison, after the last, would
+    refuse it and leave a reversed trajectory with no verdict."""
     from revdem_cli.io.restart import restart_scenario
 
     named = restart_scenario(restart)[1]
-    places = (named,) if named.name else ()
+    places: list[Path] = []
+    for path in (named, restart.parent / named.name) if named.name else ():
+        if all(path.resolve() != place.resolve() for place in places):
+            places.append(path)
+    said = []
     for path in places:
+        what = f"the forward trajectory it names, {path}," if path == named else f"{path} beside it"
         if not path.is_file():
+            said.append(f"{what} is not there")
             continue
         with open_trajectory(path) as f:
             why = restart_ends(restart, f, path)
-        if why:
-            raise InputError(
-                f"{restart}: the forward trajectory it names, {path}, is of another run: {why}"
-            )
-        return path, places
-    return None, places
+        if not why:
+            return path, tuple(places)
+        said.append(f"{what} is of another run: {why}")
+    if any(path.is_file() for path in places):
+        raise InputError(f"{restart}: {'; and '.join(said)}")
+    return None, tuple(places)
 
 
 def runs_apart(first: Scenario, second: Scenario) -> str:

@@ -57,6 +57,8 @@ class Outputs:
     stage_files: tuple[tuple[str, Path], ...] = ()
     # exports of its trajectories already there when it started: made from another run's
     stale_exports: tuple[Path, ...] = ()
+    # a reversal with no forward trajectory to compare with: where it looked for one
+    forward_sought: tuple[Path, ...] = ()
 
 
 def output_paths(out_dir: Path, name: str) -> dict[str, Path]:
@@ -464,15 +466,15 @@ def _reverse(
                 "steps"
             )
         stop = clock.first_step if steps is None else start.state.step - steps
-        forward = forward_of(Path(source))[0]  # one of another run refused before stepping
+        forward, sought = forward_of(Path(source))  # of another run: refused before stepping
         if forward is not None:
             refuse_nothing_to_compare(forward, start.state.step, stop)
         events, began = None, None
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:
         stop, events = resumption.stop_step, resumption.events
-        forward = Path(start.trajectory)
-        forward = forward if forward.is_file() else None
+        sought = (Path(start.trajectory),)  # where it was found when the reversal began
+        forward = sought[0] if sought[0].is_file() else None
         clock = _reverse_clock(scenario, start, resumption.end_step)
         began = _source_restart(paths["reverse"])  # where the reversal began: `source` is
         writer = _continued_writer(  # the restart of the stage it goes on in
@@ -481,7 +483,10 @@ def _reverse(
     with writer:
         while True:
             tape = _replayer(scenario, start, source, clock)
-            _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress, so_far)
+            _reverse_stage(
+                run, start, source, clock, stop, events, writer, tape, progress, so_far,
+                forward or Path(start.trajectory),
+            )  # fmt: skip
             if not start.previous or stop != clock.first_step:
                 break
             start, source = _stage_before(start, source)
@@ -490,6 +495,7 @@ def _reverse(
         writer.end()
     # resumed, the restart the reversal began from (`resume_run` reports it)
     outputs = Outputs(reverse=paths["reverse"], restart=Path(began) if began else None)
+    outputs.forward_sought = () if forward is not None else sought
     run.checkpoints.finish(
         "its comparison and figures were written; its trajectories and restart are whole "
         "(revdem compare FORWARD REVERSE gives the verdict)"
@@ -535,8 +541,12 @@ def _replayer(
     return Replayer(path, clock.stage.name, clock.first_step, particles, before)
 
 
-def _reverse_stage(run, start, source, clock, stop, events, writer, tape, progress, so_far) -> None:
-    """One stage of a reversal, from the state of `start` back to `stop`, into `writer`."""
+def _reverse_stage(
+    run, start, source, clock, stop, events, writer, tape, progress, so_far, forward: Path
+) -> None:
+    """One stage of a reversal, from the state of `start` back to `stop`, into `writer`;
+    its checkpoints name `forward`, the forward trajectory found when the reversal began
+    (beside the restart, where the one the restart names is not there)."""
     place = dict(
         phase="reverse", stage_index=-1, reverse=False, source_restart=source, stop_step=stop,
         end_step=clock.last_step, so_far=so_far,
@@ -544,7 +554,7 @@ def _reverse_stage(run, start, source, clock, stop, events, writer, tape, progre
     files = (start.tape, start.previous)
 
     def checkpoint(state, clock, events):
-        run.checkpoint(state, clock, events, writer, start.trajectory, place, tape, files)
+        run.checkpoint(state, clock, events, writer, forward, place, tape, files)
 
     run_stage(
         start.state, run.model, clock, -1, writer, progress, stop, checkpoint, events,

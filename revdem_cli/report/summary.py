@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from revdem_cli.report.info import stage_lines
@@ -99,6 +100,10 @@ def print_summary(outputs, console: Console | None = None) -> None:
     if outputs.verdict is not None:
         console.print(verdict_line(outputs.verdict))
     elif outputs.reverse is not None:
+        looked = " nor ".join(escape(str(path)) for path in outputs.forward_sought)
+        where = f": no file at {looked}" if looked else ""
         console.print(
-            "[yellow]no comparison[/]: the forward trajectory named in the restart is not there"
+            f"[yellow]no comparison[/]: the forward trajectory named in the restart is not "
+            f"there{where}",
+            soft_wrap=True,
         )

@@ -9,6 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from revdem_cli.cli import app
+from revdem_cli.compare import read_verdict
 from revdem_cli.kernels.neighbours import build_pairs
 from tests.conftest import CONFIGS, assert_one_line_error
 
@@ -256,6 +257,38 @@ def test_a_restart_whose_forward_run_was_replaced_is_refused_before_reversing(tm
     result = invoke("reverse", made / "collision.restart.h5", "-q", "--out", tmp_path / "own")
     assert result.exit_code == 0, result.output
     assert (tmp_path / "own" / "collision.compare.json").exists()
+
+
+def test_a_restart_moved_with_its_forward_run_reverses_and_compares_with_it(tmp_path):
+    """A run's folder moved keeps the path its restart names the forward trajectory by: the
+    reversal said "no comparison", the trajectory beside the restart unlooked at. It is
+    taken where the restart ends the run it holds (one of another run is refused, as where
+    the restart names it), and where none is there, the places looked at are named."""
+    made, moved, other = tmp_path / "made", tmp_path / "moved", tmp_path / "other"
+    for out, steps in ((made, 200), (other, 300)):
+        args = ["--out", out, "-q", "--no-reverse", "--set", f"stages.0.steps={steps}"]
+        assert invoke("run", COLLISION, *args).exit_code == 0
+    made.rename(moved)
+    restart = moved / "collision.restart.h5"
+    result = invoke("reverse", restart, "-q")
+    assert result.exit_code == 0, result.output
+    assert "no comparison" not in result.output
+    assert read_verdict(moved / "collision.compare.json")["reversible"]
+    (moved / "collision.forward.h5").unlink()
+    result = invoke("reverse", restart, "-q", "--force")
+    assert result.exit_code == 0, result.output
+    said = " ".join(result.output.split())
+    assert "no comparison" in said
+    for path in (made.resolve(), moved.resolve()):
+        assert str(path / "collision.forward.h5") in said
+    (moved / "collision.forward.h5").write_bytes((other / "collision.forward.h5").read_bytes())
+    result = invoke("reverse", restart, "-q", "--force")
+    assert_one_line_error(
+        result,
+        f"{restart}: the forward trajectory it names, {made.resolve() / 'collision.forward.h5'}, "
+        f"is not there; and {moved / 'collision.forward.h5'} beside it is of another run",
+        "stages.0.steps = 200 and 300",
+    )
 
 
 def test_a_forced_run_that_fails_leaves_none_of_the_earlier_runs_files(tmp_path):
