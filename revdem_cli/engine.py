@@ -589,6 +589,7 @@ def resume_run(
     scenario = Scenario.model_validate_json(resume.scenario_json)
     run = Run.into(Path(out_dir), scenario, resume.scenario_text, resume.scenario_suffix)
     place = resume.resumption
+    _check_continued(run.paths[place.phase], path, resume)  # the trajectory of its phase
     with run.checkpoints.on_signals(stop_file):
         if place.phase == "forward":
             text = resume.scenario_text
@@ -604,6 +605,44 @@ def resume_run(
         if path is not None and path.resolve() == run.paths[kind].resolve():
             setattr(outputs, kind, run.paths[kind])
     return outputs
+
+
+def _check_continued(trajectory: Path, checkpoint: Path, resume: Restart) -> None:
+    """InputError unless `trajectory` is the one the run of the checkpoint `resume` (the
+    file `checkpoint`) was writing: a resumed run copies the rows the checkpoint counts by
+    their number (`_continued_writer`), and would splice another run's into its own. It is
+    where it stores the checkpoint's scenario (`compare.runs_apart`) and the frames the
+    checkpoint counts are those up to its step: the last of them at or before that step,
+    the next, if there is one, at or after it, in the direction the run went."""
+    from revdem_cli.compare import runs_apart
+    from revdem_cli.io import stored_scenario
+    from revdem_cli.io.h5md import frame_steps
+
+    with open_trajectory(trajectory) as f:
+        stored = stored_scenario(f["parameters/revdem"].attrs["scenario_json"], trajectory)
+        steps = frame_steps(f)
+    step, frames = resume.state.step, resume.resumption.frames
+    ahead = (steps - step) * (1 if resume.resumption.phase == "forward" else -1)
+    why = runs_apart(Scenario.model_validate_json(resume.scenario_json), stored)
+    if not why and len(steps) < frames:
+        why = f"that run had written {frames} frames by step {step}, and it holds {len(steps)}"
+    elif not why:
+        last_before = frames == 0 or ahead[frames - 1] <= 0
+        next_after = len(steps) == frames or ahead[frames] >= 0
+        if not (last_before and next_after):
+            here = [
+                f"frame {k + 1} at step {steps[k]}"
+                for k in (frames - 1, frames)
+                if 0 <= k < len(steps)
+            ]
+            why = (
+                f"that run had written frames 1 to {frames} by step {step}; it has "
+                + " and ".join(here)
+            )
+    if why:
+        raise InputError(
+            f"{trajectory}: not the trajectory the run of {checkpoint} was writing: {why}"
+        )
 
 
 def _figures(

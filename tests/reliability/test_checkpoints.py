@@ -436,6 +436,42 @@ def test_resume_needs_a_checkpoint_and_nothing_else(tmp_path):
         assert_one_line_error(result, f"into DIR: {option[0]} cannot change it")
 
 
+def test_resume_refuses_a_trajectory_the_checkpoints_run_did_not_write(tmp_path):
+    """A resumed run copies the rows its checkpoint counts by their number: another run's
+    trajectory put in the folder was spliced into its own, frames of one output interval
+    then those of another, and said reversible. Refused now, naming what sets them apart,
+    the folder as it was."""
+    out = _unfinished(tmp_path / "stopped")
+    forward = out / "collision_smoke.forward.h5"
+    (checkpoint,) = out.glob("*.checkpoint.h5")
+    other = tmp_path / "other"
+    scenario, sets = CASES["collision"]
+    args = ["run", str(scenario), "--out", str(other), "-q", "--set", "stages.0.steps=3000"]
+    assert CliRunner().invoke(app, [*args, "--set", sets[1], *EVERY_FRAME]).exit_code == 0
+    forward.write_bytes((other / forward.name).read_bytes())
+    before = {path.name: path.read_bytes() for path in out.iterdir()}
+    result = CliRunner().invoke(app, ["run", "--resume", str(out), "-q"])
+    assert_one_line_error(
+        result,
+        f"{forward}: not the trajectory the run of {checkpoint} was writing: runs of different "
+        "scenarios (or of other --set): stages.0.steps = 60000 and 3000",
+    )
+    assert {path.name: path.read_bytes() for path in out.iterdir()} == before
+    again = tmp_path / "again"  # the run made again, its frames then moved on or cut short
+    args = ["run", str(scenario), "--out", str(again), "-q", "--no-reverse", *EVERY_FRAME]
+    assert CliRunner().invoke(app, [*args, "--set", sets[0], "--set", sets[1]]).exit_code == 0
+    forward.write_bytes((again / forward.name).read_bytes())
+    frames = read_restart(checkpoint, checkpoint=True).resumption.frames
+    with h5py.File(forward, "r+") as f:
+        f["particles/all/position/step"][:] *= 2
+    result = CliRunner().invoke(app, ["run", "--resume", str(out), "-q"])
+    assert_one_line_error(result, f"that run had written frames 1 to {frames} by step")
+    with h5py.File(forward, "r+") as f:
+        f["particles/all/position/step"].resize((frames - 1,))
+    result = CliRunner().invoke(app, ["run", "--resume", str(out), "-q"])
+    assert_one_line_error(result, f"that run had written {frames} frames", f"holds {frames - 1}")
+
+
 SWEEP = [
     "sweep", str(CONFIGS / "smoke" / "collision.yaml"), "--workers", "1", "-q",
     "--set", "stages.0.steps=2000,400000", "--set", "particles.0.velocity=[0.9,0.1,0.0],[0.5,0,0]",
