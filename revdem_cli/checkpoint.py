@@ -238,6 +238,36 @@ def polling(path: Path | None, ask) -> Iterator[None]:
         poller.join()
 
 
+def stopped_run(trajectory: Path, f) -> tuple[bool, Path | None]:
+    """(whether the run that writes the trajectory `f`, the file `trajectory`, is
+    unfinished; its checkpoint beside it, where there is one). It is where that checkpoint
+    is there (the run stopped, or goes on) or where the file says its run did not reach its
+    end (it failed, or was stopped at once, and left none); not where it ended, or where a
+    file written before trajectories said so does not say and has no checkpoint beside it.
+    `revdem info` and `revdem compare` each say so, in the same words (`unfinished_words`)."""
+    from revdem_cli.io import stored_scenario
+    from revdem_cli.io.h5md import ended
+
+    trajectory = Path(trajectory)
+    name = stored_scenario(f["parameters/revdem"].attrs["scenario_json"], trajectory).name
+    checkpoint = checkpoint_path(trajectory.parent, name)
+    if checkpoint.exists():
+        return True, checkpoint
+    return ended(f) is False, None
+
+
+def unfinished_words(trajectory: Path, checkpoint: Path | None) -> str:
+    """How the run of `trajectory` is unfinished, where `stopped_run` finds it is, in words."""
+    if checkpoint is not None:
+        return (
+            f"{checkpoint} is beside it (the run stopped, or goes on); continue with revdem run "
+            f"--resume {Path(trajectory).parent}"
+        )
+    return (
+        "its run did not reach its end and left no checkpoint (it failed, or was stopped at once)"
+    )
+
+
 def find_checkpoints(out_dir: Path) -> list[Path]:
     """The checkpoints in `out_dir`, by name."""
     return sorted(Path(out_dir).glob(f"*{SUFFIX}"))

@@ -137,6 +137,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         causes = divergence_causes(a, first_divergence)
         energy = _energy_back(a, b)
         tapes = tapes_replayed(b, Path(second))
+        unfinished = _reversal_unfinished(b, Path(second), steps_b)
     table = np.array([r[1:] for r in rows])
     verdict = {
         "frames_compared": len(rows),
@@ -147,6 +148,8 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         "first_divergence_step": first_divergence,
         "bitwise_identical": identical,
         "reversible": first_divergence is None,
+        "reversal_finished": unfinished is None,
+        "reversal_unfinished": unfinished,
         "divergence_causes": causes,
         "total_energy_back": energy,
         "pairing": pairing,
@@ -159,6 +162,22 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
         },
     }
     return with_tapes(verdict, tapes)
+
+
+def _reversal_unfinished(reverse, second: Path, steps: np.ndarray) -> str | None:
+    """Where the reversed run (the open file `second`) has not reached its end, as `revdem
+    info` finds it (`checkpoint.stopped_run`): how far back it went, and why, in words; None
+    where it ended. Its verdict covers those steps alone, not a whole reversal. A reversed
+    trajectory marked whole is (the checkpoint of its run, there until the comparison and
+    figures are written, does not make it unfinished)."""
+    from revdem_cli.checkpoint import stopped_run, unfinished_words
+    from revdem_cli.io.h5md import ended
+
+    left, checkpoint = stopped_run(second, reverse)
+    if not left or ended(reverse):
+        return None
+    went = f"go back from step {steps[0]} to step {steps[-1]} only" if len(steps) else "are none"
+    return f"its frames {went}; {unfinished_words(second, checkpoint)}"
 
 
 def refuse_nothing_to_compare(forward: Path, start: int, stop: int) -> None:

@@ -89,7 +89,7 @@ def stop_condition(condition: dict | None) -> str:
 
 
 def _trajectory(path: Path, f: h5py.File) -> dict:
-    from revdem_cli.checkpoint import checkpoint_path
+    from revdem_cli.checkpoint import stopped_run
     from revdem_cli.compare import compared_files, read_verdict
     from revdem_cli.io.h5md import ended
 
@@ -111,8 +111,8 @@ def _trajectory(path: Path, f: h5py.File) -> dict:
     if info["arithmetic"] == "fixed" and "fixed_grid" in attrs:
         info["grids"] = [float(step) for step in attrs["fixed_grid"]]
     info["ended"] = ended(f)  # None: written before trajectories said
-    checkpoint = checkpoint_path(path.parent, info["scenario"])
-    if checkpoint.exists():  # the run stopped, or is going on
+    info["unfinished"], checkpoint = stopped_run(path, f)
+    if checkpoint is not None:  # the run stopped, or is going on
         info["checkpoint"] = str(checkpoint)
     restart = path.with_name(f"{info['scenario']}.restart.h5")
     if info["direction"] == "forward" and restart.is_file():  # what its run said of its stages
@@ -309,6 +309,8 @@ def tape_lines(tape: dict) -> list[str]:
 
 def info_lines(info: dict) -> list[str]:
     """The summary as `label: value` lines."""
+    from revdem_cli.checkpoint import unfinished_words
+
     if info["kind"] == "sweep":
         return _sweep_lines(info)
     if info["kind"] == "tape":
@@ -347,17 +349,14 @@ def info_lines(info: dict) -> list[str]:
         lines.append(
             f"frames:     {info['frames']}{steps if info['frames'] else ' (none written)'}"
         )
-        if "checkpoint" in info:
-            lines.append(
-                f"unfinished: {info['checkpoint']} is beside it (the run stopped, or goes on); "
-                f"continue with revdem run --resume {Path(info['file']).parent}"
-            )
-        elif info.get("ended") is False:
-            lines.append(
-                "unfinished: its run did not reach its end and left no checkpoint (it failed, "
-                "or was stopped at once): "
-                + ("the frames are those it wrote" if info["frames"] else "it wrote no frame")
-            )
+        if info.get("unfinished"):
+            checkpoint = Path(info["checkpoint"]) if "checkpoint" in info else None
+            said = unfinished_words(Path(info["file"]), checkpoint)
+            if checkpoint is None:
+                said += ": " + (
+                    "the frames are those it wrote" if info["frames"] else "it wrote no frame"
+                )
+            lines.append(f"unfinished: {said}")
     elif info["kind"] == "checkpoint":
         lines.append(
             f"step:       {info['step']} (in stage {info['stage']}, dt {info['stage_dt']:.6g} s)"

@@ -17,6 +17,9 @@ def comparison_table(verdict: dict) -> Table:
     table.add_column("value", justify="right")
     table.add_column("tolerance", justify="right")
     table.add_row("frames compared", str(verdict["frames_compared"]), "")
+    if verdict.get("reversal_unfinished"):  # the frames it wrote before it stopped
+        back = verdict["frames"]["step"][-1]
+        table.add_row("reversal", f"unfinished: frames back to step {back}", "")
     table.add_row(
         "max position error / smallest diameter",
         f"{verdict['max_position_error_rel']:.3e}",
@@ -53,6 +56,16 @@ def comparison_table(verdict: dict) -> Table:
 
 
 def verdict_line(verdict: dict) -> str:
+    unfinished = verdict.get("reversal_unfinished")
+    if unfinished:  # a verdict on the steps it went back, not on a whole reversal
+        said = escape(unfinished)
+        if verdict["reversible"]:
+            return (
+                "[bold yellow]reversible so far[/]: the reversed run retraces the forward run "
+                f"within tolerance, but the reversal is unfinished: {said}"
+            )
+        whole = verdict_line(verdict | {"reversal_unfinished": None})
+        return f"{whole}\n  the reversal is unfinished: {said}"
     if verdict["reversible"]:
         return (
             "[bold green]reversible[/]: the reversed run retraces the forward run within tolerance"

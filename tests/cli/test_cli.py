@@ -136,6 +136,48 @@ def test_run_writes_all_outputs_and_prints_the_comparison(scenario, tmp_path):
     assert json.loads(compared.stdout)["frames_compared"] == 61
 
 
+def test_the_comparison_of_an_unfinished_reversal_says_it_is_unfinished(tmp_path):
+    """A reversal stopped part-way was compared as "reversible: the reversed run retraces
+    the forward run", as if whole, where `revdem info` called its trajectory unfinished.
+    The comparison says so too now, as info finds it: in its table, its line and its JSON."""
+    from revdem_cli import api as revdem
+    from tests.conftest import crashed_after
+
+    smoke = revdem.load(CONFIGS / "smoke" / "collision.yaml")
+    shown = crashed_after(smoke.changed({"output.checkpoint_interval": 0.0}), tmp_path, 150)
+    assert "reversed" in shown[-1]
+    forward, reverse = (tmp_path / f"collision_smoke.{kind}.h5" for kind in ("forward", "reverse"))
+    checkpoint = tmp_path / "collision_smoke.checkpoint.h5"
+
+    def compare(*options):
+        args = ["compare", str(forward), str(reverse), *options]
+        result = runner.invoke(app, args, env={"COLUMNS": "500"})
+        assert result.exit_code == 0, result.output
+        return result.output
+
+    said = " ".join(compare().split())
+    assert "│ reversal │ unfinished: frames back to step" in said
+    assert (
+        "reversible so far: the reversed run retraces the forward run within tolerance, but "
+        "the reversal is unfinished: its frames go back from step 5000 to step"
+    ) in said
+    assert f"{checkpoint} is beside it (the run stopped, or goes on)" in said
+    verdict = json.loads(compare("--json"))
+    assert verdict["reversal_finished"] is False and verdict["reversible"]
+    assert f"{checkpoint} is beside it" in verdict["reversal_unfinished"]
+    kept = checkpoint.read_bytes()
+    checkpoint.unlink()  # a run stopped at once leaves none: its trajectory says it did not end
+    verdict = json.loads(compare("--json"))
+    assert "its run did not reach its end and left no checkpoint" in verdict["reversal_unfinished"]
+    checkpoint.write_bytes(kept)
+    assert invoke("run", "--resume", tmp_path, "-q").exit_code == 0
+    written = json.loads((tmp_path / "collision_smoke.compare.json").read_text())
+    assert written["reversal_finished"]  # compared while its checkpoint was still there
+    verdict = json.loads(compare("--json"))
+    assert verdict["reversal_finished"] and verdict["reversal_unfinished"] is None
+    assert "unfinished" not in compare()
+
+
 def test_a_reversal_that_would_meet_no_frame_but_its_first_is_refused(
     scenario, tmp_path, monkeypatch
 ):
