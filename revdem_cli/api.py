@@ -354,19 +354,24 @@ def figure_paths(out: Path, spec: Scenario) -> list[Path]:
     return [out / f"{spec.name}.{kind}.png" for kind in spec.output.figures]
 
 
-def keep_outputs(paths: list[Path], force: bool, of: str = "run") -> None:
+def keep_outputs(
+    paths: list[Path], force: bool, of: str = "run", replaced: list[Path] | tuple = ()
+) -> None:
     """Refuse to overwrite outputs of an earlier run unless forced, naming the first one;
     forced, remove them all before the run starts, so that a run that fails leaves none of
     the earlier run's files beside its own (a verdict, a restart of another run). A symbolic
     link at an output's place (dangling or not) counts as an output: it is removed, not
-    written through."""
+    written through. `replaced`: outputs removed unasked where none of `paths` is there (a
+    forward run's figures, drawn again with its reversal beside it), and counted among the
+    earlier run's where one is, the refusal saying how many it would replace."""
     existing = [path for path in paths if path.exists() or path.is_symlink()]
+    also = [path for path in replaced if path.exists() or path.is_symlink()]
     if existing and not force:
-        more = len(existing) - 1
+        more = len(existing) - 1 + len(also)
         others = f" (and {more} more output{'s' * (more > 1)} of the earlier {of})" if more else ""
         link = " (a symbolic link)" if existing[0].is_symlink() else ""
         raise InputError(f"{existing[0]}: exists{link}{others}; use --force to overwrite")
-    for path in existing:
+    for path in existing + also:
         path.unlink()
 
 
@@ -491,10 +496,9 @@ def reverse(
         written.append(paths["compare"])  # run: checked before the reversal, not after it
         figures = figure_paths(folder, spec)
     keep_checkpoint(folder, spec.name, force)
-    keep_outputs(written, force, "reversal")
-    # with none, the figures are the forward run's (`run --no-reverse`), drawn again with
-    # the reversed run beside it
-    keep_outputs(figures, True)
+    # with no earlier reversal, the figures are the forward run's (`run --no-reverse`),
+    # drawn again with the reversed run beside it
+    keep_outputs(written, force, "reversal", figures)
     stale = stale_exports(written, folder, spec.name)
     with _progress(progress) as shown:
         outputs = reverse_run(restart, out, steps, shown)

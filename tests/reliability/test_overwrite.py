@@ -159,6 +159,23 @@ def test_a_second_reversal_is_refused_unless_forced(out):
     assert after[f"{NAME}.forward.h5"] == before[f"{NAME}.forward.h5"]
 
 
+def test_a_second_reversal_counts_the_figures_it_would_replace(tmp_path):
+    """A reversal over an earlier one replaces its comparison and its figures: the refusal
+    said "(and 1 more output ...)", the figures left uncounted."""
+    scenario = tmp_path / "speed.yaml"
+    scenario.write_text(SMOKE.read_text() + "output: {figures: [speed]}\n")
+    out = tmp_path / "out"
+    assert invoke("run", scenario, "--out", out, *SHORT).exit_code == 0
+    before = snapshot(out)
+    result = invoke("reverse", out / f"{NAME}.restart.h5", "-q")
+    assert_one_line_error(
+        result,
+        f"error: {out / NAME}.reverse.h5: exists (and 2 more outputs of the earlier reversal); "
+        "use --force",
+    )
+    assert snapshot(out) == before
+
+
 def test_a_reversal_into_another_folder_needs_no_force(out, tmp_path):
     result = invoke("reverse", out / f"{NAME}.restart.h5", "--out", tmp_path / "again", "-q")
     assert result.exit_code == 0, result.output
