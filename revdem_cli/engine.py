@@ -285,12 +285,11 @@ def _forward(
             if state.step != clock.last_step:  # its stop condition ended it
                 ran = state.step - clock.first_step
                 stopped[stage.name] = (ran, stage.steps, stage.observable_interval)
-            else:
-                if stage.stop_when is not None:
-                    condition = stage.stop_when.model_dump(exclude_none=True)
-                    unmet[stage.name] = condition | _motion_left(state, stage.stop_when)
-                if off := _stress_not_held(state, run.model, stage):  # after all its steps
-                    unheld[stage.name] = off
+            elif stage.stop_when is not None:
+                condition = stage.stop_when.model_dump(exclude_none=True)
+                unmet[stage.name] = condition | _motion_left(state, stage.stop_when)
+            if off := _stress_not_held(state, run.model, stage):  # however the stage ended
+                unheld[stage.name] = off
             time = float(clock.time(state.step))
             if index < len(scenario.stages) - 1 and scenario.reversal.all_stages:
                 stage_restart = stage_paths(run.out_dir, scenario.name, index, scenario)
@@ -348,11 +347,13 @@ end before the run's summary says the stage did not hold it."""
 
 
 def _stress_not_held(state: State, model, stage) -> dict[str, tuple[float, float]]:
-    """Where `stage` holds a stress on an axis of the cell with its servo and ends all its
-    steps off that target by more than HELD (a stage its stop condition ended is not
-    judged): each such axis's (stress, target), Pa. A servo that overshoots
-    (an inertial servo_mass too small, a proportional servo_gain too large) or a stage too
-    short for it ends so; the run goes on, and its summary says so."""
+    """Where `stage` holds a stress on an axis of the cell with its servo and ends off that
+    target by more than HELD, after all its steps or where its stop condition ended it
+    (one met before the servo got there, a kinetic energy low at once or a solid fraction
+    reached on the way: the next stage would start from a sample its user believes held):
+    each such axis's (stress, target), Pa. A servo that overshoots (an inertial servo_mass
+    too small, a proportional servo_gain too large) or a stage too short for it ends so;
+    the run goes on, and its summary says so."""
     targets = stage.held_stresses()
     if not targets:
         return {}
