@@ -120,6 +120,21 @@ class _Model(BaseModel):
         """pydantic's, with every bound under JSON Schema's keyword (`_StandardBounds`)."""
         return super().model_json_schema(*args, schema_generator=schema_generator, **kwargs)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _none_is_the_default(cls, data):
+        """A field given as None (`--set gravity=`, the API's None, YAML's null) unset: it
+        takes its default, where it has one that is not None (gravity, walls, output), as
+        one whose default is None does; a field without a default stays refused."""
+        if not isinstance(data, dict):
+            return data
+        fields = cls.model_fields
+        return {
+            key: value
+            for key, value in data.items()
+            if value is not None or key not in fields or fields[key].is_required()
+        }
+
 
 class Material(_Model):
     """An elastic material; Young's modulus follows as E = 2G(1 + nu)."""

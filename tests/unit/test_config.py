@@ -1,6 +1,7 @@
 import pytest
 
 from revdem_cli.config import load_scenario, scenario_from_text
+from revdem_cli.config.schema import Scenario
 from revdem_cli.errors import InputError
 from tests.conftest import CONFIGS
 
@@ -97,6 +98,13 @@ def test_an_empty_override_unsets_an_optional_field():
     fcc = CONFIGS / "fcc_triaxial.toml"
     unset = load_scenario(fcc, ["cell.servo=proportional", "cell.servo_mass="])[0]
     assert unset.cell.servo_mass is None
+    # a field whose default is not None takes it (it was refused as "not a valid tuple")
+    walled = load_scenario(CONFIGS / "drop_A.toml", ["gravity=", "walls=", "output="])[0]
+    default = Scenario.model_fields
+    assert walled.gravity == default["gravity"].default == (0.0, 0.0, 0.0)
+    assert walled.walls == [] and walled.output == default["output"].get_default(
+        call_default_factory=True
+    )
     with pytest.raises(InputError, match="integrator.dt: Input should be a valid number"):
         load_scenario(CONFIGS / "collision.toml", ["integrator.dt="])
 
