@@ -324,7 +324,12 @@ def run_stage(
                 checkpoint(state, clock, events)
                 raise RuntimeError(f"the stage loop was halted at step {state.step} for nothing")
             if status == CELL_TOO_SMALL:
-                raise CellTooSmall(state.step, state.cell.length, _servo_held(model, clock))
+                raise CellTooSmall(
+                    state.step,
+                    state.cell.length,
+                    _servo_held(model, clock),
+                    _dt_above_critical(model.scenario, clock.dt),
+                )
             if status == FIXED_OVERFLOW:
                 raise OffGrid(state.step, state.fixed, state.ids)
             if status == BLOWN_UP:
@@ -431,6 +436,21 @@ def _reversed_damping(dyn: Dynamics, law: ContactLaw, backwards: bool) -> str:
     return " and ".join(words for present, words in kinds if present and backwards)
 
 
+def _dt_above_critical(scenario: Scenario, dt: float) -> str:
+    """ "likely cause: dt = ... times the critical time step" where the time step is above
+    the critical estimate (a run let go on with `--allow-unstable-dt`); "" where not."""
+    from revdem_cli.timestep.guard import critical_time_step
+
+    limit, reason = critical_time_step(scenario)
+    ratio = abs(dt) / limit
+    if not ratio > 1.0:
+        return ""
+    return (
+        f"likely cause: dt = {dt:.3g} s is {ratio:.3g} times the critical time step "
+        f"{limit:.3g} s ({reason})"
+    )
+
+
 def _likely_cause(scenario: Scenario, dt: float, damping: str = "", servo: str = "") -> str:
     """What the time step says about a blow-up: above the critical estimate, the likely
     cause; above the least a sphere in many contacts may need (`guard.CROWDED`), a possible
@@ -439,13 +459,10 @@ def _likely_cause(scenario: Scenario, dt: float, damping: str = "", servo: str =
     (`_servo_held`), it is among what may drive the spheres together."""
     from revdem_cli.timestep.guard import CROWDED, critical_time_step
 
+    if above := _dt_above_critical(scenario, dt):
+        return above
     limit, reason = critical_time_step(scenario)
     ratio = abs(dt) / limit
-    if ratio > 1.0:
-        return (
-            f"likely cause: dt = {dt:.3g} s is {ratio:.3g} times the critical time step "
-            f"{limit:.3g} s ({reason})"
-        )
     of_dt = f"dt = {dt:.3g} s is {ratio:.2g} of the critical time step {limit:.3g} s ({reason})"
     if damping:
         return (

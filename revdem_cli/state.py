@@ -342,12 +342,17 @@ class CellTooSmall(RunFailed):
     """A periodic edge shrank to twice the contact reach or less: spheres could then touch
     through two images."""
 
-    def __init__(self, step: int, length: np.ndarray, servo: str = ""):
+    def __init__(self, step: int, length: np.ndarray, servo: str = "", time_step: str = ""):
+        """`servo`: the stage's servo that may swing an edge in (`stage._servo_held`);
+        `time_step`: the time step above the critical one, named first where it is
+        (`stage._dt_above_critical`), as a blow-up's line names it."""
         edges = ", ".join(f"{edge:.4g}" for edge in length)
+        first = f"; {time_step}" if time_step else ""
         held = f"; or {servo}, swinging an edge further at each step" if servo else ""
         super().__init__(
             f"step {step}: the periodic cell ({edges} m) is no longer more than twice the "
-            f"contact reach 2 r_max + skin on every axis; compress it less or start bigger{held}"
+            f"contact reach 2 r_max + skin on every axis{first}; compress it less or start "
+            f"bigger{held}"
         )
 
 

@@ -167,6 +167,18 @@ def test_a_blow_up_under_a_servo_names_it(tmp_path):
     )
 
 
+def test_a_cell_crushed_at_a_time_step_above_the_critical_one_names_the_time_step(tmp_path):
+    """Let go on at 12 times its critical time step (`--allow-unstable-dt`), the fcc cell
+    collapses in 8 steps; its line named only the servo, whose mass holds it at dt = 2 ms,
+    where a blow-up's line names the time step first."""
+    args = ["run", str(CONFIGS / "fcc_triaxial.toml"), "--out", str(tmp_path), "-q", "--threads",
+            "1", "--no-reverse", "--allow-unstable-dt", "--set", "integrator.dt=0.5"]  # fmt: skip
+    line = _failed(CliRunner().invoke(app, args))
+    assert "is no longer more than twice the contact reach" in line
+    before, _ = line.split("; or the inertial servo of stage isotropic", 1)
+    assert "likely cause: dt = 0.5 s is 11.9 times the critical time step 0.0421 s" in before
+
+
 @pytest.mark.parametrize(
     ("servo", "named", "not_named"),
     [
