@@ -20,7 +20,7 @@ import numpy as np
 
 from revdem_cli.compare import read_verdict
 from revdem_cli.errors import InputError
-from revdem_cli.io.h5md import open_trajectory, read_observable
+from revdem_cli.io.h5md import frame_steps, open_trajectory, read_observable
 
 HANLEY_2020 = Path(__file__).parents[2] / "scenarios" / "hanley2020" / "paper_numbers.toml"
 """Hanley 2020's numbers, `revdem report`'s paper file unless given another."""
@@ -165,6 +165,30 @@ class _Run:
 
         return restart_stage_start(self._file("restart.h5"))
 
+    def short_reversal(self) -> str | None:
+        """How far back the reversal went, in words, where it stopped short of the first step
+        of the reversed stage (a `revdem reverse --steps` fewer than the stage's, or a
+        reversal stopped before its end): its verdict then covers those steps alone, not the
+        whole stage the paper reverses, and does not test its claim. None where
+        it went back there (or on, through the stages before, with `[reversal] all_stages`)
+        or where the case has no reversal (no NAME.compare.json); FileNotFoundError naming
+        the reversed trajectory or the restart where one is missing, without which it
+        cannot be told."""
+        if not self._path("compare.json").exists():
+            return None
+        first = self.stage_start
+        with open_trajectory(self.reverse) as f:
+            steps = frame_steps(f)
+        if len(steps) and steps.min() <= first:
+            return None
+        if not len(steps):
+            return "its reversed trajectory holds no frame"
+        start, back = int(steps[0]), int(steps.min())
+        return (
+            f"it reversed {start - back} of the reversed stage's {start - first} steps, going "
+            f"back from step {start} to step {back}, not to step {first}"
+        )
+
     @property
     def ran(self) -> bool:
         """Whether the case has a run in the directory (its trajectory or its verdict)."""
@@ -213,9 +237,47 @@ def _show(value) -> str:
     return str(value)
 
 
-def case_rows(name: str, case: dict, directory: Path) -> list[tuple[str, str, str, str]]:
-    """(quantity, paper, revdem, agrees) for each number the case reports; InputError naming
-    a file of its run that is damaged."""
+def not_judged(name: str, case: dict, directory: Path) -> tuple[list[str], str]:
+    """What the page says of the case's run in `directory` before its numbers, and the word
+    its rows carry in place of yes or no ('' where they are judged). A run is not the
+    paper's case where its stored scenario differs from the case's config (made with --set,
+    say: `differences`) or where its reversal stopped short of the start of the reversed
+    stage (`_Run.short_reversal`): either way its numbers answer another question than the
+    paper's, and agreeing with them or not would be misread as revdem's answer to it. Where
+    its reversed trajectory or restart is missing, how far back its reversal went cannot be
+    told, and it is not judged either."""
+    lines, why = [], []
+    forward = Path(directory) / f"{name}.forward.h5"
+    changed = differences(forward, case["config"]) if "config" in case and forward.exists() else []
+    if changed is None:
+        lines.append(f"(`{case['config']}` is not there to check the run against.)")
+    elif changed:
+        why.append(
+            f"the run differs from `{case['config']}` in "
+            + "; ".join(f"`{change}`" for change in changed)
+        )
+    unknown = ""
+    try:
+        short = _Run(directory, name, case).short_reversal()
+    except FileNotFoundError as exc:
+        short, unknown = None, Path(exc.filename).name
+    if short:
+        why.append(short)
+    if why:
+        sentence = "**Not the paper's case**: " + "; ".join(why) + "."
+        return lines + [sentence + " Its numbers are shown, not judged."], "not the case"
+    if unknown:
+        sentence = f"**Not judged**: no {unknown}, without which how far back its reversal went"
+        return lines + [sentence + " cannot be told. Its numbers are shown."], "not judged"
+    return lines, ""
+
+
+def case_rows(
+    name: str, case: dict, directory: Path, unjudged: str = ""
+) -> list[tuple[str, str, str, str]]:
+    """(quantity, paper, revdem, agrees) for each number the case reports, agrees being
+    `unjudged` in place of yes or no where it is given (`not_judged`); InputError naming a
+    file of its run that is damaged."""
     run = _Run(directory, name, case)
     rows = []
     for key, paper in case.items():
@@ -235,7 +297,7 @@ def case_rows(name: str, case: dict, directory: Path) -> list[tuple[str, str, st
         shown = f"≤ {_show(paper)}" if how == "at most" else _show(paper)
         if how == "close":
             shown += f" ± {100 * (tolerance or 0.0):g}%"
-        rows.append((key, shown, _show(ours), "yes" if agrees else "**no**"))
+        rows.append((key, shown, _show(ours), unjudged or ("yes" if agrees else "**no**")))
     return rows
 
 
@@ -299,24 +361,11 @@ def write_report(directory: Path, paper_path: Path, out: Path, keep: bool = Fals
     for name, case in paper.items():
         title = f"## {name}" + (f" ({case['section']})" if "section" in case else "")
         lines += ["", title, ""]
-        rows = case_rows(name, case, Path(directory))
         if "config" in case:
             lines += [f"`{case['config']}`" + (f": {case['claim']}" if "claim" in case else ""), ""]
-            forward = Path(directory) / f"{name}.forward.h5"
-            changed = differences(forward, case["config"]) if forward.exists() else []
-            if changed:
-                lines += [
-                    f"**Not the paper's case**: the run differs from `{case['config']}` in "
-                    + "; ".join(f"`{change}`" for change in changed)
-                    + ". Its numbers are shown, not judged.",
-                    "",
-                ]
-                rows = [
-                    (key, paper, ours, "not the case" if agrees else "")
-                    for key, paper, ours, agrees in rows
-                ]
-            elif changed is None:
-                lines += [f"(`{case['config']}` is not there to check the run against.)", ""]
+        said, unjudged = not_judged(name, case, Path(directory))
+        lines += [line for sentence in said for line in (sentence, "")]
+        rows = case_rows(name, case, Path(directory), unjudged)
         lines += ["| quantity | paper | revdem | agrees |", "|---|---|---|---|"]
         lines += [f"| {' | '.join(row)} |" for row in rows]
         figures = sorted(Path(directory).glob(f"{name}.*.png"))

@@ -82,6 +82,47 @@ def test_a_run_of_other_settings_than_the_cases_is_shown_not_judged(smoke_run, t
     assert "Not the paper's case" not in page.read_text()
 
 
+def test_a_reversal_short_of_the_reversed_stages_start_is_shown_not_judged(tmp_path):
+    """`revdem reverse --steps 300` of the smoke collision's 1000 steps reverses steps 1000
+    to 700 alone: its error was judged to agree with the paper's claim of the whole stage,
+    which it never tested. A reversal of the whole stage is judged; one whose restart is
+    gone, which alone tells where the stage began, is not."""
+    paper = tmp_path / "paper.toml"
+    paper.write_text(PAPER.replace("CONFIG", smoke_config(tmp_path)))
+    out = tmp_path / "part"
+    args = ["run", smoke_config(tmp_path), "--out", str(out), "-q", "--no-reverse"]
+    assert runner.invoke(app, args).exit_code == 0
+    restart = str(out / "collision_smoke.restart.h5")
+    result = runner.invoke(app, ["reverse", restart, "--steps", "300", "-q"])
+    assert result.exit_code == 0, result.output
+
+    def case(directory):
+        page = tmp_path / "page.md"
+        args = ["report", str(directory), "--paper", str(paper), "--out", str(page), "--force"]
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, result.output
+        smoke = page.read_text().split("## drop_A")[0]
+        rows = {line.split(" | ")[0].strip("| "): line for line in smoke.splitlines()}
+        return smoke, rows
+
+    smoke, rows = case(out)
+    assert (
+        "**Not the paper's case**: it reversed 300 of the reversed stage's 1000 steps, going "
+        "back from step 1000 to step 700, not to step 0. Its numbers are shown, not judged."
+        in smoke
+    )
+    assert rows["max_position_error_rel"].endswith("| not the case |")
+    result = runner.invoke(app, ["reverse", restart, "-q", "--force"])  # the whole stage
+    assert result.exit_code == 0, result.output
+    smoke, rows = case(out)
+    assert "Not the paper's case" not in smoke
+    assert rows["max_position_error_rel"].endswith("| yes |")
+    (out / "collision_smoke.restart.h5").unlink()
+    smoke, rows = case(out)
+    assert "**Not judged**: no collision_smoke.restart.h5, without which how far back" in smoke
+    assert rows["max_position_error_rel"].endswith("| not judged |")
+
+
 def test_a_run_reversing_every_stage_is_measured_at_its_reversed_stage(tmp_path):
     """With `[reversal] all_stages` the reversed trajectory runs back to step 0, whose
     lattice carries no stress: the fcc case's start and reversed values were read there
