@@ -62,18 +62,31 @@ def _velocity_before_contact(run) -> float:
         return float(f["particles/all/velocity/value"][before[-1], 0, 2])
 
 
+class NotInRun(LookupError):
+    """A value a measure reads that the run's file does not hold: an observable it did not
+    record, or no row of it at the step asked (a reversal stopped short of the reversed
+    stage's start has none there). Its row says which, in place of a number."""
+
+
 def _observable_at(run, moment: str, name: str) -> np.ndarray:
     """An observable of the reversed stage at `moment`: 'start' (forward run, where the
     stage began), 'end' (forward run, last row: the restart) or 'reversed' (the reversed
     run at the stage's start: its last row, or where every stage is reversed, its row
-    there)."""
+    there); NotInRun where the file has no such row."""
+    path = run.reverse if moment == "reversed" else run.forward
     first = run.stage_start
-    with open_trajectory(run.reverse if moment == "reversed" else run.forward) as f:
+    with open_trajectory(path) as f:
+        if f"observables/{name}/value" not in f:
+            raise NotInRun(f"no {name} in {path.name}")
         steps = f[f"observables/{name}/step"][:]
         values = f[f"observables/{name}/value"][:]
-    if moment == "end":
+    if moment == "end" and len(values):
         return values[-1]
-    return values[np.nonzero(steps == first)[0][0]]
+    there = np.nonzero(steps == first)[0]
+    if moment == "end" or not len(there):
+        at = "" if moment == "end" else f" at step {first}"
+        raise NotInRun(f"no {name}{at} in {path.name}")
+    return values[there[0]]
 
 
 def _stress_ratio(principal: np.ndarray) -> np.ndarray:
@@ -291,6 +304,9 @@ def case_rows(
             ours = measure(run)
         except FileNotFoundError as exc:  # no run, or a run without its reversal
             rows.append((key, _show(paper), f"no {Path(exc.filename).name}", ""))
+            continue
+        except NotInRun as exc:
+            rows.append((key, _show(paper), str(exc), ""))
             continue
         tolerance = case.get(f"{key}_relative_tolerance", case.get("relative_tolerance"))
         agrees = _judge(how, paper, ours, tolerance)

@@ -148,6 +148,32 @@ def test_a_run_reversing_every_stage_is_measured_at_its_reversed_stage(tmp_path)
     assert rows["coordination_number_start"] == "12"
 
 
+def test_a_value_the_run_does_not_hold_is_named_in_its_row(tmp_path):
+    """The fcc test reversed 1000 of its sheared stage's 2000 steps has no row at the
+    stage's start, where its reversed values are read: `revdem report` failed with an
+    IndexError. Its row names what the run lacks, as for a wall the run does not have."""
+    out = tmp_path / "fcc"
+    args = ["run", str(ROOT / "configs/fcc_triaxial.toml"), "--out", str(out), "-q"]
+    args += ["--no-reverse", "--set", "stages.0.steps=3000", "--set", "stages.1.steps=2000"]
+    assert runner.invoke(app, args).exit_code == 0
+    restart = str(out / "fcc_triaxial.restart.h5")
+    assert runner.invoke(app, ["reverse", restart, "--steps", "1000", "-q"]).exit_code == 0
+    paper = tmp_path / "paper.toml"
+    text = (ROOT / "scenarios/hanley2020/paper_numbers.toml").read_text()
+    walled = '[fcc_triaxial]\nlower_wall = "bottom"\nlower_wall_force_end = 1.0'
+    paper.write_text(text.replace("[fcc_triaxial]", walled))  # the periodic cell has none
+    page = tmp_path / "r.md"
+    result = runner.invoke(app, ["report", str(out), "--paper", str(paper), "--out", str(page)])
+    assert result.exit_code == 0, result.output
+    case = page.read_text().split("## fcc_triaxial")[1]
+    rows = {line.split(" | ")[0].strip("| "): line for line in case.splitlines()}
+    lacks = "no coordination_number at step 3000 in fcc_triaxial.reverse.h5 |  |"
+    assert rows["coordination_number_reversed"].endswith(lacks)
+    assert rows["lower_wall_force_end"].endswith(
+        "| no wall_force/bottom in fcc_triaxial.forward.h5 |  |"
+    )
+
+
 def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # the project's paper file, wherever revdem runs from
     runs = tmp_path / "runs"  # the smoke collision's verdict as the paper's collision's
