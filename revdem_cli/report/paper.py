@@ -3,8 +3,11 @@ what revdem's runs in a directory gave.
 
 Each table of the paper file is a case: `config` names the scenario, whose run in the
 directory is NAME.forward.h5 and NAME.compare.json (NAME: the table's name). Each number a
-case reports is measured by the entry of MEASURES of the same name; `relative_tolerance` or
-`<quantity>_relative_tolerance` sets how close counts as agreeing.
+case reports is measured by the entry of MEASURES of the same name; how close counts as
+agreeing is set by `<quantity>_absolute_tolerance`, else `<quantity>_relative_tolerance`, else
+the case's `relative_tolerance` (`tolerance_of`). A number the run itself sets, not one it
+reports (a stage that stops when it reaches the paper's value), is named by
+`<quantity>_set_by`, saying what sets it: it is shown, not judged.
 """
 
 from __future__ import annotations
@@ -27,6 +30,14 @@ HANLEY_2020 = Path(__file__).parents[2] / "scenarios" / "hanley2020" / "paper_nu
 
 ABOUT = {"config", "section", "claim", "relative_tolerance", "lower_wall", "upper_wall"}
 """Entries of a case that describe it rather than report a number."""
+
+QUALIFIERS = ("_absolute_tolerance", "_relative_tolerance", "_set_by")
+"""Endings of a case's entries that say how to judge the number their start names."""
+
+
+def _qualified(key: str) -> str | None:
+    """The quantity an entry qualifies (`QUALIFIERS`), None where it qualifies none."""
+    return next((key.removesuffix(end) for end in QUALIFIERS if key.endswith(end)), None)
 
 
 def _verdict(key: str) -> Callable:
@@ -234,12 +245,24 @@ def differences(run_path: Path, config: str) -> list[str] | None:
     ]
 
 
-def _judge(how: str, paper, ours, tolerance: float | None) -> bool:
+def tolerance_of(case: dict, key: str) -> tuple[float, bool]:
+    """(tolerance, whether it is absolute) within which revdem's `key` agrees with the
+    case's: `<key>_absolute_tolerance` where the case gives one, for a number that changes
+    over the run by a small part of itself (a solid fraction, 0.606 to 0.625: at 10 % the
+    start would agree with the end), else `<key>_relative_tolerance`, else the case's
+    `relative_tolerance`, else none (relative 0)."""
+    if f"{key}_absolute_tolerance" in case:
+        return case[f"{key}_absolute_tolerance"], True
+    return case.get(f"{key}_relative_tolerance", case.get("relative_tolerance", 0.0)), False
+
+
+def _judge(how: str, paper, ours, tolerance: tuple[float, bool]) -> bool:
     if how == "at most":
         return ours <= paper
     if how == "equal":
         return ours == paper
-    return abs(ours - paper) <= (tolerance or 0.0) * abs(paper)
+    within, absolute = tolerance
+    return abs(ours - paper) <= within * (1.0 if absolute else abs(paper))
 
 
 def _show(value) -> str:
@@ -294,7 +317,7 @@ def case_rows(
     run = _Run(directory, name, case)
     rows = []
     for key, paper in case.items():
-        if key in ABOUT or key.endswith("_relative_tolerance"):
+        if key in ABOUT or _qualified(key):
             continue
         if key not in MEASURES:
             rows.append((key, _show(paper), "not measured", ""))
@@ -308,11 +331,17 @@ def case_rows(
         except NotInRun as exc:
             rows.append((key, _show(paper), str(exc), ""))
             continue
-        tolerance = case.get(f"{key}_relative_tolerance", case.get("relative_tolerance"))
+        if f"{key}_set_by" in case:  # an input of the run: its agreeing would test nothing
+            rows.append(
+                (key, _show(paper), _show(ours), f"not judged: set by {case[key + '_set_by']}")
+            )
+            continue
+        tolerance = tolerance_of(case, key)
         agrees = _judge(how, paper, ours, tolerance)
         shown = f"≤ {_show(paper)}" if how == "at most" else _show(paper)
         if how == "close":
-            shown += f" ± {100 * (tolerance or 0.0):g}%"
+            within, absolute = tolerance
+            shown += f" ± {within:g}" if absolute else f" ± {100 * within:g}%"
         rows.append((key, shown, _show(ours), unjudged or ("yes" if agrees else "**no**")))
     return rows
 
@@ -333,6 +362,7 @@ def read_paper(paper_path: Path) -> dict[str, dict]:
         )
     for name, case in cases.items():
         for key, value in case.items():
+            _check_qualifier(paper_path, name, case, key)
             if key not in MEASURES:
                 continue
             if MEASURES[key][0] == "equal" and not isinstance(value, bool):
@@ -341,6 +371,22 @@ def read_paper(paper_path: Path) -> dict[str, dict]:
             if MEASURES[key][0] != "equal" and not number:
                 raise InputError(f"{paper_path}: {name}.{key} = {value!r}: give a number")
     return cases
+
+
+def _check_qualifier(paper_path: Path, name: str, case: dict, key: str) -> None:
+    """InputError naming the paper file and the entry where `key` of the case is a
+    tolerance that is not a number at least 0, a `_set_by` that is not words, or either of
+    a number the case does not report."""
+    value, quantity = case[key], _qualified(key)
+    if quantity is None and key != "relative_tolerance":
+        return
+    if key.endswith("_set_by"):
+        if not isinstance(value, str) or not value:
+            raise InputError(f"{paper_path}: {name}.{key} = {value!r}: say what sets it")
+    elif isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
+        raise InputError(f"{paper_path}: {name}.{key} = {value!r}: give a number, 0 or more")
+    if quantity is not None and quantity not in case:
+        raise InputError(f"{paper_path}: {name}.{key}: {name} reports no {quantity}")
 
 
 def from_here(path: Path) -> Path:

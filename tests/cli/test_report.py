@@ -82,6 +82,51 @@ def test_a_run_of_other_settings_than_the_cases_is_shown_not_judged(smoke_run, t
     assert "Not the paper's case" not in page.read_text()
 
 
+def test_a_number_within_an_absolute_tolerance_and_one_the_run_sets(smoke_run, tmp_path):
+    """The oedometer's solid fractions were judged within the case's 10 %, which let its
+    start (0.606) pass for its end (0.625), and its start, where a stage of the run stops,
+    was said to agree. `<quantity>_absolute_tolerance` judges a number within so much of
+    the paper's, before any relative tolerance; `<quantity>_set_by` shows it, not judged."""
+    paper = tmp_path / "paper.toml"
+    given = PAPER.replace("CONFIG", smoke_config(tmp_path))
+
+    def report(*entries):
+        paper.write_text(given.replace("[drop_A]", "\n".join(entries) + "\n\n[drop_A]"))
+        page = tmp_path / "page.md"
+        args = ["report", str(smoke_run), "--paper", str(paper), "--out", str(page), "--force"]
+        result = runner.invoke(app, args)
+        if result.exit_code:
+            return result
+        lines = page.read_text().split("## drop_A")[0].splitlines()
+        return {line.split(" | ")[0].strip("| "): line for line in lines if line.startswith("| ")}
+
+    rows = report("max_shear_force_absolute_tolerance = 0.07", 'reversible_set_by = "the test"')
+    assert rows["max_shear_force"].endswith("| 0.066 ± 0.07 | 0 | yes |")  # 10 %: **no**
+    assert rows["reversible"].endswith("| no | yes | not judged: set by the test |")
+    for entry, wrong in [
+        ("max_shear_force_absolute_tolerance = -1", "= -1: give a number, 0 or more"),
+        ('max_shear_force_absolute_tolerance = "x"', "= 'x': give a number, 0 or more"),
+        ("reversible_set_by = 1", "reversible_set_by = 1: say what sets it"),
+        ("max_normal_force_absolute_tolerance = 1", "collision_smoke reports no max_normal_force"),
+    ]:
+        assert_one_line_error(report(entry), f"collision_smoke.{entry.split(' =')[0]}", wrong)
+
+
+def test_the_oedometers_solid_fractions_are_told_apart():
+    """Within the committed paper file's tolerance the oedometer's end is not its start nor
+    its start its end, while the paper's rounding (0.0005) and the 0.0006 by which the close
+    stage may pass 0.606 are within it; the start, which the run sets, is not judged."""
+    from revdem_cli.report.paper import HANLEY_2020, _judge, read_paper, tolerance_of
+
+    oedometer = read_paper(HANLEY_2020)["oedometer"]
+    for moment, other in (("end", "start"), ("reversed", "end")):
+        key = f"solid_fraction_{moment}"
+        tolerance = tolerance_of(oedometer, key)
+        assert not _judge("close", oedometer[key], oedometer[f"solid_fraction_{other}"], tolerance)
+        assert _judge("close", oedometer[key], oedometer[key] + 0.0011, tolerance)
+    assert "solid_fraction_start_set_by" in oedometer
+
+
 def test_a_reversal_short_of_the_reversed_stages_start_is_shown_not_judged(tmp_path):
     """`revdem reverse --steps 300` of the smoke collision's 1000 steps reverses steps 1000
     to 700 alone: its error was judged to agree with the paper's claim of the whole stage,
