@@ -7,7 +7,9 @@ case reports is measured by the entry of MEASURES of the same name; how close co
 agreeing is set by `<quantity>_absolute_tolerance`, else `<quantity>_relative_tolerance`, else
 the case's `relative_tolerance` (`tolerance_of`). A number the run itself sets, not one it
 reports (a stage that stops when it reaches the paper's value), is named by
-`<quantity>_set_by`, saying what sets it: it is shown, not judged.
+`<quantity>_set_by`, saying what sets it: it is shown, not judged. A number of revdem's
+standing for words of the paper (a tolerance for "the curves overlap", where the paper gives
+none) says so by `<quantity>_stands_for`, the words.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ HANLEY_2020 = Path(__file__).parents[2] / "scenarios" / "hanley2020" / "paper_nu
 ABOUT = {"config", "section", "claim", "relative_tolerance", "lower_wall", "upper_wall"}
 """Entries of a case that describe it rather than report a number."""
 
-QUALIFIERS = ("_absolute_tolerance", "_relative_tolerance", "_set_by")
+QUALIFIERS = ("_absolute_tolerance", "_relative_tolerance", "_set_by", "_stands_for")
 """Endings of a case's entries that say how to judge the number their start names."""
 
 
@@ -323,27 +325,35 @@ def case_rows(
             rows.append((key, _show(paper), "not measured", ""))
             continue
         how, measure = MEASURES[key]
+        shown = _paper_cell(case, key, how)
         try:
             ours = measure(run)
         except FileNotFoundError as exc:  # no run, or a run without its reversal
-            rows.append((key, _show(paper), f"no {Path(exc.filename).name}", ""))
+            rows.append((key, shown, f"no {Path(exc.filename).name}", ""))
             continue
         except NotInRun as exc:
-            rows.append((key, _show(paper), str(exc), ""))
+            rows.append((key, shown, str(exc), ""))
             continue
         if f"{key}_set_by" in case:  # an input of the run: its agreeing would test nothing
-            rows.append(
-                (key, _show(paper), _show(ours), f"not judged: set by {case[key + '_set_by']}")
-            )
+            rows.append((key, shown, _show(ours), f"not judged: set by {case[key + '_set_by']}"))
             continue
-        tolerance = tolerance_of(case, key)
-        agrees = _judge(how, paper, ours, tolerance)
-        shown = f"≤ {_show(paper)}" if how == "at most" else _show(paper)
-        if how == "close":
-            within, absolute = tolerance
-            shown += f" ± {within:g}" if absolute else f" ± {100 * within:g}%"
+        agrees = _judge(how, paper, ours, tolerance_of(case, key))
         rows.append((key, shown, _show(ours), unjudged or ("yes" if agrees else "**no**")))
     return rows
+
+
+def _paper_cell(case: dict, key: str, how: str) -> str:
+    """The paper column of a row: the case's number as it is judged (≤ a bound, ± a
+    tolerance; bare where the run sets it), and where it stands for words of the paper
+    (`<quantity>_stands_for`), those words first, the number marked revdem's: a tolerance
+    revdem judges a claim the paper makes in words by, which a reader would otherwise take
+    for a number the paper gives."""
+    shown = f"≤ {_show(case[key])}" if how == "at most" else _show(case[key])
+    if how == "close" and f"{key}_set_by" not in case:
+        within, absolute = tolerance_of(case, key)
+        shown += f" ± {within:g}" if absolute else f" ± {100 * within:g}%"
+    words = case.get(f"{key}_stands_for")
+    return f'"{words}": revdem\'s {shown}' if words else shown
 
 
 def read_paper(paper_path: Path) -> dict[str, dict]:
@@ -375,14 +385,16 @@ def read_paper(paper_path: Path) -> dict[str, dict]:
 
 def _check_qualifier(paper_path: Path, name: str, case: dict, key: str) -> None:
     """InputError naming the paper file and the entry where `key` of the case is a
-    tolerance that is not a number at least 0, a `_set_by` that is not words, or either of
-    a number the case does not report."""
+    tolerance that is not a number at least 0, a `_set_by` or `_stands_for` that is not
+    words, or any of them of a number the case does not report."""
     value, quantity = case[key], _qualified(key)
     if quantity is None and key != "relative_tolerance":
         return
-    if key.endswith("_set_by"):
+    words = {"_set_by": "say what sets it", "_stands_for": "give the paper's words"}
+    ending = next((end for end in words if key.endswith(end)), None)
+    if ending:
         if not isinstance(value, str) or not value:
-            raise InputError(f"{paper_path}: {name}.{key} = {value!r}: say what sets it")
+            raise InputError(f"{paper_path}: {name}.{key} = {value!r}: {words[ending]}")
     elif isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
         raise InputError(f"{paper_path}: {name}.{key} = {value!r}: give a number, 0 or more")
     if quantity is not None and quantity not in case:

@@ -127,6 +127,32 @@ def test_the_oedometers_solid_fractions_are_told_apart():
     assert "solid_fraction_start_set_by" in oedometer
 
 
+def test_a_tolerance_of_revdems_is_shown_as_standing_for_the_papers_words(smoke_run, tmp_path):
+    """Hanley 2020 gives no bound on a reversal's error (§3.2.1: the plots overlap), yet the
+    paper column showed revdem's tolerances, ≤ 1e-10, as if it did. A number with
+    `<quantity>_stands_for` is shown after the paper's words, marked revdem's, and judged
+    as before."""
+    from revdem_cli.report.paper import HANLEY_2020, MEASURES, read_paper
+
+    paper = tmp_path / "paper.toml"
+    stands = 'max_position_error_rel_stands_for = "the curves overlap"\n[drop_A]'
+    paper.write_text(PAPER.replace("CONFIG", smoke_config(tmp_path)).replace("[drop_A]", stands))
+    page = tmp_path / "page.md"
+    args = ["report", str(smoke_run), "--paper", str(paper), "--out", str(page)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    row = '| max_position_error_rel | "the curves overlap": revdem\'s ≤ 1e-10 | '
+    assert next(line for line in page.read_text().splitlines() if line.startswith(row)).endswith(
+        "| yes |"
+    )
+    paper.write_text(paper.read_text().replace('"the curves overlap"', "1"))
+    wrong = "collision_smoke.max_position_error_rel_stands_for = 1: give the paper's words"
+    assert_one_line_error(runner.invoke(app, [*args, "--force"]), wrong)
+    for case in read_paper(HANLEY_2020).values():  # the paper bounds no error: each is revdem's
+        bounds = [key for key in case if MEASURES.get(key, ("",))[0] == "at most"]
+        assert all(f"{key}_stands_for" in case for key in bounds), case
+
+
 def test_a_reversal_short_of_the_reversed_stages_start_is_shown_not_judged(tmp_path):
     """`revdem reverse --steps 300` of the smoke collision's 1000 steps reverses steps 1000
     to 700 alone: its error was judged to agree with the paper's claim of the whole stage,
@@ -228,7 +254,7 @@ def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypat
     assert result.exit_code == 0, result.output
     page = (tmp_path / "r.md").read_text()
     assert "## collision_shear (§4, Figure 5)" in page
-    assert "| max_position_error_rel | ≤ 1e-10 |" in page
+    assert '| max_position_error_rel | "the plots ... are overlapping": revdem\'s ≤ 1e-10 |' in page
     assert page.startswith(f"# {ROOT / 'scenarios/hanley2020/paper_numbers.toml'} against ")
     monkeypatch.chdir(ROOT)  # below the working folder, named from there, as `make paper` does
     result = runner.invoke(app, ["report", str(runs), "--out", str(tmp_path / "r.md"), "--force"])
