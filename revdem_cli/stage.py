@@ -439,14 +439,14 @@ def _reversed_damping(dyn: Dynamics, law: ContactLaw, backwards: bool) -> str:
 def _dt_above_critical(scenario: Scenario, dt: float) -> str:
     """ "likely cause: dt = ... times the critical time step" where the time step is above
     the critical estimate (a run let go on with `--allow-unstable-dt`); "" where not."""
-    from revdem_cli.timestep.guard import critical_time_step
+    from revdem_cli.timestep.guard import critical_time_step, times_above
 
     limit, reason = critical_time_step(scenario)
     ratio = abs(dt) / limit
     if not ratio > 1.0:
         return ""
     return (
-        f"likely cause: dt = {dt:.3g} s is {ratio:.3g} times the critical time step "
+        f"likely cause: dt = {dt:.3g} s is {times_above(ratio)} times the critical time step "
         f"{limit:.3g} s ({reason})"
     )
 

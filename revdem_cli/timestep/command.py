@@ -242,6 +242,11 @@ def _sweep_values(spec: str) -> tuple[str, list[float]]:
         raise InputError(f"--sweep {spec!r}: expected {name}=START:STOP:COUNT") from None
     if not 1 <= count <= MAX_SWEEP:
         raise InputError(f"--sweep {spec!r}: COUNT must be between 1 and {MAX_SWEEP}")
+    if count == 1 and start != stop:  # one value cannot reach STOP: it was dropped
+        raise InputError(
+            f"--sweep {spec!r}: COUNT 1 takes START alone; give START = STOP or a COUNT of 2 "
+            "or more"
+        )
     check = _non_negative if name in ("ks", "damping") else _positive  # as --ks, --damping
     for end in (start, stop):
         check(f"--sweep {spec!r}: {name}", end)

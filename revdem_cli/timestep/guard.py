@@ -246,6 +246,16 @@ def critical_time_step(scenario: Scenario) -> tuple[float, str]:
     )
 
 
+def times_above(ratio: float) -> str:
+    """A ratio above 1 with as many digits as show it above 1 (1.005, where 3 digits said
+    1, as if the time step were at its limit, not above it)."""
+    for digits in range(3, 18):
+        text = f"{ratio:.{digits}g}"
+        if float(text) > 1.0:
+            break
+    return text
+
+
 @dataclass(frozen=True)
 class Excess:
     """A time step above a limit: the field that sets it, its value, the limit's name and
@@ -258,7 +268,7 @@ class Excess:
     reason: str
 
     def __str__(self) -> str:
-        times = f"{self.dt / self.limit:.3g} times" if self.limit > 0.0 else "above"
+        times = f"{times_above(self.dt / self.limit)} times" if self.limit > 0.0 else "above"
         return (
             f"{self.field} = {self.dt:.3g} s is {times} the {self.limit_name} {self.limit:.3g} s "
             f"({self.reason})"

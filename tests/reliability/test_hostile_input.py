@@ -368,3 +368,11 @@ def test_a_threading_layer_numba_does_not_know_is_one_line():
         "error: NUMBA_THREADING_LAYER bogus: The threading layer requested 'bogus' is unknown "
         "to Numba."
     ]
+
+
+def test_a_sweep_of_one_value_from_start_to_another_stop_is_refused():
+    """`kn=1e6:1e7:1` dropped STOP and gave the one row at START."""
+    args = ["dt", "--shape", "sphere", "--radius", "0.01", "--density", "1000"]
+    result = invoke(*args, "--sweep", "kn=1e6:1e7:1")
+    assert_one_line_error(result, "--sweep 'kn=1e6:1e7:1': COUNT 1 takes START alone")
+    assert invoke(*args, "--sweep", "kn=1e6:1e6:1").exit_code == 0

@@ -155,3 +155,18 @@ def test_scenarios_apart_in_one_fields_value_name_that_field_alone():
     assert fields_apart(unset, load_scenario(smoke)[0]) == [
         ("stages.1.stop_when.kinetic_energy_below", "(unset)", 1.5e-7)
     ]
+
+
+def test_a_time_step_just_above_its_limit_is_not_said_to_be_at_it():
+    """dt = 4e-5 s against 3.98e-5 s was refused as "1 times the critical time step"."""
+    from revdem_cli.timestep.guard import time_step_excess, times_above
+
+    scenario = load_scenario(CONFIGS / "smoke" / "oedometer.toml", ["integrator.dt=4e-5"])[0]
+    said = str(time_step_excess(scenario))
+    assert "4e-05 s is 1.005 times the critical time step 3.98e-05 s" in said
+    assert [times_above(r) for r in (1.0049, 1.0000001, 2.5, 11.94)] == [
+        "1.005",
+        "1.0000001",
+        "2.5",
+        "11.9",
+    ]
