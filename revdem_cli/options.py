@@ -23,6 +23,13 @@ def named_folder(value: str | Path) -> Path:
     return Path(_given(value, "give a directory (. for this one)"))
 
 
+def file_to_read(value: str | Path) -> Path:
+    """A file given to read (`dt --restart`), as given."""
+    if isinstance(value, Path):
+        return value
+    return Path(_given(value, "name a file"))
+
+
 def named_file(value: str | Path) -> str | Path:
     """An --out that names a file (or a folder, as `export --vtk`'s does), kept as the
     string given: Path drops a trailing separator, by which `io.refuse_overwriting` tells

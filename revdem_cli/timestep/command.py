@@ -12,7 +12,7 @@ from typing import Annotated
 import typer
 
 from revdem_cli.errors import InputError, WriteFailed, given_options
-from revdem_cli.options import named_file
+from revdem_cli.options import file_to_read, named_file, named_folder
 
 SHAPES = ("sphere", "ellipsoid", "superquadric", "polyhedron")
 SIZES = {
@@ -526,15 +526,17 @@ def dt(
     figures: Annotated[
         Path | None,
         typer.Option(
+            parser=named_folder,
             help="Write Peng 2020 Figures 3-6, A2 and A4 (PNG and CSV) and Figure 2's "
-            "mobilities (CSV) to this folder."
+            "mobilities (CSV) to this folder.",
         ),
     ] = None,
     restart: Annotated[
         Path | None,
         typer.Option(
+            parser=file_to_read,
             help="A restart or checkpoint of a sphere scenario: the critical time step of its "
-            "packing (eigenvalues of M⁻¹K); --verify bisects the stepping loop's own limit."
+            "packing (eigenvalues of M⁻¹K); --verify bisects the stepping loop's own limit.",
         ),
     ] = None,
 ) -> None:

@@ -134,6 +134,10 @@ def test_an_empty_out_is_refused_not_read_as_here(tmp_path, monkeypatch):
     result = invoke("run", COLLISION, "--out", "", "-q")
     assert_one_line_error(result, "Invalid value for '--out': an empty path")
     assert not list(tmp_path.iterdir())
+    # dt --figures "" wrote its 13 figures here; --restart "" read "." as a restart
+    for option in ("--figures", "--restart"):
+        assert_one_line_error(invoke("dt", option, ""), f"'{option}': an empty path")
+    assert not list(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize("what", ["validate", "info", "reverse", "dt"])
