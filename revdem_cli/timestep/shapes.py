@@ -147,7 +147,8 @@ def _symmetry_centre(corners: np.ndarray, tolerance: float) -> tuple[np.ndarray,
     mirror image through it (within `tolerance`). Their mean where every vertex has one; else
     the centre through which most do, so that a vertex without a mirror does not move it: each
     vertex paired with its mirror proposes the centre as their midpoint, and the midpoints of
-    SYMMETRY_BASES vertices with every vertex proposed most often are tried."""
+    SYMMETRY_BASES vertices with every vertex proposed most often are tried; the mean again
+    where none is shared by more than half of them (a tetrahedron)."""
     from scipy.spatial import cKDTree
 
     tree = cKDTree(corners)
@@ -164,8 +165,10 @@ def _symmetry_centre(corners: np.ndarray, tolerance: float) -> tuple[np.ndarray,
         np.round(midpoints / tolerance), axis=0, return_index=True, return_counts=True
     )
     proposed = midpoints[first[np.argsort(-counts, kind="stable")[:SYMMETRY_CANDIDATES]]]
-    centre = max(proposed, key=lambda candidate: mirrored(candidate).sum())
-    return centre, mirrored(centre)
+    best = max(proposed, key=lambda candidate: mirrored(candidate).sum())
+    if 2 * mirrored(best).sum() <= len(corners):  # no centre that most vertices share (a
+        return centre, mirrored(centre)  # tetrahedron's edge midpoint pairs 2 of 4): the mean
+    return best, mirrored(best)
 
 
 def polyhedron(vertices: np.ndarray, density: float, source: str) -> Body:

@@ -259,7 +259,11 @@ def test_bad_options_exit_2_naming_the_option(args, fragments):
     "content, fragments",
     [
         (CUBE + "\n0.1 0 0\n-0.1 0 0\n", ["vertex 9", "not convex"]),
-        ("1 1 1\n1 -1 -1\n-1 1 -1\n-1 -1 1\n", ["not centrally symmetric"]),
+        # a regular tetrahedron: named through its centroid, not an edge's midpoint
+        (
+            "1 1 1\n1 -1 -1\n-1 1 -1\n-1 -1 1\n",
+            ["through the centre [0.0, 0.0, 0.0]", "not centrally symmetric"],
+        ),
         # a cube with a bump on one face: the bump has no mirror through the cube's centre
         (CUBE + "\n1.5 0 0\n", ["vertex 9 has no mirror", "[0.0, 0.0, 0.0]", "not centrally"]),
         ("1.5 0 0\n" + CUBE, ["vertex 1 has no mirror", "[0.0, 0.0, 0.0]", "not centrally"]),
