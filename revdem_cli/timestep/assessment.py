@@ -277,8 +277,10 @@ def _own_dynamics(checks) -> list[Estimate]:
     return [found[key] for key in keys if key in found]
 
 
-def _findings(items, checks, reference) -> tuple[str, ...]:
-    """Plain sentences on every criterion that disagrees with the reference limit."""
+def _findings(items, checks, reference, predictor: bool = False) -> tuple[str, ...]:
+    """Plain sentences on every criterion that disagrees with the reference limit; the
+    bodies' own dynamics, integrated with velocity Verlet, set beside it only where it is
+    velocity Verlet's too (not the velocity predictor's, a `predictor` reference)."""
     lines = []
     for estimate in items:
         ratio = ratio_to(reference, estimate)
@@ -303,7 +305,7 @@ def _findings(items, checks, reference) -> tuple[str, ...]:
                 f"{estimate.source} ({estimate.label}) is {estimate.dt / rigid.dt:.3g} × the "
                 f"limit of the two rigid bodies integrated ({rigid.dt:.4e} s): unsafe for them."
             )
-    for own in _own_dynamics(checks):
+    for own in () if predictor else _own_dynamics(checks):
         ratio = own.dt / reference.dt
         if ratio > CONSERVATIVE_RATIO:
             lines.append(
@@ -357,7 +359,10 @@ def assess(
     checks = integrated + _euler(body1, body2, contact) if check else ()
     scheme = "velocity_predictor" if trvp_order else "velocity_verlet"
     formula = next(e for e in items if e.key == scheme)
-    reference = min(integrated, key=lambda e: e.dt) if integrated else formula
+    # the reference is the scheme's own: with the predictor, the engine's limit with it (for
+    # spheres), else its formula; the velocity-Verlet limits integrated are another scheme's
+    own = [e for e in integrated if (e.key == "engine_predictor_integrated") == bool(trvp_order)]
+    reference = min(own, key=lambda e: e.dt) if own else formula
     limits = [formula, *integrated, *(e for e in items if e.key == "rotation")]
     return Assessment(
         bodies=(body1, body2),
@@ -370,5 +375,5 @@ def assess(
         checks=checks,
         reference=reference,
         recommended=min(e.dt for e in limits),
-        findings=_findings(items, checks, reference) + lost,
+        findings=_findings(items, checks, reference, trvp_order > 0) + lost,
     )

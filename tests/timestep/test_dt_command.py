@@ -396,6 +396,19 @@ def test_frictionless_damped_spheres_give_the_predictor_table_limit():
     assert checks["rigid_body_integrated"] == pytest.approx(0.6180, rel=1e-3)
 
 
+def test_the_predictors_reference_is_its_own_limit_not_velocity_verlets():
+    """Ellipsoids with the predictor of order 2, checked: the reference was the velocity
+    Verlet limit integrated, so the predictor's own limit, 0.54 of it, read "stable but
+    conservative" (inviting a step 1.85 times its limit), and the rigid pair's Verlet limit
+    called the criteria conservative. The predictor's formula is the reference there."""
+    data = as_json(*ELLIPSOID, "--damping", 1, "--trvp-order", 2, "--verify")
+    assert data["reference"] == "velocity_predictor"
+    assert data["recommended_dt"] == data["criteria"]["velocity_predictor"]["dt"]
+    assert not [f for f in data["findings"] if "conservative" in f]
+    [verlet] = [f for f in data["findings"] if f.startswith("Eq 30, velocity Verlet")]
+    assert "1.85 × the reference, velocity-Verlet limit, trvp k = 2: unsafe" in verlet
+
+
 def test_a_rigid_pair_far_above_the_criteria_is_named_conservative():
     """The two ellipsoids integrated are stable 1.35 times longer than Eq 30 with A_max: a
     finding says the criteria are conservative for them; for spheres (k_s = k_n) the engine
