@@ -539,7 +539,9 @@ def _replayer(
             before = recorded(earlier["tape"])
     path = Path(source).parent / start.tape
     particles = len(start.state.particles.x)
-    return Replayer(path, clock.stage.name, clock.first_step, particles, before)
+    end = start.state.fixed if start.resumption is None else None  # a checkpoint: part-way
+    span = (clock.first_step, clock.last_step)
+    return Replayer(path, clock.stage.name, span, particles, source, end, before)
 
 
 def _reverse_stage(

@@ -362,7 +362,7 @@ def run_stage(
         if checkpoint is not None and target in frame_steps and target != frames[-1]:
             checkpoint(state, clock, events)
     if isinstance(tape, Recorder):
-        tape.flush(wait=True)
+        tape.finish(state)
 
 
 def reversal_history(state: State, model: Model, clock: StageClock) -> None:

@@ -22,8 +22,10 @@ hdf5plugin):
 
 with the attributes `kind` = "revdem tape", `schema_version`, `first_step`, `first_time`
 and `dt` (the stage's), `stage`, `particles`, `state_bytes` (the compared state of one step,
-which `summary` sets the tape beside), `compared` and `mechanisms`. Going backward,
-`Replayer` reads it a block at a time from the end.
+which `summary` sets the tape beside), `compared` and `mechanisms`; once its stage has ended,
+`last_step` and `end_sha256` (`end_digest` of the integers there), which tie the tape to
+the restart written at that step: a reversal replays only the tape of its own restart.
+Going backward, `Replayer` reads it a block at a time from the end.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ from revdem_cli.kernels.tape import (
 )
 from revdem_cli.memory import release, untouched
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 STEPS_PER_BLOCK = 4096
 MIN_ENTRIES = 1 << 16
 ENTRIES_PER_PARTICLE = 1
@@ -262,6 +264,8 @@ class Recorder:
                 f[f"steps/{name}"].resize(steps, axis=0)
             for name in ("what", "where", "amount"):
                 f[f"entries/{name}"].resize((entries,))
+            for name in ("last_step", "end_sha256"):  # it ends elsewhere now
+                f.attrs.pop(name, None)
         self.written_steps, self.written_entries = steps, entries
 
     def bundle(self, state, events, law, dyn) -> Tape:
@@ -298,6 +302,13 @@ class Recorder:
             b.span[4] = 1
         if wait:
             self._written()
+
+    def finish(self, state) -> None:
+        """At the stage's end: every block written, then the step the tape ends at and the
+        digest of the integers there (`end_digest`), which the restart written at that
+        step holds and `Replayer` checks, so that no other run's tape is replayed."""
+        self.flush(wait=True)
+        _WRITER.submit(_mark_end, self.path, state.step, end_digest(state.fixed)).result()
 
     @property
     def retaking(self) -> bool:
@@ -346,11 +357,19 @@ class Replayer:
     """Gives the reversed run the tape's entries, a block at a time from the end, and the bits
     the forward run recorded up to each step (`destroyed_by`)."""
 
-    def __init__(self, path: Path, stage: str, first_step: int, particles: int, before=None):
-        """`before`: the bits the forward run wrote at the stage's first step where a stage
-        before it ended there (that stage's, by mechanism: `recorded`, or NaN without a
-        tape); None for the run's first stage, whose first step holds zero."""
+    def __init__(
+        self, path: Path, stage: str, clock: tuple[int, int], particles: int, restart,
+        end=None, before=None,
+    ):  # fmt: skip
+        """`clock`: the stage's first step and the step it ended at; `restart`: the file the
+        reversal reverses from, named where the tape is not its; `end`: the integers there
+        (`State.fixed`) where the reversal starts from them (not a checkpoint of it), which
+        must be those the tape ends with; `before`: the bits the forward run wrote at the
+        stage's first step where a stage before it ended there (that stage's, by mechanism:
+        `recorded`, or NaN without a tape); None for the run's first stage, whose first step
+        holds zero."""
         self.path = Path(path)
+        first_step, last_step = clock
         with _open(self.path, "r") as f:
             attrs = dict(f.attrs)
             if attrs.get("kind") != "revdem tape":
@@ -370,6 +389,7 @@ class Replayer:
                     f"{attrs['first_step']} with {attrs['particles']} particles, not of stage "
                     f"{stage} from step {first_step} with {particles}"
                 )
+            _check_end(self.path, attrs, restart, last_step, end)
             counts = f["steps/count"][:]
             self.sums = _block_sums(f["steps/bits"])
         self.first_step = first_step
@@ -430,6 +450,38 @@ class Replayer:
             b.amount[: end - begin] = f["entries/amount"][begin:end]
         b.offsets[: high - low + 2] = self.starts[low : high + 2] - begin
         b.span[:3] = (self.first_step + low, high - low + 1, end - begin)
+
+
+def end_digest(fixed) -> str:
+    """SHA-256 of the integers of a state (`State.fixed`: positions, velocities, angular
+    velocities, the cell's edges and their rates), each as the restart's `digest`: what the
+    state at a tape's last step and the restart's must share."""
+    import hashlib
+
+    from revdem_cli.io.restart import digest
+
+    parts = (digest(getattr(fixed, name)) for name in ("x", "v", "omega", "length", "rate"))
+    return hashlib.sha256(" ".join(parts).encode()).hexdigest()
+
+
+def _mark_end(path: Path, step: int, sha256: str) -> None:
+    with _open(path, "a") as f:
+        f.attrs.update(last_step=step, end_sha256=sha256)
+
+
+def _check_end(path: Path, attrs: dict, restart, last_step: int, end) -> None:
+    """InputError naming the tape and the restart unless the tape ends where the restart
+    was written (`last_step`), with its integers (`end`, where given): a tape copied
+    from another run, or from a longer or shorter run of the same one, is not replayed."""
+    why = None
+    if "last_step" not in attrs:
+        why = "its stage never ended (the run recording it stopped part-way)"
+    elif int(attrs["last_step"]) != last_step:
+        why = f"it ends at step {int(attrs['last_step'])}, the restart's stage at step {last_step}"
+    elif end is not None and str(attrs.get("end_sha256")) != end_digest(end):
+        why = f"at step {last_step} it ends with other integers than the restart holds"
+    if why:
+        raise InputError(f"{path}: not the information tape of {restart}: {why}")
 
 
 def _running(total: np.ndarray, bits: np.ndarray) -> np.ndarray:

@@ -241,6 +241,28 @@ def test_an_altered_entry_parts_the_reversal_where_it_stands(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("changes", "why"),
+    [
+        ({"contact.friction": 0.3}, "at step 15000 it ends with other integers than the restart"),
+        ({"stages.0.steps": 16000}, "it ends at step 16000, the restart's stage at step 15000"),
+    ],
+    ids=["another run", "a longer run"],
+)
+def test_a_tape_of_another_run_is_refused_before_the_first_step(tmp_path, changes, why):
+    """A tape copied beside a restart it was not recorded with, of another scenario or of a
+    longer run of the same stage, once reversed it silently (stage, first step and spheres
+    alike) to a wrong verdict: it ends at another step, or with other integers than the
+    restart, and the reversal names both files and steps nowhere."""
+    experiment = _fixed(_shear_collision(math.inf), tape=True).changed({"stages.0.reverse": False})
+    own = revdem.run(experiment, tmp_path / "own").outputs.restart
+    other = revdem.run(experiment.changed(changes), tmp_path / "other").outputs.restart
+    tape = own.with_name("collision_shear.tape.h5")
+    tape.write_bytes(other.with_name(tape.name).read_bytes())
+    with pytest.raises(InputError, match=f"{tape}: not the information tape of {own}: {why}"):
+        revdem.reverse(own, tmp_path / "reversed")
+
+
+@pytest.mark.parametrize(
     ("case", "array"),
     [
         ("slip and contact loss", "shear_history"),
