@@ -19,17 +19,24 @@ hdf5plugin):
     /steps/count     int64  (S,)  entries of each step of the stage, from its first
     /steps/bits      float64 (S, M) bits of each step by mechanism (`MECHANISMS`)
     /steps/contacts  int32  (S, M) contacts (particles, edges) with entries, by mechanism
+    /blocks          int64  (B, 6) each block appended: its first step (from the stage's
+                                   first), steps, first entry, entries, and the CRC-32 of
+                                   its steps' rows and of its entries (`_checksums`)
 
 with the attributes `kind` = "revdem tape", `schema_version`, `first_step`, `first_time`
 and `dt` (the stage's), `stage`, `particles`, `state_bytes` (the compared state of one step,
 which `summary` sets the tape beside), `compared` and `mechanisms`; once its stage has ended,
 `last_step` and `end_sha256` (`end_digest` of the integers there), which tie the tape to
 the restart written at that step: a reversal replays only the tape of its own restart.
-Going backward, `Replayer` reads it a block at a time from the end.
+Going backward, `Replayer` reads it a block at a time from the end. The checksums are
+verified (`_check_blocks`) before a reversal's first step and wherever the tape is
+summarised: Zstandard and HDF5 check nothing, and a flipped bit in a chunk reads back as
+another entry or another count of bits.
 """
 
 from __future__ import annotations
 
+import zlib
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -49,7 +56,7 @@ from revdem_cli.kernels.tape import (
 )
 from revdem_cli.memory import release, untouched
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 STEPS_PER_BLOCK = 4096
 MIN_ENTRIES = 1 << 16
 ENTRIES_PER_PARTICLE = 1
@@ -249,6 +256,7 @@ class Recorder:
                 f.create_dataset(
                     f"steps/{name}", (0, m), dtype, maxshape=(None, m), chunks=(4096, m), **FILTERS
                 )
+            f.create_dataset("blocks", (0, 6), np.int64, maxshape=(None, 6), chunks=(256, 6))
 
     def _truncate(self, steps: int) -> None:
         """Keep the file's first `steps` steps (a checkpoint's), and the entries they hold."""
@@ -264,6 +272,11 @@ class Recorder:
                 f[f"steps/{name}"].resize(steps, axis=0)
             for name in ("what", "where", "amount"):
                 f[f"entries/{name}"].resize((entries,))
+            blocks = f["blocks"][:]  # a checkpoint is taken with every block written
+            kept = int(np.searchsorted(blocks[:, 0] + blocks[:, 1], steps, side="right"))
+            if kept and blocks[kept - 1, 0] + blocks[kept - 1, 1] != steps:
+                raise InputError(f"{self.path}: damaged tape (no block ends at step {steps})")
+            f["blocks"].resize(kept, axis=0)
             for name in ("last_step", "end_sha256"):  # it ends elsewhere now
                 f.attrs.pop(name, None)
         self.written_steps, self.written_entries = steps, entries
@@ -390,6 +403,7 @@ class Replayer:
                     f"{stage} from step {first_step} with {particles}"
                 )
             _check_end(self.path, attrs, restart, last_step, end)
+            _check_blocks(f, self.path, entries=True)
             counts = f["steps/count"][:]
             self.sums = _block_sums(f["steps/bits"])
         self.first_step = first_step
@@ -505,6 +519,7 @@ def recorded(path: Path) -> np.ndarray:
     """The bits a tape recorded over its whole stage, by mechanism, summed as `Recorder`
     sums them (its rows of the stage's last step)."""
     with _open(Path(path), "r") as f:
+        _check_blocks(f, Path(path), entries=False)
         return _block_sums(f["steps/bits"])[-1]
 
 
@@ -523,13 +538,66 @@ _WRITER = ThreadPoolExecutor(max_workers=1, thread_name_prefix="revdem-tape")
 """Appends the blocks of every tape recorded, one at a time (`Recorder.flush`)."""
 
 
+BLOCK_DATASETS = ("entries/what", "entries/where", "entries/amount", "steps/count", "steps/bits",
+                  "steps/contacts")  # fmt: skip
+"""A block's arrays, in the order `Recorder._write` hands them over."""
+
+
 def _append_block(path: Path, block: tuple) -> None:
-    """Append a block (`Recorder._write`) to the tape at `path`."""
-    names = ("entries/what", "entries/where", "entries/amount", "steps/count", "steps/bits",
-             "steps/contacts")  # fmt: skip
+    """Append a block (`Recorder._write`) to the tape at `path`, with its row of /blocks."""
     with _open(path, "a") as f:
-        for name, values in zip(names, block, strict=True):
+        row = (f["steps/count"].shape[0], block[3].shape[0], f["entries/what"].shape[0])
+        for name, values in zip(BLOCK_DATASETS, block, strict=True):
             _append(f[name], values)
+        _append(f["blocks"], np.array([[*row, block[0].shape[0], *_checksums(block)]]))
+
+
+def _checksums(block: tuple) -> tuple[int, int]:
+    """CRC-32 of a block's steps' rows (count, bits, contacts) and of its entries (what,
+    where, amount), each over the arrays' bytes in turn, as `BLOCK_DATASETS` stores them:
+    zlib's, some 1 GB/s, in the writer thread while the loop steps on."""
+    steps = entries = 0
+    for name, values in zip(BLOCK_DATASETS, block, strict=True):
+        data = np.ascontiguousarray(values, dtype=values.dtype.newbyteorder("<"))
+        if name.startswith("steps/"):
+            steps = zlib.crc32(data, steps)
+        else:
+            entries = zlib.crc32(data, entries)
+    return steps, entries
+
+
+def _check_blocks(f: h5py.File, path: Path, entries: bool) -> None:
+    """InputError "damaged tape" naming the file and the first block (its steps) whose
+    steps' rows, or with `entries` whose entries too, fail their checksum (`_checksums`),
+    cannot be read, or do not cover the datasets end to end."""
+    first = int(f.attrs["first_step"])
+    try:
+        blocks = f["blocks"][:]
+        sizes = (f["steps/count"].shape[0], f["entries/what"].shape[0])
+        ends = (0, 0)
+        for k, (step, steps, entry, count, crc_steps, crc_entries) in enumerate(blocks):
+            where = f"block {k}, steps {first + step} to {first + step + steps - 1}"
+            if (step, entry) != ends or steps <= 0 or count < 0:
+                raise InputError(f"{path}: damaged tape ({where}: not where the blocks before end)")
+            ends = (step + steps, entry + count)
+            names = BLOCK_DATASETS if entries else BLOCK_DATASETS[3:]
+            block = [
+                f[name][step : step + steps] if name.startswith("steps/") else
+                f[name][entry : entry + count] for name in names
+            ]  # fmt: skip
+            block = [np.zeros(0, np.int8)] * (6 - len(block)) + block
+            found = _checksums(tuple(block))
+            if found[0] != crc_steps or entries and found[1] != crc_entries:
+                raise InputError(f"{path}: damaged tape ({where} fail their checksum)")
+            if int(block[3].sum()) != count:
+                raise InputError(f"{path}: damaged tape ({where}: entries miscounted)")
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(f"{path}: damaged tape (cannot be read: {exc})") from None
+    if ends != sizes if entries else ends[0] != sizes[0]:
+        raise InputError(
+            f"{path}: damaged tape ({sizes[0]} steps and {sizes[1]} entries, its blocks cover "
+            f"{ends[0]} and {ends[1]})"
+        )
 
 
 def _append(dataset, values: np.ndarray) -> None:
@@ -551,6 +619,7 @@ def by_step(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """A tape's steps, their times (s), the bits of each by mechanism, and the mechanisms'
     names."""
     with _open(Path(path), "r") as f:
+        _check_blocks(f, Path(path), entries=False)
         bits = f["steps/bits"][:].astype(np.float64)
         first, time, dt = int(f.attrs["first_step"]), float(f.attrs["first_time"]), f.attrs["dt"]
         names = [str(name) for name in f.attrs["mechanisms"]]
@@ -565,6 +634,7 @@ def summary(path: Path) -> dict:
     HDF5's headers and, after a resumed run cut the tape back, the space the cut freed: a
     resumed run's tape holds the same bytes in a larger file."""
     with _open(Path(path), "r") as f:
+        _check_blocks(f, Path(path), entries=True)
         bits = f["steps/bits"][:].astype(np.float64)
         contacts = f["steps/contacts"][:]
         steps = int(f["steps/count"].shape[0])
