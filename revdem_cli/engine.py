@@ -471,19 +471,20 @@ def _reverse(
         if forward is not None:
             refuse_nothing_to_compare(forward, start.state.step, stop)
         events, began = None, None
+        tape = _replayer(scenario, start, source, clock)  # refused before the file is made
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:
         stop, events = resumption.stop_step, resumption.events
         sought = (Path(start.trajectory),)  # where it was found when the reversal began
         forward = sought[0] if sought[0].is_file() else None
         clock = _reverse_clock(scenario, start, resumption.end_step)
-        began = _source_restart(paths["reverse"])  # where the reversal began: `source` is
-        writer = _continued_writer(  # the restart of the stage it goes on in
+        began = _source_restart(paths["reverse"])  # where the reversal began; `source` is
+        tape = _replayer(scenario, start, source, clock)  # the restart of the stage it goes on in
+        writer = _continued_writer(
             paths["reverse"], resumption, start.state, run.model, text, "reverse", began
         )
     with writer:
         while True:
-            tape = _replayer(scenario, start, source, clock)
             _reverse_stage(
                 run, start, source, clock, stop, events, writer, tape, progress, so_far,
                 forward or Path(start.trajectory),
@@ -493,6 +494,7 @@ def _reverse(
             start, source = _stage_before(start, source)
             clock = _reverse_clock(scenario, start, start.state.step)
             stop, events = clock.first_step, None
+            tape = _replayer(scenario, start, source, clock)
         writer.end()
     # resumed, the restart the reversal began from (`resume_run` reports it)
     outputs = Outputs(reverse=paths["reverse"], restart=Path(began) if began else None)

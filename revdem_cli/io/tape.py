@@ -405,6 +405,12 @@ class Replayer:
             _check_end(self.path, attrs, restart, last_step, end)
             _check_blocks(f, self.path, entries=True)
             counts = f["steps/count"][:]
+            if counts.shape[0] != last_step - first_step:  # refused before the first step
+                raise InputError(
+                    f"{self.path}: the information tape holds steps {first_step} to "
+                    f"{first_step + counts.shape[0] - 1}, the reversal needs steps {first_step} "
+                    f"to {last_step - 1}"
+                )
             self.sums = _block_sums(f["steps/bits"])
         self.first_step = first_step
         self.starts = np.concatenate(([0], np.cumsum(counts)))
@@ -607,6 +613,10 @@ def _append(dataset, values: np.ndarray) -> None:
 
 
 def _open(path: Path, mode: str) -> h5py.File:
+    """The tape at `path`; InputError "not there" where reading finds no file (h5py's own
+    words name errno and HDF5's internals), and naming the file for any other failure."""
+    if mode == "r" and not Path(path).is_file():
+        raise InputError(f"{path}: not there")
     try:
         return h5py.File(path, mode)
     except OSError as exc:

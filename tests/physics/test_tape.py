@@ -295,6 +295,38 @@ def test_a_tape_of_another_run_is_refused_before_the_first_step(tmp_path, change
     tape.write_bytes(other.with_name(tape.name).read_bytes())
     with pytest.raises(InputError, match=f"{tape}: not the information tape of {own}: {why}"):
         revdem.reverse(own, tmp_path / "reversed")
+    assert not (tmp_path / "reversed" / "collision_shear.reverse.h5").exists()
+
+
+@pytest.mark.parametrize("tape", ["missing", "shorter"])
+def test_a_tape_that_cannot_serve_is_refused_before_the_reversed_trajectory(tmp_path, tape):
+    """A missing tape (its line once carried h5py's errno), or one shorter than the restart's
+    stage (refused only when the reversal reached the steps it lacks, exit 1), is refused
+    in one line before the reversed trajectory is made: no stub is left for --force."""
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+    from tests.conftest import assert_one_line_error
+
+    experiment = _fixed(_shear_collision(0.3), tape=True).changed({"stages.0.reverse": False})
+    restart = revdem.run(experiment, tmp_path / "run").outputs.restart
+    path = restart.with_name("collision_shear.tape.h5")
+    if tape == "missing":
+        path.unlink()
+        why = f"{path}: not there"
+    else:
+        with h5py.File(path, "a") as f:  # its whole blocks up to step 14 000
+            ends = f["blocks"][:, 0] + f["blocks"][:, 1]
+            f["blocks"].resize(int(np.searchsorted(ends, 14000, side="right")), axis=0)
+            steps = int(f["blocks"][-1, 0] + f["blocks"][-1, 1])
+            entries = int(f["blocks"][-1, 2] + f["blocks"][-1, 3])
+            for name in tape_file.BLOCK_DATASETS:
+                f[name].resize(steps if name.startswith("steps/") else entries, axis=0)
+        why = f"holds steps 0 to {steps - 1}, the reversal needs steps 0 to 14999"
+    out = tmp_path / "reversed"
+    result = CliRunner().invoke(app, ["reverse", str(restart), "--out", str(out)])
+    assert_one_line_error(result, why)
+    assert not (out / "collision_shear.reverse.h5").exists()
 
 
 @pytest.mark.parametrize(
