@@ -407,8 +407,10 @@ def fixed_grid(scenario: Scenario) -> np.ndarray:
 
     - position: the extent E of the scenario (the largest |coordinate| + radius, or cell
       edge); in a deforming cell the cell coordinate, whose scale is 1;
-    - velocity: the largest of the starting speeds, the free-fall speed sqrt(2 |g| E), and
-      E over the duration of the run; angular velocity: that over the smallest radius, or
+    - velocity: the largest of the starting speeds, the free-fall speed sqrt(2 |g| E), E
+      over the duration of the run, and the walls' speeds in any stage (a wall driven into a
+      sphere at rest, left out, overflowed the grid); angular velocity: that over the
+      smallest radius, or
       the largest starting angular velocity;
     - force: the largest weight, or the normal force of the largest sphere at an overlap of
       1 % of its radius; moment: that times the largest radius;
@@ -421,10 +423,16 @@ def fixed_grid(scenario: Scenario) -> np.ndarray:
         extent = max(extent, max(scenario.cell.size))
     duration = sum(stage.steps * (stage.dt or scenario.integrator.dt) for stage in scenario.stages)
     gravity = float(np.linalg.norm(scenario.gravity))
+    walls = [
+        float(np.linalg.norm(stage.wall_velocity(wall)))
+        for stage in scenario.stages
+        for wall in scenario.walls
+    ]
     speed = max(
         float(np.linalg.norm(spheres.velocity, axis=1).max()),
         math.sqrt(2.0 * gravity * extent),
         extent / duration,
+        max(walls, default=0.0),
     )
     spin = max(float(np.linalg.norm(spheres.angular_velocity, axis=1).max()), speed / r_min)
     masses = sphere_masses(scenario)[0]

@@ -432,3 +432,17 @@ def test_sums_without_walls_kept_in_doubles_are_those_of_the_sums_in_full(moment
     np.testing.assert_array_equal(t_fast, t_full)
     steps = t_fast / grid[fixed.TORQUE]
     np.testing.assert_array_equal(steps, np.round(steps))
+
+
+def test_the_velocity_grid_takes_the_walls_speeds():
+    """A plane driven at 2000 m/s into a sphere at rest overflowed the velocity grid, whose
+    scale came from the spheres alone (1 m/s): a wall's speed in any stage now counts."""
+    from revdem_cli.kernels import fixed
+    from revdem_cli.state import fixed_grid
+
+    still, _ = load_scenario(CONFIGS / "drop_A.toml", [FIXED])
+    driven, _ = load_scenario(
+        CONFIGS / "drop_A.toml", [FIXED, "stages.0.wall_velocities={plane=[0, 0, 2000]}"]
+    )
+    assert fixed_grid(still)[fixed.VELOCITY] < 1.0 * 2.0**-52
+    assert fixed_grid(driven)[fixed.VELOCITY] == 2048.0 * 2.0**-52
