@@ -594,7 +594,7 @@ def resume_run(
     scenario = Scenario.model_validate_json(resume.scenario_json)
     run = Run.into(Path(out_dir), scenario, resume.scenario_text, resume.scenario_suffix)
     place = resume.resumption
-    _check_continued(run.paths[place.phase], path, resume)  # the trajectory of its phase
+    _check_continued(run.paths[place.phase], path, resume, scenario)  # its phase's trajectory
     with run.checkpoints.on_signals(stop_file):
         if place.phase == "forward":
             text = resume.scenario_text
@@ -612,13 +612,16 @@ def resume_run(
     return outputs
 
 
-def _check_continued(trajectory: Path, checkpoint: Path, resume: Restart) -> None:
+def _check_continued(
+    trajectory: Path, checkpoint: Path, resume: Restart, scenario: Scenario
+) -> None:
     """InputError unless `trajectory` is the one the run of the checkpoint `resume` (the
-    file `checkpoint`) was writing: a resumed run copies the rows the checkpoint counts by
-    their number (`_continued_writer`), and would splice another run's into its own. It is
-    where it stores the checkpoint's scenario (`compare.runs_apart`) and the frames the
-    checkpoint counts are those up to its step: the last of them at or before that step,
-    the next, if there is one, at or after it, in the direction the run went."""
+    file `checkpoint`, of `scenario`) was writing: a resumed run copies the rows the
+    checkpoint counts by their number (`_continued_writer`), and would splice another run's
+    into its own. It is where it stores the checkpoint's scenario (`compare.runs_apart`)
+    and the frames the checkpoint counts are those up to its step: the last of them at or
+    before that step, the next, if there is one, at or after it, in the direction the run
+    went."""
     from revdem_cli.compare import runs_apart
     from revdem_cli.io import stored_scenario
     from revdem_cli.io.h5md import frame_steps
@@ -628,7 +631,7 @@ def _check_continued(trajectory: Path, checkpoint: Path, resume: Restart) -> Non
         steps = frame_steps(f)
     step, frames = resume.state.step, resume.resumption.frames
     ahead = (steps - step) * (1 if resume.resumption.phase == "forward" else -1)
-    why = runs_apart(Scenario.model_validate_json(resume.scenario_json), stored)
+    why = runs_apart(scenario, stored)
     if not why and len(steps) < frames:
         why = f"that run had written {frames} frames by step {step}, and it holds {len(steps)}"
     elif not why:
