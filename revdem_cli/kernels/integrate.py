@@ -59,12 +59,15 @@ def _scale(v, factor):
             v[q, d] *= factor
 
 
-def _scale_fixed(n, v, factor, step):
-    """Drag on the velocity grid: n = round(n factor), v = n step (not invertible, as drag is
-    not in floating point either)."""
+def _scale_fixed(n, v, change, step):
+    """Drag on the velocity grid: n += round(n change), v = n step, `change` gamma_d - 1
+    (Eq 25) or (1 - gamma_d) / gamma_d to undo it (Eq 28; `drag`). Not invertible, as drag is
+    not, but rounding the small product n change, not n gamma_d, merges two velocities only
+    where drag itself must (a fraction |change| of them, -log2 gamma_d bits a value): n
+    gamma_d near n ~ 2^51, rounded to 53 bits first, merged about one in eight."""
     for q in numba.prange(n.shape[0]):
         for d in range(3):
-            n[q, d] = fx.to_grid(n[q, d] * factor)
+            n[q, d] += fx.to_grid(n[q, d] * change)
             v[q, d] = n[q, d] * step
 
 
@@ -132,12 +135,16 @@ def kick_particles(p, fixed, law, h):
 
 
 @jit
-def drag(p, fixed, factor):
-    """v *= factor (Hanley 2020 Eq 25), on the velocity grid in fixed-point arithmetic."""
+def drag(p, fixed, gamma, undo):
+    """v *= gamma (Hanley 2020 Eq 25), or `undo`: v /= gamma (Eq 28); on the velocity grid in
+    fixed-point arithmetic, each velocity changed by its rounded product with gamma - 1, or
+    with (1 - gamma) / gamma (both exact to an ulp, where 1 / gamma - 1 loses the digits
+    the grid needs; `_scale_fixed`)."""
     if fixed.v.shape[0] > 0:
-        scale_on_grid(p.v.shape[0], fixed.v, p.v, factor, fixed.grid[fx.VELOCITY])
+        change = (1.0 - gamma) / gamma if undo else gamma - 1.0
+        scale_on_grid(p.v.shape[0], fixed.v, p.v, change, fixed.grid[fx.VELOCITY])
     else:
-        scale(p.v.shape[0], p.v, factor)
+        scale(p.v.shape[0], p.v, 1.0 / gamma if undo else gamma)
 
 
 @jit
@@ -192,7 +199,7 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     kick_particles(p, fixed, law, h)
     kick_cell(cell, fixed, h)
     if dyn.drag != 1.0:
-        drag(p, fixed, dyn.drag)
+        drag(p, fixed, dyn.drag, False)
         note_fixed_points(p.v, p.v_drift, step + 1, events)
     move_cell(cell, fixed, dt, elapsed)
     drift(p, cell, fixed, dt, events, step + 1)
@@ -227,7 +234,7 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     place_walls(walls, elapsed)
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)
-        drag(p, fixed, 1.0 / dyn.drag)
+        drag(p, fixed, dyn.drag, True)
     predict(p)  # the same predictor on the reversed run's own history: dt -> -dt
     compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, np.int64(REVERSE), dt, h,
                    events, step - 1, keep)  # fmt: skip

@@ -225,6 +225,41 @@ def test_the_proportional_servo_costs_its_rate_alone(tmp_path):
     assert by.get("round_off", {"with_entries": 0})["with_entries"] < 1e-4 * contact_steps, by
 
 
+def test_drag_costs_the_bits_it_destroys(tmp_path):
+    """Drag maps the velocity integers n to n gamma_d (Hanley 2020 Eq 25): 1 / gamma_d of
+    them onto one, -log2 gamma_d bits a value a step, so the tape's entries fall at a
+    fraction 1 - gamma_d of a moving component's steps. Rounding n gamma_d itself near
+    n ~ 2^51, where a double holds only halves, merged about one velocity in eight: a free
+    glide recorded hundreds of times the bits drag destroys."""
+    gamma, steps = 0.999, 2000
+    glide = revdem.from_dict(
+        {
+            "name": "glide",
+            "materials": {"sphere": SPHERE},
+            "contact": {"model": "linear", "kn": 1e3},
+            "damping": {"drag": gamma},
+            "particles": [
+                {
+                    "material": "sphere",
+                    "radius": 0.005,
+                    "position": [0, 0, 0],
+                    "velocity": [1.0, -2.0, 0.5],
+                }
+            ],  # fmt: skip
+            "integrator": {"dt": 1e-6},
+            "stages": [{"name": "glide", "steps": steps, "output_every": 100, "reverse": True}],
+        }
+    )
+    taped = revdem.run(_fixed(glide, tape=True), tmp_path)
+    assert taped.comparison["bitwise_identical"]
+    recorded = summary(taped.outputs.restart.with_name("glide.tape.h5"))
+    assert set(recorded["by_mechanism"]) == {"drag"}, recorded["by_mechanism"]
+    drag = recorded["by_mechanism"]["drag"]
+    merged = 3 * steps * (1.0 - gamma)  # entries expected: 6, each log2 3 bits
+    assert 0 < drag["with_entries"] <= 3 * merged, drag
+    assert drag["bits"] <= 3 * merged * math.log2(3), drag
+
+
 def test_an_altered_entry_parts_the_reversal_where_it_stands(tmp_path):
     taped = revdem.run(_fixed(_shear_collision(0.3), tape=True), tmp_path / "taped")
     restart = taped.outputs.restart
