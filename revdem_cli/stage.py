@@ -51,6 +51,7 @@ from revdem_cli.state import (
     moduli,
 )
 from revdem_cli.threads import Stepper
+from revdem_cli.timestep.guard import CROWDED, critical_time_step, times_above
 
 Progress = Callable[[str, int, int, int], None]
 """Called as progress(label, steps done, steps in total, particles) once per output frame."""
@@ -328,7 +329,7 @@ def run_stage(
                     state.step,
                     state.cell.length,
                     _servo_held(model, clock),
-                    _dt_above_critical(model.scenario, clock.dt),
+                    _dt_above_critical(clock.dt, critical_time_step(model.scenario)),
                 )
             if status == FIXED_OVERFLOW:
                 raise OffGrid(state.step, state.fixed, state.ids)
@@ -436,12 +437,11 @@ def _reversed_damping(dyn: Dynamics, law: ContactLaw, backwards: bool) -> str:
     return " and ".join(words for present, words in kinds if present and backwards)
 
 
-def _dt_above_critical(scenario: Scenario, dt: float) -> str:
+def _dt_above_critical(dt: float, critical: tuple[float, str]) -> str:
     """ "likely cause: dt = ... times the critical time step" where the time step is above
-    the critical estimate (a run let go on with `--allow-unstable-dt`); "" where not."""
-    from revdem_cli.timestep.guard import critical_time_step, times_above
-
-    limit, reason = critical_time_step(scenario)
+    the `critical` estimate (a run let go on with `--allow-unstable-dt`); "" where not.
+    `critical`: (limit in s, where it comes from), as `guard.critical_time_step` gives it."""
+    limit, reason = critical
     ratio = abs(dt) / limit
     if not ratio > 1.0:
         return ""
@@ -456,12 +456,12 @@ def _likely_cause(scenario: Scenario, dt: float, damping: str = "", servo: str =
     cause; above the least a sphere in many contacts may need (`guard.CROWDED`), a possible
     one; below that, unlikely to be, and where the stage's `damping` ran backwards
     (`_reversed_damping`), that is; where the stage's `servo` holds a stress
-    (`_servo_held`), it is among what may drive the spheres together."""
-    from revdem_cli.timestep.guard import CROWDED, critical_time_step
-
-    if above := _dt_above_critical(scenario, dt):
+    (`_servo_held`), it is among what may drive the spheres together. The estimate is
+    found once, and each sentence quotes the one that decided it."""
+    critical = critical_time_step(scenario)
+    if above := _dt_above_critical(dt, critical):
         return above
-    limit, reason = critical_time_step(scenario)
+    limit, reason = critical
     ratio = abs(dt) / limit
     of_dt = f"dt = {dt:.3g} s is {ratio:.2g} of the critical time step {limit:.3g} s ({reason})"
     if damping:

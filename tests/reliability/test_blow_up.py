@@ -205,3 +205,23 @@ def test_a_cell_crushed_by_its_servo_names_the_servo_and_its_parameter(
     assert "is no longer more than twice the contact reach" in line
     assert f"; or {named} holds a stress on x, y, z and overshoots with " in line
     assert not_named not in line
+
+
+def test_a_blow_ups_line_quotes_the_one_critical_estimate_that_judged_its_time_step(monkeypatch):
+    """The estimate was found twice on a blow-up, once to judge whether the time step was
+    above it and once more for the sentence: the line could quote a limit other than the one
+    that judged it. Here the second estimate differs from the first, as no real one does,
+    so that a line built from it shows."""
+    from revdem_cli import stage
+    from revdem_cli.timestep import guard
+
+    estimates = iter([(1.0, "first estimate"), (1e-9, "second estimate")])
+
+    def found(scenario):
+        return next(estimates)
+
+    monkeypatch.setattr(guard, "critical_time_step", found)
+    monkeypatch.setattr(stage, "critical_time_step", found, raising=False)
+    line = stage._likely_cause(two_spheres(), 0.5)
+    assert line.startswith("dt = 0.5 s is 0.5 of the critical time step 1 s (first estimate)")
+    assert "so the time step may be the cause: try dt below 0.289 s" in line
