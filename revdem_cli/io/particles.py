@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from revdem_cli.errors import InputError
+from revdem_cli.io import FRAME_FIELDS
 from revdem_cli.io.h5md import (
     frame_steps,
     frames_per_block,
@@ -40,29 +41,49 @@ class Frame:
     type: np.ndarray  # the material, numbered from 1, (N,)
     radius: np.ndarray  # m, (N,)
     mass: np.ndarray  # kg, (N,)
-    position: np.ndarray  # m, (N, 3)
-    velocity: np.ndarray  # m/s, (N, 3)
-    angular_velocity: np.ndarray  # rad/s, (N, 3)
-    force: np.ndarray  # N, (N, 3)
+    # the per-sphere values (None where the format does not write them: `frames`' `writes`)
+    position: np.ndarray | None  # m, (N, 3)
+    velocity: np.ndarray | None  # m/s, (N, 3)
+    angular_velocity: np.ndarray | None  # rad/s, (N, 3)
+    force: np.ndarray | None  # N, (N, 3)
     contacts: dict[str, np.ndarray] | None  # the frame's contact list, if the run wrote it
+    # and the format writes it
 
 
 FrameProgress = Callable[[str, int, int], None]
 """progress(label, done, total), called as each frame is written (`report.progress`)."""
 
 
-PER_FRAME = ("position", "velocity", "angular_velocity", "force")
-"""The per-sphere fields a Frame holds, read a block of frames at a time."""
+CONTACTS = "contacts"
+"""What a format names, beside the per-sphere fields (`io.FRAME_FIELDS`), where it writes
+the frames' contact lists."""
+
+LAMMPS_DUMP_WRITES = ("position", "velocity")
+"""What of a frame a LAMMPS dump writes, and `frames` reads for it (no forces, no spins)."""
+
+GSD_WRITES = ("position", "velocity", CONTACTS)
+"""What of a frame a GSD export writes: the contacts as bonds."""
+
+LAMMPS_DATA_WRITES = ("position", "velocity", "angular_velocity")
+"""What of its frame a LAMMPS data file writes: a sphere's spin, not the force on it."""
 
 
 def frames(
-    trajectory: str | Path, at_step: int | None = None, progress: FrameProgress | None = None
+    trajectory: str | Path,
+    writes: tuple[str, ...],
+    at_step: int | None = None,
+    progress: FrameProgress | None = None,
 ) -> Iterator[Frame]:
     """The frames of a revdem trajectory (`at_step`: the one at that step alone; -1, its
     last), checked by `open_trajectory` first, and each frame's per-sphere values by
     `h5md.read_frames` (finite); `progress` told of each once its consumer has it done. InputError
     naming the steps it has where none is at `at_step`. Every export reads its frames
-    here."""
+    here, and of them only what its format `writes` (per-sphere fields of
+    `io.FRAME_FIELDS`, and `CONTACTS`): a value it does not write is neither read nor
+    refused where damaged."""
+    unknown = set(writes) - {*FRAME_FIELDS, CONTACTS}
+    if unknown:
+        raise ValueError(f"frames: no such part of a frame: {', '.join(sorted(unknown))}")
     with open_trajectory(trajectory) as f:
         particles = f["particles/all"]
         radius, mass, ids = particles["radius"][:], particles["mass"][:], particles["id"][:]
@@ -81,13 +102,14 @@ def frames(
             lower, upper = _bounding_box(f, radius, range(first, stop))
         for start in range(first, stop, per_block):  # read a block of frames at once
             block = np.arange(start, min(stop, start + per_block))
-            fields = [read_frames(f, name, block) for name in PER_FRAME]
-            for k, position, velocity, spin, force in zip(block, *fields, strict=True):
+            read = {name: read_frames(f, name, block) for name in FRAME_FIELDS if name in writes}
+            for row, k in enumerate(block):
                 if periodic:
                     lower, upper = np.zeros(3), edges[k]
+                values = {name: read[name][row] if name in read else None for name in FRAME_FIELDS}
+                contacts = read_contacts(f, k) if CONTACTS in writes else None
                 yield Frame(int(steps[k]), float(times[k]), lower, upper, periodic, ids,
-                            species + 1, radius, mass, position, velocity, spin, force,
-                            read_contacts(f, k))  # fmt: skip
+                            species + 1, radius, mass, **values, contacts=contacts)  # fmt: skip
                 if progress is not None:  # of the frames exported: one alone, 1 of 1
                     progress(Path(trajectory).name, int(k) + 1 - first, stop - first)
 
@@ -127,7 +149,7 @@ def export_lammps_dump(
 
     path = Path(path)
     lines = []
-    for frame in frames(trajectory, progress=progress):
+    for frame in frames(trajectory, LAMMPS_DUMP_WRITES, progress=progress):
         bounds = "pp pp pp" if frame.periodic else "ff ff ff"
         lines += ["ITEM: TIMESTEP", str(frame.step), "ITEM: NUMBER OF ATOMS", str(len(frame.id))]
         lines += [f"ITEM: BOX BOUNDS {bounds}"]
@@ -184,7 +206,7 @@ def export_gsd(
     tmp = path.with_name(path.name + ".tmp")
     try:
         with gsd.hoomd.open(tmp, "w") as out:
-            for frame in frames(trajectory, progress=progress):
+            for frame in frames(trajectory, GSD_WRITES, progress=progress):
                 snapshot = gsd.hoomd.Frame()
                 snapshot.configuration.step = frame.step
                 edges, position, image = _gsd_box(frame)
@@ -256,7 +278,7 @@ def export_lammps_data(
     from revdem_cli.io import write_text
     from revdem_cli.io.lammps_data import lammps_data_text, wrapped
 
-    (last,) = frames(trajectory, -1 if step is None else step, progress)
+    (last,) = frames(trajectory, LAMMPS_DATA_WRITES, -1 if step is None else step, progress)
     position, image = last.position, np.zeros(last.position.shape, dtype=np.int64)
     if last.periodic:  # inside the box, with the crossings as image flags, as LAMMPS has them
         position, image = wrapped(last.position, last.upper)

@@ -21,7 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from revdem_cli.io.h5md import frame_steps, open_trajectory
-from revdem_cli.io.particles import FrameProgress, frames
+from revdem_cli.io.particles import CONTACTS, FrameProgress, frames
+
+VTK_WRITES = ("position", "velocity", "angular_velocity", "force", CONTACTS)
+"""What of a frame a VTK export writes (`particles.frames`): every per-sphere field, and the
+contacts as force chains."""
 
 CHAINS = ".contacts"
 """What the force chains' names add to the spheres': STEM.contacts.pvd and its frames."""
@@ -201,7 +205,7 @@ def _write_frames(
     stem = trajectory.stem
     spheres, chains = [], []
     width = max(DIGITS, len(str(count - 1)))
-    for index, frame in enumerate(frames(trajectory, progress=progress)):
+    for index, frame in enumerate(frames(trajectory, VTK_WRITES, progress=progress)):
         point_data = {
             "radius": frame.radius,
             "id": frame.id,

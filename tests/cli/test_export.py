@@ -281,6 +281,39 @@ def test_a_frame_that_is_not_finite_is_refused_by_every_format(smoke_run, tmp_pa
     assert fmt == "vtk" or target.read_text() == "earlier"
 
 
+@pytest.mark.parametrize(
+    "fmt, unwritten",
+    [("lammps-dump", ["force", "angular_velocity"]), ("gsd", ["force", "angular_velocity"]),
+     ("lammps-data", ["force"])],
+)  # fmt: skip
+def test_an_export_reads_only_what_its_format_writes(smoke_run, tmp_path, fmt, unwritten):
+    """Every format read each frame's forces, which VTK alone writes, and refused a
+    trajectory whose forces were damaged (not finite) as if it wrote them. An export whose
+    format does not write a field is the same whether that field is sound or damaged, and a
+    format that writes it still refuses it damaged."""
+    import shutil
+
+    sound = smoke_run / "collision_smoke.forward.h5"
+    damaged = tmp_path / "damaged" / sound.name
+    damaged.parent.mkdir()
+    shutil.copy(sound, damaged)
+    with h5py.File(damaged, "r+") as f:
+        for field in unwritten:
+            f[f"particles/all/{field}/value"][...] = np.nan
+    exported = []
+    for trajectory in (sound, damaged):
+        target = tmp_path / f"{trajectory.parent.name}.{fmt}"
+        args = ["export", str(trajectory), "--format", fmt, "--out", str(target), "-q"]
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, result.output
+        exported.append(target.read_bytes())
+    assert exported[1] == exported[0]
+    args = ["export", str(damaged), "--format", "vtk", "--out", str(tmp_path / "vtk"), "-q"]
+    refused = runner.invoke(app, args)
+    assert_one_line_error(refused, "damaged revdem trajectory: ", "is not finite")
+    assert any(f"trajectory: {field} of particle 0 (id 1)" in refused.output for field in unwritten)
+
+
 @pytest.fixture(scope="module")
 def packings(tmp_path_factory) -> dict[str, Path]:
     """Runs of the smoke oedometer (walls, open boundaries; its compression short) and of
