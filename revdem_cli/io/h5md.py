@@ -508,6 +508,11 @@ def read_observable(f: h5py.File, name: str) -> tuple[np.ndarray, np.ndarray]:
     return _read(f, f"observables/{name}/time", rows), _read(f, f"observables/{name}/value", rows)
 
 
+def observable_steps(f: h5py.File, name: str) -> np.ndarray:
+    """The steps of an observable's rows, as `read_observable` gives their times and values."""
+    return _read(f, f"observables/{name}/step")
+
+
 def read_contacts(f: h5py.File, index: int) -> dict[str, np.ndarray] | None:
     """The contacts of frame `index` by name (value: sphere and partner, point, ...), or
     None if the trajectory has none."""

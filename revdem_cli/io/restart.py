@@ -353,13 +353,14 @@ def _check_state(path, scenario, particles, ids, pairs, walls, step, stage_first
         refuse("pairs/x_built is not finite")
 
 
-def restart_stage_start(path: str | Path) -> int:
-    """The first step of the stage a restart file ends (the reversed stage, whose
-    reversal, with `[reversal] all_stages`, goes on through the stages before), checked as
-    `read_restart` checks it, without reading its arrays."""
+def restart_stage(path: str | Path) -> tuple[int, int]:
+    """(first, last) step of the stage a restart file ends (the reversed stage, whose
+    reversal, with `[reversal] all_stages`, goes on through the stages before), the last
+    the restart's own, checked as `read_restart` checks them, without reading its arrays."""
     path = Path(path)
     with open_hdf5(path) as f:
-        return int(_meta(f, path, checkpoint=False).attrs["stage_first_step"])
+        attrs = _meta(f, path, checkpoint=False).attrs
+        return int(attrs["stage_first_step"]), int(attrs["step"])
 
 
 def restart_summary(path: str | Path) -> str:

@@ -25,7 +25,13 @@ import numpy as np
 
 from revdem_cli.compare import read_verdict
 from revdem_cli.errors import InputError
-from revdem_cli.io.h5md import frame_steps, open_trajectory, read_observable
+from revdem_cli.io.h5md import (
+    frame_steps,
+    observable_steps,
+    open_trajectory,
+    read_frame,
+    read_observable,
+)
 
 HANLEY_2020 = Path(__file__).parents[2] / "scenarios" / "hanley2020" / "paper_numbers.toml"
 """Hanley 2020's numbers, `revdem report`'s paper file unless given another."""
@@ -46,12 +52,33 @@ def _verdict(key: str) -> Callable:
     return lambda run: run.verdict()[key]
 
 
+class NotInRun(LookupError):
+    """A value a measure reads that the run's file does not hold: an observable it did not
+    record, no row of it where the measure reads (a reversal stopped short of the reversed
+    stage's start has none there), or no event the value is measured at (a run cut short
+    before its contact). Its row says which, 'no WHAT in FILE', in place of a number."""
+
+    def __init__(self, what: str, path: Path):
+        super().__init__(f"no {what} in {Path(path).name}")
+
+
+def _series(path: Path, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(step, time, value) of the observable `name` of a run's trajectory at `path`, the one
+    reader of observables every measure goes through; NotInRun where the trajectory holds
+    no row of it."""
+    with open_trajectory(path) as f:
+        if f"observables/{name}/value" not in f:
+            raise NotInRun(name, path)
+        time, value = read_observable(f, name)
+        step = observable_steps(f, name)
+    if not len(value):
+        raise NotInRun(name, path)
+    return step, time, value
+
+
 def _shear_forces(run) -> tuple[np.ndarray, np.ndarray]:
-    with open_trajectory(run.forward) as f:
-        return (
-            read_observable(f, "max_shear_force")[1],
-            read_observable(f, "max_normal_force")[1],
-        )
+    """The largest shear and normal contact forces of the forward run, row by row."""
+    return _series(run.forward, "max_shear_force")[2], _series(run.forward, "max_normal_force")[2]
 
 
 def _max_shear_force(run) -> float:
@@ -59,46 +86,48 @@ def _max_shear_force(run) -> float:
 
 
 def _shear_force_at_separation(run) -> float:
+    """The largest shear force at the last row in contact, before the contact opens;
+    NotInRun where the run has no contact, or one still closed at its last row (a run cut
+    short), whose shear force there is not the one lost at separation."""
     shear, normal = _shear_forces(run)
     touching = np.nonzero(normal)[0]
-    return float(shear[touching[-1]]) if len(touching) else 0.0
+    if not len(touching):
+        raise NotInRun("contact", run.forward)
+    if touching[-1] == len(normal) - 1:
+        raise NotInRun("separation", run.forward)
+    return float(shear[touching[-1]])
 
 
 def _velocity_before_contact(run) -> float:
-    """Vertical velocity of particle 0 at the last frame before its first contact."""
+    """Vertical velocity of particle 0 at the last frame before its first contact;
+    NotInRun where the run has no contact (cut short before it), whose last frame's
+    velocity is not the one it hits with, or no frame before it."""
+    _, times, elastic = _series(run.forward, "elastic_energy")
+    touching = np.nonzero(elastic > 0.0)[0]
+    if not len(touching):
+        raise NotInRun("contact", run.forward)
+    first_contact = times[touching[0]]
     with open_trajectory(run.forward) as f:
-        times, elastic = read_observable(f, "elastic_energy")
-        touching = np.nonzero(elastic > 0.0)[0]
-        first_contact = times[touching[0]] if len(touching) else np.inf
-        frame_times = f["particles/all/velocity/time"][:]
+        frame_times = f["particles/all/velocity/time"][: len(frame_steps(f))]
         before = np.nonzero(frame_times < first_contact)[0]
-        return float(f["particles/all/velocity/value"][before[-1], 0, 2])
-
-
-class NotInRun(LookupError):
-    """A value a measure reads that the run's file does not hold: an observable it did not
-    record, or no row of it at the step asked (a reversal stopped short of the reversed
-    stage's start has none there). Its row says which, in place of a number."""
+        if not len(before):
+            raise NotInRun(f"frame before the first contact (at {first_contact:g} s)", run.forward)
+        return float(read_frame(f, "velocity", int(before[-1]))[0, 2])
 
 
 def _observable_at(run, moment: str, name: str) -> np.ndarray:
     """An observable of the reversed stage at `moment`: 'start' (forward run, where the
-    stage began), 'end' (forward run, last row: the restart) or 'reversed' (the reversed
-    run at the stage's start: its last row, or where every stage is reversed, its row
-    there); NotInRun where the file has no such row."""
+    stage began), 'end' (forward run, where the stage ended: the restart's step, not the
+    last row of a trajectory cut short) or 'reversed' (the reversed run at the stage's
+    start: its last row, or where every stage is reversed, its row there); NotInRun where
+    the file has no such row."""
     path = run.reverse if moment == "reversed" else run.forward
-    first = run.stage_start
-    with open_trajectory(path) as f:
-        if f"observables/{name}/value" not in f:
-            raise NotInRun(f"no {name} in {path.name}")
-        steps = f[f"observables/{name}/step"][:]
-        values = f[f"observables/{name}/value"][:]
-    if moment == "end" and len(values):
-        return values[-1]
-    there = np.nonzero(steps == first)[0]
-    if moment == "end" or not len(there):
-        at = "" if moment == "end" else f" at step {first}"
-        raise NotInRun(f"no {name}{at} in {path.name}")
+    first, last = run.stage
+    step = last if moment == "end" else first
+    steps, _, values = _series(path, name)
+    there = np.nonzero(steps == step)[0]
+    if not len(there):
+        raise NotInRun(f"{name} at step {step}", path)
     return values[there[0]]
 
 
@@ -109,11 +138,14 @@ def _stress_ratio(principal: np.ndarray) -> np.ndarray:
 
 def _peak_stress_ratio(run) -> float:
     """Largest sigma_1 / sigma_3 of the forward run over the reversed stage (Hanley 2020
-    Figure 4, the peak of Thornton's Eq 24)."""
-    with open_trajectory(run.forward) as f:
-        steps = f["observables/principal_stress/step"][:]
-        principal = f["observables/principal_stress/value"][:]
-    return float(_stress_ratio(principal[steps >= run.stage_start]).max())
+    Figure 4, the peak of Thornton's Eq 24); NotInRun where the run has no principal
+    stresses (no periodic cell) or none from the stage's start on."""
+    first, _ = run.stage
+    steps, _, principal = _series(run.forward, "principal_stress")
+    during = principal[steps >= first]
+    if not len(during):
+        raise NotInRun(f"principal_stress from step {first} on", run.forward)
+    return float(_stress_ratio(during).max())
 
 
 def _stage_measures() -> dict[str, tuple[str, Callable]]:
@@ -185,11 +217,11 @@ class _Run:
         return read_verdict(self._file("compare.json"))
 
     @property
-    def stage_start(self) -> int:
-        """The first step of the reversed stage, which its restart ends."""
-        from revdem_cli.io.restart import restart_stage_start
+    def stage(self) -> tuple[int, int]:
+        """The first and the last step of the reversed stage, which its restart ends."""
+        from revdem_cli.io.restart import restart_stage
 
-        return restart_stage_start(self._file("restart.h5"))
+        return restart_stage(self._file("restart.h5"))
 
     def short_reversal(self) -> str | None:
         """How far back the reversal went, in words, where it stopped short of the first step
@@ -202,7 +234,7 @@ class _Run:
         cannot be told."""
         if not self._path("compare.json").exists():
             return None
-        first = self.stage_start
+        first, _ = self.stage
         with open_trajectory(self.reverse) as f:
             steps = frame_steps(f)
         if len(steps) and steps.min() <= first:

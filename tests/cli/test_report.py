@@ -1,5 +1,7 @@
 """`revdem report`: the paper's numbers beside a directory's runs, as a Markdown page."""
 
+import h5py
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -243,6 +245,93 @@ def test_a_value_the_run_does_not_hold_is_named_in_its_row(tmp_path):
     assert rows["lower_wall_force_end"].endswith(
         "| no wall_force/bottom in fcc_triaxial.forward.h5 |  |"
     )
+
+
+def short_run(config, out, *changes: str) -> None:
+    """A run of `config` into `out`, forward only, on one thread, changed by `--set`s."""
+    args = ["run", str(ROOT / config), "--out", str(out), "-q", "--no-reverse", "--threads", "1"]
+    args += [part for change in ["output.figures=[]", *changes] for part in ("--set", change)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+
+
+def report_rows(out, paper_text: str, tmp_path) -> dict[str, dict[str, str]]:
+    """The revdem column of each case's rows of `revdem report` of the runs in `out`."""
+    paper, page = tmp_path / "paper.toml", tmp_path / "page.md"
+    paper.write_text(paper_text)
+    args = ["report", str(out), "--paper", str(paper), "--out", str(page), "--force"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    cases = {}
+    for case in page.read_text().split("\n## ")[1:]:
+        rows = [line.split(" | ") for line in case.splitlines() if line.startswith("| ")]
+        cases[case.split()[0]] = {row[0].strip("| "): row[2] for row in rows[1:]}
+    return cases
+
+
+def test_a_value_a_short_run_lacks_is_named_by_every_measure(smoke_run, tmp_path):
+    """The drop's and the fcc test's measures read their files themselves: the terminal
+    velocity of a drop cut short before its contact was its last frame's, shown as if it
+    were the paper's, and the peak stress ratio of a run without principal stresses (no
+    periodic cell) failed with a KeyError; the shear force at separation of a collision cut
+    short in contact was its last, and of one never in contact 0. Each row names what the
+    run lacks, as for a value at the reversed stage's start."""
+    short = ["stages.0.steps=4000", "stages.0.output_every=1000", "stages.0.observables_every=500"]
+    out = tmp_path / "runs"
+    short_run("configs/drop_C.toml", out, *short)  # 40 us: 8 nm of its 300 um fall
+    short_run("configs/smoke/collision.yaml", out, "stages.0.steps=1500")  # touching from 1150
+    paper = """
+[drop_C]
+terminal_velocity = -0.00981
+peak_stress_ratio = 2.0
+reversible = false
+
+[collision_smoke]
+shear_force_at_separation = 0.035
+max_shear_force = 0.066
+"""
+    rows = report_rows(out, paper, tmp_path)
+    assert rows["drop_C"] == {
+        "terminal_velocity": "no contact in drop_C.forward.h5",
+        "peak_stress_ratio": "no principal_stress in drop_C.forward.h5",
+        "reversible": "no drop_C.compare.json",
+    }
+    assert rows["collision_smoke"] == {
+        "shear_force_at_separation": "no separation in collision_smoke.forward.h5",
+        "max_shear_force": "0",  # the smoke collision has no shear law: a value, not a lack
+    }
+    never = report_rows(smoke_run, paper, tmp_path)["collision_smoke"]  # 1000 steps apart
+    assert never["shear_force_at_separation"] == "no contact in collision_smoke.forward.h5"
+    touching = tmp_path / "touching"  # the drop started on its plane: no frame before
+    short_run("configs/drop_C.toml", touching, *short, "particles.0.position=[0, 0, 0.00499]")
+    assert report_rows(touching, paper, tmp_path)["drop_C"]["terminal_velocity"] == (
+        "no frame before the first contact (at 0 s) in drop_C.forward.h5"
+    )
+
+
+def test_an_fcc_trajectory_cut_short_of_its_stage_names_what_it_lacks(tmp_path):
+    """A forward trajectory whose observables stop before the reversed stage (their rows
+    from there on cut away) failed the report with a traceback for the peak stress ratio,
+    and showed the last rows it had, from the stage before, as the stage's end."""
+    out = tmp_path / "fcc"
+    short = ["stages.0.steps=300", "stages.1.steps=200"]
+    short_run("configs/fcc_triaxial.toml", out, *short, "stages.0.output_every=100",
+              "stages.1.output_every=100")  # fmt: skip
+    committed = (ROOT / "scenarios/hanley2020/paper_numbers.toml").read_text()
+    paper = committed.replace("[fcc_triaxial]", "[fcc_triaxial]\nstress_ratio_end = 2.0")
+    whole = report_rows(out, paper, tmp_path)["fcc_triaxial"]
+    assert whole["coordination_number_end"] == "12" and float(whole["peak_stress_ratio"]) > 1.0
+    with h5py.File(out / "fcc_triaxial.forward.h5", "r+") as f:
+        series = f["observables/principal_stress"]
+        kept = int(np.searchsorted(series["step"][:], 300))  # the rows before step 300
+        for part in ("step", "time"):  # which every observable shares
+            series[part].resize(kept, axis=0)
+    rows = report_rows(out, paper, tmp_path)["fcc_triaxial"]
+    lacks = "no {} in fcc_triaxial.forward.h5".format
+    assert rows["peak_stress_ratio"] == lacks("principal_stress from step 300 on")
+    assert rows["stress_ratio_start"] == lacks("principal_stress at step 300")
+    assert rows["stress_ratio_end"] == lacks("principal_stress at step 500")
+    assert rows["coordination_number_end"] == lacks("coordination_number at step 500")
 
 
 def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypatch):
