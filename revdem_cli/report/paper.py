@@ -19,6 +19,7 @@ import os
 import shutil
 import tomllib
 from collections.abc import Callable
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -191,16 +192,19 @@ MEASURES: dict[str, tuple[str, Callable]] = {
 
 class _Run:
     """A case's run in a directory: its files NAME.forward.h5, NAME.reverse.h5 and
-    NAME.compare.json, each FileNotFoundError naming it where it is missing."""
+    NAME.compare.json, each FileNotFoundError naming it where it is missing. The report
+    makes one a case, which what it says of the run (`not_judged`) and its rows
+    (`case_rows`) share."""
 
     def __init__(self, directory: Path, name: str, case: dict):
         self.directory, self.name, self.case = Path(directory), name, case
 
-    def _path(self, kind: str) -> Path:
+    def path(self, kind: str) -> Path:
+        """Where the run's file of `kind` (forward.h5, compare.json, ...) is, there or not."""
         return self.directory / f"{self.name}.{kind}"
 
     def _file(self, kind: str) -> Path:
-        path = self._path(kind)
+        path = self.path(kind)
         if not path.exists():
             raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), str(path))
         return path
@@ -216,9 +220,10 @@ class _Run:
     def verdict(self) -> dict:
         return read_verdict(self._file("compare.json"))
 
-    @property
+    @cached_property
     def stage(self) -> tuple[int, int]:
-        """The first and the last step of the reversed stage, which its restart ends."""
+        """The first and the last step of the reversed stage, which its restart ends, read
+        from it once for every measure of the case."""
         from revdem_cli.io.restart import restart_stage
 
         return restart_stage(self._file("restart.h5"))
@@ -232,7 +237,7 @@ class _Run:
         or where the case has no reversal (no NAME.compare.json); FileNotFoundError naming
         the reversed trajectory or the restart where one is missing, without which it
         cannot be told."""
-        if not self._path("compare.json").exists():
+        if not self.path("compare.json").exists():
             return None
         first, _ = self.stage
         with open_trajectory(self.reverse) as f:
@@ -250,7 +255,7 @@ class _Run:
     @property
     def ran(self) -> bool:
         """Whether the case has a run in the directory (its trajectory or its verdict)."""
-        return self._path("forward.h5").exists() or self._path("compare.json").exists()
+        return self.path("forward.h5").exists() or self.path("compare.json").exists()
 
 
 UNJUDGED = ("description", "output.")
@@ -307,17 +312,17 @@ def _show(value) -> str:
     return str(value)
 
 
-def not_judged(name: str, case: dict, directory: Path) -> tuple[list[str], str]:
-    """What the page says of the case's run in `directory` before its numbers, and the word
-    its rows carry in place of yes or no ('' where they are judged). A run is not the
-    paper's case where its stored scenario differs from the case's config (made with --set,
-    say: `differences`) or where its reversal stopped short of the start of the reversed
-    stage (`_Run.short_reversal`): either way its numbers answer another question than the
+def not_judged(run: _Run) -> tuple[list[str], str]:
+    """What the page says of a case's run before its numbers, and the word its rows carry in
+    place of yes or no ('' where they are judged). A run is not the paper's case where its
+    stored scenario differs from the case's config (made with --set, say: `differences`) or
+    where its reversal stopped short of the start of the reversed stage
+    (`_Run.short_reversal`): either way its numbers answer another question than the
     paper's, and agreeing with them or not would be misread as revdem's answer to it. Where
     its reversed trajectory or restart is missing, how far back its reversal went cannot be
     told, and it is not judged either."""
     lines, why = [], []
-    forward = Path(directory) / f"{name}.forward.h5"
+    case, forward = run.case, run.path("forward.h5")
     changed = differences(forward, case["config"]) if "config" in case and forward.exists() else []
     if changed is None:
         lines.append(f"(`{case['config']}` is not there to check the run against.)")
@@ -328,7 +333,7 @@ def not_judged(name: str, case: dict, directory: Path) -> tuple[list[str], str]:
         )
     unknown = ""
     try:
-        short = _Run(directory, name, case).short_reversal()
+        short = run.short_reversal()
     except FileNotFoundError as exc:
         short, unknown = None, Path(exc.filename).name
     if short:
@@ -342,14 +347,11 @@ def not_judged(name: str, case: dict, directory: Path) -> tuple[list[str], str]:
     return lines, ""
 
 
-def case_rows(
-    name: str, case: dict, directory: Path, unjudged: str = ""
-) -> list[tuple[str, str, str, str]]:
-    """(quantity, paper, revdem, agrees) for each number the case reports, agrees being
-    `unjudged` in place of yes or no where it is given (`not_judged`); InputError naming a
-    file of its run that is damaged."""
-    run = _Run(directory, name, case)
-    rows = []
+def case_rows(run: _Run, unjudged: str = "") -> list[tuple[str, str, str, str]]:
+    """(quantity, paper, revdem, agrees) for each number a case reports, measured in its
+    run, agrees being `unjudged` in place of yes or no where it is given (`not_judged`);
+    InputError naming a file of its run that is damaged."""
+    case, rows = run.case, []
     for key, paper in case.items():
         if key in ABOUT or _qualified(key):
             continue
@@ -452,7 +454,8 @@ def write_report(directory: Path, paper_path: Path, out: Path, keep: bool = Fals
     paper = read_paper(paper_path)
     if not Path(directory).is_dir():
         raise InputError(f"{directory}: no such folder of runs")
-    if not any(_Run(directory, name, case).ran for name, case in paper.items()):
+    runs = [_Run(directory, name, case) for name, case in paper.items()]
+    if not any(run.ran for run in runs):
         raise InputError(
             f"{directory}: no run of a case of {from_here(paper_path)} (NAME.forward.h5 or "
             f"NAME.compare.json, NAME one of {', '.join(paper)})"
@@ -464,14 +467,15 @@ def write_report(directory: Path, paper_path: Path, out: Path, keep: bool = Fals
         "NAME.compare.json.",
     ]
     copies = []
-    for name, case in paper.items():
+    for run in runs:
+        name, case = run.name, run.case
         title = f"## {name}" + (f" ({case['section']})" if "section" in case else "")
         lines += ["", title, ""]
         if "config" in case:
             lines += [f"`{case['config']}`" + (f": {case['claim']}" if "claim" in case else ""), ""]
-        said, unjudged = not_judged(name, case, Path(directory))
+        said, unjudged = not_judged(run)
         lines += [line for sentence in said for line in (sentence, "")]
-        rows = case_rows(name, case, Path(directory), unjudged)
+        rows = case_rows(run, unjudged)
         lines += ["| quantity | paper | revdem | agrees |", "|---|---|---|---|"]
         lines += [f"| {' | '.join(row)} |" for row in rows]
         figures = sorted(Path(directory).glob(f"{name}.*.png"))

@@ -334,6 +334,25 @@ def test_an_fcc_trajectory_cut_short_of_its_stage_names_what_it_lacks(tmp_path):
     assert rows["coordination_number_end"] == lacks("coordination_number at step 500")
 
 
+def test_report_makes_one_run_of_each_case(smoke_run, tmp_path, monkeypatch):
+    """The report made a case's run three times over: to find whether the folder held any,
+    for what it says of the run, and for its rows. Nothing shows it on the page (the run
+    reads its files when asked), so the runs made are counted."""
+    from revdem_cli.report import paper
+
+    made = []
+
+    class Counted(paper._Run):
+        def __init__(self, directory, name, case):
+            made.append(name)
+            super().__init__(directory, name, case)
+
+    monkeypatch.setattr(paper, "_Run", Counted)
+    rows = report_rows(smoke_run, PAPER.replace("CONFIG", smoke_config(tmp_path)), tmp_path)
+    assert rows["collision_smoke"]["reversible"] == "yes"
+    assert made == ["collision_smoke", "drop_A"]
+
+
 def test_the_default_paper_file_and_a_missing_one(smoke_run, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # the project's paper file, wherever revdem runs from
     runs = tmp_path / "runs"  # the smoke collision's verdict as the paper's collision's

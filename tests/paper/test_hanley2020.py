@@ -79,10 +79,10 @@ def fcc_run(tmp_path_factory):
 
 
 def test_figure_4_stress_ratio_rises_to_2_as_coordination_falls_from_12_to_8(fcc_run):
-    from revdem_cli.report.paper import case_rows
+    from revdem_cli.report.paper import _Run, case_rows
 
     directory, _ = fcc_run
-    rows = case_rows("fcc_triaxial", PAPER["fcc_triaxial"], directory)
+    rows = case_rows(_Run(directory, "fcc_triaxial", PAPER["fcc_triaxial"]))
     assert len(rows) == 7
     assert all(agrees == "yes" for *_, agrees in rows), rows
 
