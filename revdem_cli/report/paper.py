@@ -37,7 +37,11 @@ from revdem_cli.io.h5md import (
 HANLEY_2020 = Path(__file__).parents[2] / "scenarios" / "hanley2020" / "paper_numbers.toml"
 """Hanley 2020's numbers, `revdem report`'s paper file unless given another."""
 
-ABOUT = {"config", "section", "claim", "relative_tolerance", "lower_wall", "upper_wall"}
+WALLS = ("lower_wall", "upper_wall")
+"""Entries of a case naming the walls (as its scenario names them) whose z force its
+`<wall>_force_<moment>` numbers are."""
+
+ABOUT = {"config", "section", "claim", "relative_tolerance", *WALLS}
 """Entries of a case that describe it rather than report a number."""
 
 QUALIFIERS = ("_absolute_tolerance", "_relative_tolerance", "_set_by", "_stands_for")
@@ -167,7 +171,7 @@ def _stage_measures() -> dict[str, tuple[str, Callable]]:
             "close",
             lambda run, m=moment: float(_stress_ratio(_observable_at(run, m, "principal_stress"))),
         )
-        for wall in ("lower_wall", "upper_wall"):
+        for wall in WALLS:
             measures[f"{wall}_force_{moment}"] = (
                 "close",
                 lambda run, m=moment, w=wall: float(
@@ -409,12 +413,31 @@ def read_paper(paper_path: Path) -> dict[str, dict]:
             _check_qualifier(paper_path, name, case, key)
             if key not in MEASURES:
                 continue
+            _check_wall(paper_path, name, case, key)
             if MEASURES[key][0] == "equal" and not isinstance(value, bool):
                 raise InputError(f"{paper_path}: {name}.{key} = {value!r}: give true or false")
             number = isinstance(value, int | float) and not isinstance(value, bool)
             if MEASURES[key][0] != "equal" and not number:
                 raise InputError(f"{paper_path}: {name}.{key} = {value!r}: give a number")
     return cases
+
+
+def _check_wall(paper_path: Path, name: str, case: dict, key: str) -> None:
+    """InputError naming the paper file and the entry where `key` of the case is the force
+    on one of its `WALLS` and the case does not name that wall."""
+    wall = next((wall for wall in WALLS if key.startswith(f"{wall}_force_")), None)
+    if wall is None:
+        return
+    if wall not in case:
+        raise InputError(
+            f"{paper_path}: {name}.{key}: give {name}.{wall}, the name of that wall in the "
+            "case's scenario"
+        )
+    if not isinstance(case[wall], str) or not case[wall]:
+        raise InputError(
+            f"{paper_path}: {name}.{wall} = {case[wall]!r}: give the name of a wall of the "
+            "case's scenario"
+        )
 
 
 def _check_qualifier(paper_path: Path, name: str, case: dict, key: str) -> None:

@@ -110,6 +110,9 @@ def test_a_number_within_an_absolute_tolerance_and_one_the_run_sets(smoke_run, t
         ('max_shear_force_absolute_tolerance = "x"', "= 'x': give a number, 0 or more"),
         ("reversible_set_by = 1", "reversible_set_by = 1: say what sets it"),
         ("max_normal_force_absolute_tolerance = 1", "collision_smoke reports no max_normal_force"),
+        # a wall's force of a case that names no wall failed with a KeyError
+        ("lower_wall_force_end = 1.0", "give collision_smoke.lower_wall, the name of that wall"),
+        ("lower_wall = 3\nlower_wall_force_end = 1.0", "= 3: give the name of a wall of the"),
     ]:
         assert_one_line_error(report(entry), f"collision_smoke.{entry.split(' =')[0]}", wrong)
 
