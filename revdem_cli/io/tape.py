@@ -640,7 +640,8 @@ def by_step(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
 def summary(path: Path) -> dict:
     """What a tape holds: the bytes its datasets take, compressed, against storing the
     compared state at every step, and the bits it recorded, in all and by mechanism (with
-    the contacts, particles or edges that had entries, counted once a step). The file adds
+    the contacts, particles or edges that had entries, counted once a step). The bytes are
+    every dataset's, the entries, the steps' rows and the blocks' checksums; the file adds
     HDF5's headers and, after a resumed run cut the tape back, the space the cut freed: a
     resumed run's tape holds the same bytes in a larger file."""
     with _open(Path(path), "r") as f:
@@ -650,11 +651,7 @@ def summary(path: Path) -> dict:
         steps = int(f["steps/count"].shape[0])
         entries = int(f["entries/what"].shape[0])
         full = int(f.attrs["state_bytes"]) * steps
-        size = sum(
-            f[group][name].id.get_storage_size()
-            for group in ("entries", "steps")
-            for name in f[group]
-        )
+        size = _stored_bytes(f)
     total = bits.sum(axis=0)
     return {
         "file": Path(path).name,
@@ -671,6 +668,14 @@ def summary(path: Path) -> dict:
             if total[k] > 0
         },
     }
+
+
+def _stored_bytes(f: h5py.File) -> int:
+    """The bytes every dataset of the open tape `f` takes in the file, compressed: the
+    entries, the steps' rows and /blocks, without HDF5's headers."""
+    datasets = []
+    f.visititems(lambda _, item: datasets.append(item) if isinstance(item, h5py.Dataset) else None)
+    return sum(dataset.id.get_storage_size() for dataset in datasets)
 
 
 def combined(summaries: list[dict]) -> dict:

@@ -610,6 +610,26 @@ def test_a_tape_cut_back_and_written_on_holds_the_bytes_of_one_written_straight(
     assert summary(cut) == summary(straight) | {"file": cut.name}
 
 
+def test_a_tape_s_bytes_count_every_dataset_it_stores(tmp_path):
+    """`summary`'s bytes (compare.json's information_tape.bytes and its ratio, `revdem
+    info`) counted the entries and the steps' rows, and left out /blocks, the table of the
+    blocks' checksums the tape stores beside them."""
+    from revdem_cli.state import initial_state
+
+    path = tmp_path / "resting.tape.h5"
+    tape_file.Recorder(path, "settle", (0, 0.0, 1e-6), initial_state(_resting({}).scenario))
+    for block in _blocks(3, 3000):
+        tape_file._append_block(path, block)
+    with h5py.File(path) as f:
+        stored = {
+            name: f[name].id.get_storage_size() for name in (*tape_file.BLOCK_DATASETS, "blocks")
+        }
+    assert stored["blocks"] > 0
+    said = summary(path)
+    assert said["bytes"] == sum(stored.values())
+    assert said["size_over_full_state"] == said["bytes"] / said["full_state_bytes"]
+
+
 def test_observing_a_state_leaves_the_stress_a_servo_reads():
     """The observables take the cell's stress from the contact forces as they are; the
     servo's own stress, which the next step reads (and the tape restores), is left alone."""
