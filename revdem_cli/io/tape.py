@@ -29,7 +29,7 @@ which `summary` sets the tape beside), `compared` and `mechanisms`; once its sta
 `last_step` and `end_sha256` (`end_digest` of the integers there), which tie the tape to
 the restart written at that step: a reversal replays only the tape of its own restart.
 Going backward, `Replayer` reads it a block at a time from the end. The checksums are
-verified (`_check_blocks`) before a reversal's first step and wherever the tape is
+verified (`_verified`) before a reversal's first step and wherever the tape is
 summarised: Zstandard and HDF5 check nothing, and a flipped bit in a chunk reads back as
 another entry or another count of bits.
 """
@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import zlib
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
@@ -403,15 +404,16 @@ class Replayer:
                     f"{stage} from step {first_step} with {particles}"
                 )
             _check_end(self.path, attrs, restart, last_step, end)
-            _check_blocks(f, self.path, entries=True)
-            counts = f["steps/count"][:]
+            held = _verified(f, self.path, entries=True)
+            counts = held.counts
             if counts.shape[0] != last_step - first_step:  # refused before the first step
                 raise InputError(
                     f"{self.path}: the information tape holds steps {first_step} to "
                     f"{first_step + counts.shape[0] - 1}, the reversal needs steps {first_step} "
                     f"to {last_step - 1}"
                 )
-            self.sums = _block_sums(f["steps/bits"])
+            self.sums = held.sums
+            self.summary = _summary(f, self.path, held)  # what `summary` would read again
         self.first_step = first_step
         self.starts = np.concatenate(([0], np.cumsum(counts)))
         self.buffers = _Buffers()
@@ -420,6 +422,11 @@ class Replayer:
     @property
     def steps(self) -> int:
         return self.starts.shape[0] - 1
+
+    @property
+    def recorded(self) -> np.ndarray:
+        """The bits the tape recorded over its whole stage, by mechanism (`recorded`)."""
+        return self.sums[-1]
 
     def bundle(self, state, events, law=None, dyn=None) -> Tape:
         """The tape the stepping loop replays from (`law` and `dyn` are `Recorder.bundle`'s,
@@ -511,22 +518,11 @@ def _running(total: np.ndarray, bits: np.ndarray) -> np.ndarray:
     return np.cumsum(np.vstack((total, bits)), axis=0)
 
 
-def _block_sums(bits) -> list[np.ndarray]:
-    """The bits recorded before every STEPS_PER_BLOCK-th step of a tape's /steps/bits, and
-    over all its steps last, by mechanism: summed as `Recorder` sums them (`_running`), a
-    block in memory at a time."""
-    sums = [np.zeros(len(MECHANISMS))]
-    for start in range(0, bits.shape[0], STEPS_PER_BLOCK):
-        sums.append(_running(sums[-1], bits[start : start + STEPS_PER_BLOCK])[-1])
-    return sums
-
-
 def recorded(path: Path) -> np.ndarray:
     """The bits a tape recorded over its whole stage, by mechanism, summed as `Recorder`
     sums them (its rows of the stage's last step)."""
     with _open(Path(path), "r") as f:
-        _check_blocks(f, Path(path), entries=False)
-        return _block_sums(f["steps/bits"])[-1]
+        return _verified(f, Path(path), entries=False).sums[-1]
 
 
 def state_bytes(state) -> int:
@@ -572,11 +568,28 @@ def _checksums(block: tuple) -> tuple[int, int]:
     return steps, entries
 
 
-def _check_blocks(f: h5py.File, path: Path, entries: bool) -> None:
-    """InputError "damaged tape" naming the file and the first block (its steps) whose
-    steps' rows, or with `entries` whose entries too, fail their checksum (`_checksums`),
-    cannot be read, or do not cover the datasets end to end."""
+@dataclass
+class _Held:
+    """What a tape's blocks hold, read once and checked against their checksums (`_verified`):
+    the entries of each step (`counts`), the bits recorded before every STEPS_PER_BLOCK-th
+    step and over all the steps last, by mechanism (`sums`: `Replayer.destroyed_by` sums on
+    from them), and the contacts with entries over all the steps, by mechanism."""
+
+    counts: np.ndarray
+    sums: list[np.ndarray]
+    contacts: np.ndarray
+
+
+def _verified(f: h5py.File, path: Path, entries: bool) -> _Held:
+    """What the open tape `f` holds, each block read once and checked against its checksums
+    (`_checksums`): its steps' rows, and with `entries` its entries too, so that a check
+    and what is taken from the tape come from one read. InputError "damaged tape" naming
+    the file and the first block (its steps) that fails them, cannot be read, or does not
+    start where the blocks before end, or where the blocks do not cover the datasets end to
+    end."""
     first = int(f.attrs["first_step"])
+    counts, sums = [], _Sums()
+    contacts = np.zeros(len(MECHANISMS), dtype=np.int64)
     try:
         blocks = f["blocks"][:]
         sizes = (f["steps/count"].shape[0], f["entries/what"].shape[0])
@@ -597,6 +610,9 @@ def _check_blocks(f: h5py.File, path: Path, entries: bool) -> None:
                 raise InputError(f"{path}: damaged tape ({where} fail their checksum)")
             if int(block[3].sum()) != count:
                 raise InputError(f"{path}: damaged tape ({where}: entries miscounted)")
+            counts.append(block[3])
+            sums.add(step, block[4])
+            contacts += block[5].sum(axis=0, dtype=np.int64)
     except (OSError, KeyError, ValueError) as exc:
         raise InputError(f"{path}: damaged tape (cannot be read: {exc})") from None
     if ends != sizes if entries else ends[0] != sizes[0]:
@@ -604,6 +620,29 @@ def _check_blocks(f: h5py.File, path: Path, entries: bool) -> None:
             f"{path}: damaged tape ({sizes[0]} steps and {sizes[1]} entries, its blocks cover "
             f"{ends[0]} and {ends[1]})"
         )
+    counts = np.concatenate(counts) if counts else np.zeros(0, dtype=np.int64)
+    return _Held(counts, sums.ended(ends[0]), contacts)
+
+
+class _Sums:
+    """The bits recorded before every STEPS_PER_BLOCK-th step of a tape, by mechanism, summed
+    on from its blocks' rows of /steps/bits in turn as `Recorder` sums them (`_running`:
+    one sum, step by step, however the rows came in blocks)."""
+
+    def __init__(self):
+        self.total = np.zeros(len(MECHANISMS))
+        self.sums = [self.total]
+
+    def add(self, step: int, bits: np.ndarray) -> None:
+        """The rows of the steps from `step` (counted from the stage's start) on."""
+        running = _running(self.total, bits)
+        first = STEPS_PER_BLOCK - step % STEPS_PER_BLOCK  # the next boundary, from `step`
+        self.sums.extend(running[first : bits.shape[0] + 1 : STEPS_PER_BLOCK])
+        self.total = running[-1]
+
+    def ended(self, steps: int) -> list[np.ndarray]:
+        """The sums, with the bits over all `steps` steps last."""
+        return self.sums + ([self.total] if steps % STEPS_PER_BLOCK else [])
 
 
 def _append(dataset, values: np.ndarray) -> None:
@@ -629,7 +668,7 @@ def by_step(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """A tape's steps, their times (s), the bits of each by mechanism, and the mechanisms'
     names."""
     with _open(Path(path), "r") as f:
-        _check_blocks(f, Path(path), entries=False)
+        _verified(f, Path(path), entries=False)
         bits = f["steps/bits"][:].astype(np.float64)
         first, time, dt = int(f.attrs["first_step"]), float(f.attrs["first_time"]), f.attrs["dt"]
         names = [str(name) for name in f.attrs["mechanisms"]]
@@ -638,32 +677,35 @@ def by_step(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
 
 
 def summary(path: Path) -> dict:
-    """What a tape holds: the bytes its datasets take, compressed, against storing the
-    compared state at every step, and the bits it recorded, in all and by mechanism (with
-    the contacts, particles or edges that had entries, counted once a step). The bytes are
-    every dataset's, the entries, the steps' rows and the blocks' checksums; the file adds
+    """What a tape holds (`_summary`), its blocks checked against their checksums."""
+    with _open(Path(path), "r") as f:
+        return _summary(f, Path(path), _verified(f, Path(path), entries=True))
+
+
+def _summary(f: h5py.File, path: Path, held: _Held) -> dict:
+    """What the open tape `f` holds (`held`, as `_verified` read it): the bytes its datasets
+    take, compressed, against storing the compared state at every step, and the bits it
+    recorded, in all and by mechanism (summed as `Recorder` sums them, so that they are the
+    last row of the trajectory's bits_destroyed to the last digit), with the contacts,
+    particles or edges that had entries, counted once a step. The bytes are every
+    dataset's, the entries, the steps' rows and the blocks' checksums; the file adds
     HDF5's headers and, after a resumed run cut the tape back, the space the cut freed: a
     resumed run's tape holds the same bytes in a larger file."""
-    with _open(Path(path), "r") as f:
-        _check_blocks(f, Path(path), entries=True)
-        bits = f["steps/bits"][:].astype(np.float64)
-        contacts = f["steps/contacts"][:]
-        steps = int(f["steps/count"].shape[0])
-        entries = int(f["entries/what"].shape[0])
-        full = int(f.attrs["state_bytes"]) * steps
-        size = _stored_bytes(f)
-    total = bits.sum(axis=0)
+    steps = int(held.counts.shape[0])
+    full = int(f.attrs["state_bytes"]) * steps
+    size = _stored_bytes(f)
+    total = held.sums[-1]
     return {
-        "file": Path(path).name,
+        "file": path.name,
         "steps": steps,
-        "entries": entries,
+        "entries": int(f["entries/what"].shape[0]),
         "bytes": size,
         "full_state_bytes": full,
         "size_over_full_state": size / full if full else None,
         "bits_destroyed": float(total.sum()),
         "bits_per_step": float(total.sum() / steps) if steps else 0.0,
         "by_mechanism": {
-            name: {"bits": float(total[k]), "with_entries": int(contacts[:, k].sum())}
+            name: {"bits": float(total[k]), "with_entries": int(held.contacts[k])}
             for k, name in enumerate(MECHANISMS)
             if total[k] > 0
         },

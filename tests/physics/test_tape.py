@@ -610,16 +610,39 @@ def test_a_tape_cut_back_and_written_on_holds_the_bytes_of_one_written_straight(
     assert summary(cut) == summary(straight) | {"file": cut.name}
 
 
+def _written_tape(path: Path, blocks: list[tuple]) -> Path:
+    """A tape of the resting sphere's stage "settle" holding `blocks` (`_blocks`), ended at
+    its last step."""
+    from revdem_cli.state import initial_state
+
+    tape_file.Recorder(path, "settle", (0, 0.0, 1e-6), initial_state(_resting({}).scenario))
+    for block in blocks:
+        tape_file._append_block(path, block)
+    tape_file._mark_end(path, sum(len(block[3]) for block in blocks), "")
+    return path
+
+
+def _tape_reads(monkeypatch) -> dict[str, int]:
+    """The values read from each dataset of the information tapes from here on, by name."""
+    reads: dict[str, int] = {}
+    read = h5py.Dataset.__getitem__
+
+    def counted(dataset, key):
+        values = read(dataset, key)
+        if dataset.file.filename.endswith(".tape.h5"):
+            name = dataset.name.lstrip("/")
+            reads[name] = reads.get(name, 0) + np.size(values)
+        return values
+
+    monkeypatch.setattr(h5py.Dataset, "__getitem__", counted)
+    return reads
+
+
 def test_a_tape_s_bytes_count_every_dataset_it_stores(tmp_path):
     """`summary`'s bytes (compare.json's information_tape.bytes and its ratio, `revdem
     info`) counted the entries and the steps' rows, and left out /blocks, the table of the
     blocks' checksums the tape stores beside them."""
-    from revdem_cli.state import initial_state
-
-    path = tmp_path / "resting.tape.h5"
-    tape_file.Recorder(path, "settle", (0, 0.0, 1e-6), initial_state(_resting({}).scenario))
-    for block in _blocks(3, 3000):
-        tape_file._append_block(path, block)
+    path = _written_tape(tmp_path / "resting.tape.h5", _blocks(3, 3000))
     with h5py.File(path) as f:
         stored = {
             name: f[name].id.get_storage_size() for name in (*tape_file.BLOCK_DATASETS, "blocks")
@@ -628,6 +651,33 @@ def test_a_tape_s_bytes_count_every_dataset_it_stores(tmp_path):
     said = summary(path)
     assert said["bytes"] == sum(stored.values())
     assert said["size_over_full_state"] == said["bytes"] / said["full_state_bytes"]
+
+
+def test_one_read_of_a_tape_checks_it_and_gives_its_summary_or_its_replay(tmp_path, monkeypatch):
+    """`summary` read the steps' bits and contacts again once it had checked every block, and
+    a `Replayer` the steps' counts and bits: each dataset is read once now, the check and
+    what is taken from the tape from the same read, and the bits summed on from it are
+    those of one sum over the whole stage, step by step, to the last digit."""
+    blocks = _blocks(3, 3000)  # blocks that end off the replay's 4096-step boundaries
+    path = _written_tape(tmp_path / "resting.tape.h5", blocks)
+    with h5py.File(path) as f:
+        sizes = {name: f[name].size for name in (*tape_file.BLOCK_DATASETS, "blocks")}
+    reads = _tape_reads(monkeypatch)
+    said = summary(path)
+    assert reads == sizes
+    reads.clear()
+    replayer = tape_file.Replayer(path, "settle", (0, 9000), 1, "its restart")
+    assert reads == sizes
+    assert replayer.summary == said
+    bits = np.vstack([block[4] for block in blocks])
+    running = np.cumsum(np.vstack((np.zeros(len(MECHANISMS)), bits)), axis=0)
+    steps = np.array([1, 2999, 3000, 3001, 4095, 4096, 4097, 6000, 8192, 8193, 8999, 9000])
+    assert np.array_equal(replayer.destroyed_by(steps), running[steps])
+    assert np.array_equal(replayer.recorded, running[-1])
+    assert said["bits_destroyed"] == float(running[-1].sum())
+    assert said["by_mechanism"]["damping"]["bits"] == running[-1, MECHANISMS.index("damping")]
+    contacts = np.vstack([block[5] for block in blocks]).sum(axis=0)
+    assert said["by_mechanism"]["damping"]["with_entries"] == contacts[MECHANISMS.index("damping")]
 
 
 def test_observing_a_state_leaves_the_stress_a_servo_reads():
