@@ -471,7 +471,7 @@ def _reverse(
         if forward is not None:
             refuse_nothing_to_compare(forward, start.state.step, stop)
         events, began = None, None
-        tape = _replayer(scenario, start, source, clock)  # refused before the file is made
+        tapes = _replayers(scenario, start, source, clock, stop)  # refused before the file
         writer = _writer(paths["reverse"], start.state, run.model, text, "reverse", source)
     else:
         stop, events = resumption.stop_step, resumption.events
@@ -479,22 +479,20 @@ def _reverse(
         forward = sought[0] if sought[0].is_file() else None
         clock = _reverse_clock(scenario, start, resumption.end_step)
         began = _source_restart(paths["reverse"])  # where the reversal began; `source` is
-        tape = _replayer(scenario, start, source, clock)  # the restart of the stage it goes on in
+        tapes = _replayers(scenario, start, source, clock, stop)  # that of the stage it is in
         writer = _continued_writer(
             paths["reverse"], resumption, start.state, run.model, text, "reverse", began
         )
     with writer:
-        while True:
+        for stage, tape in enumerate(tapes):
+            if stage:
+                start, source = _stage_before(start, source)
+                clock = _reverse_clock(scenario, start, start.state.step)
+                stop, events = clock.first_step, None
             _reverse_stage(
                 run, start, source, clock, stop, events, writer, tape, progress, so_far,
                 forward or Path(start.trajectory),
             )  # fmt: skip
-            if not start.previous or stop != clock.first_step:
-                break
-            start, source = _stage_before(start, source)
-            clock = _reverse_clock(scenario, start, start.state.step)
-            stop, events = clock.first_step, None
-            tape = _replayer(scenario, start, source, clock)
         writer.end()
     # resumed, the restart the reversal began from (`resume_run` reports it)
     outputs = Outputs(reverse=paths["reverse"], restart=Path(began) if began else None)
@@ -524,26 +522,52 @@ def _source_restart(reversed_trajectory: Path) -> str:
         return str(f["parameters/revdem"].attrs["source_restart"])
 
 
+def _replayers(
+    scenario: Scenario, start: Restart, source: str, clock: StageClock, stop: int
+) -> list[Replayer | None]:
+    """The information tapes a reversal from the restart `start` (the file `source`, of the
+    stage of `clock`) back to step `stop` replays, one a stage it reverses, its own stage's
+    first (None where it has none): where every stage is reversed and it goes back to its
+    stage's start, on through the stages before, each found from the restart at the end of
+    the one before (`previous`). Every tape is checked here (`Replayer`), and the restarts
+    before read, so that a missing or damaged one is refused before the first step, not
+    once the stages after it have been reversed. A stage's bits at its first step are those
+    the forward run wrote there, at the end of the stage before: that stage's tape's."""
+    tapes = [_replayer(scenario, start, source, clock)]
+    while start.previous:  # every stage reversed: the stage before has a tape
+        if stop != clock.first_step:  # the reversal stops within this stage
+            index = _stage_index(scenario, clock) - 1
+            earlier = stage_paths(Path(source).parent, scenario.name, index, scenario)["tape"]
+            tapes[-1].before = recorded(earlier)
+            break
+        source = str(Path(source).parent / start.previous)
+        start = read_restart(source)
+        clock = _reverse_clock(scenario, start, start.state.step)
+        stop = clock.first_step
+        tapes.append(_replayer(scenario, start, source, clock))
+        tapes[-2].before = tapes[-1].recorded
+    return tapes
+
+
 def _replayer(
     scenario: Scenario, start: Restart, source: str, clock: StageClock
 ) -> Replayer | None:
     """The information tape a restart names, to replay, or None. Its bits at the stage's
-    first step are those the forward run wrote there, at the end of the stage before: that
-    stage's tape's, beside the restart, where every stage is reversed, else NaN."""
+    first step are NaN after a stage (those of the stage before where its tape is read,
+    `_replayers`)."""
     if not start.tape:
         return None
-    index = [stage.name for stage in scenario.stages].index(clock.stage.name)
-    before = None
-    if index > 0:
-        before = np.full(len(MECHANISMS), np.nan)
-        if start.previous:  # every stage reversed: the stage before has a tape
-            earlier = stage_paths(Path(source).parent, scenario.name, index - 1, scenario)
-            before = recorded(earlier["tape"])
+    before = np.full(len(MECHANISMS), np.nan) if _stage_index(scenario, clock) > 0 else None
     path = Path(source).parent / start.tape
     particles = len(start.state.particles.x)
     end = start.state.fixed if start.resumption is None else None  # a checkpoint: part-way
     span = (clock.first_step, clock.last_step)
     return Replayer(path, clock.stage.name, span, particles, source, end, before)
+
+
+def _stage_index(scenario: Scenario, clock: StageClock) -> int:
+    """The place of the stage of `clock` among the scenario's stages."""
+    return [stage.name for stage in scenario.stages].index(clock.stage.name)
 
 
 def _reverse_stage(

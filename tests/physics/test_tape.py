@@ -755,6 +755,67 @@ def test_every_stage_reverses_to_the_start_of_the_run(tmp_path):
     assert "information_tapes" not in partial.comparison
 
 
+@pytest.fixture(scope="module")
+def three_stages_run(tmp_path_factory) -> Path:
+    """The folder of `_three_stages` run forward: a restart and a tape at each stage's end."""
+    out = tmp_path_factory.mktemp("three_stages")
+    revdem.run(_three_stages(), out, reverse=False)
+    return out
+
+
+EARLIER_DAMAGE = {
+    "flipped entry": (
+        lambda out: _flip_bytes(out / "resting.stage-0.tape.h5", "entries/amount"),
+        "resting.stage-0.tape.h5: damaged tape (block 0, steps 0 to 999 fail their checksum)",
+    ),
+    "missing tape": (
+        lambda out: (out / "resting.stage-0.tape.h5").unlink(),
+        "resting.stage-0.tape.h5: not there",
+    ),
+    "another run's end": (
+        lambda out: _set_attributes(out / "resting.stage-0.tape.h5", end_sha256="0" * 64),
+        "resting.stage-0.tape.h5: not the information tape of ",
+    ),
+    "another schema": (
+        lambda out: _set_attributes(out / "resting.stage-0.tape.h5", schema_version=2),
+        "resting.stage-0.tape.h5: information tape schema 2, this revdem reads 3",
+    ),
+    "missing restart": (
+        lambda out: (out / "resting.stage-0.restart.h5").unlink(),
+        "resting.stage-0.restart.h5",
+    ),
+}
+
+
+def _set_attributes(path: Path, **attributes) -> None:
+    with h5py.File(path, "a") as f:
+        f.attrs.update(attributes)
+
+
+@pytest.mark.parametrize("damage", EARLIER_DAMAGE)
+def test_every_tape_a_reversal_of_every_stage_needs_is_checked_before_its_first_step(
+    three_stages_run, tmp_path, damage
+):
+    """With every stage reversed, the tape of the first stage was checked only when the
+    reversal reached it, after the two stages after it (hours, in a long run), and the
+    refusal left a partial reversed trajectory: it is refused in one line before the
+    reversed trajectory is made, as the last stage's own tape is."""
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+    from tests.conftest import assert_one_line_error
+
+    out = tmp_path / "run"
+    shutil.copytree(three_stages_run, out)
+    harm, why = EARLIER_DAMAGE[damage]
+    harm(out)
+    result = CliRunner().invoke(app, ["reverse", str(out / "resting.restart.h5"), "--threads", "1"])
+    assert_one_line_error(result, str(out / why.split(":")[0]), why)
+    assert not (out / "resting.reverse.h5").exists()
+
+
 def test_a_reversal_of_every_stage_resumes_in_an_earlier_stage(tmp_path):
     """Stopped while reversing the middle stage (frame 45 of 60), the run resumes from its
     checkpoint there and goes on through the first stage to the same exact end."""
