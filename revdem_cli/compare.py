@@ -80,7 +80,12 @@ def tolerances_of(trajectory) -> Reversal:
     return scenario.reversal if scenario else Reversal()
 
 
-def compare_trajectories(first: str | Path, second: str | Path, tolerance: Reversal | None = None):
+def compare_trajectories(
+    first: str | Path,
+    second: str | Path,
+    tolerance: Reversal | None = None,
+    known: dict[Path, dict] | None = None,
+):
     """Compare two trajectories frame by frame at their common steps.
 
     `first_divergence_step` is the first step, in the order the second run went through
@@ -89,7 +94,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
     state, and the same box (a periodic cell's edges, which positions in it are fractions
     of), so the round trip returned exactly the state it started from. With the
     information tapes the reversal replayed (`tapes_replayed`), their summary
-    (`with_tapes`).
+    (`with_tapes`; `known`: those of tapes already read, as `with_tapes` takes them).
     """
     with open_trajectory(first) as a, open_trajectory(second) as b:
         pairing = check_pairing(a, b, Path(first), Path(second))
@@ -161,7 +166,7 @@ def compare_trajectories(first: str | Path, second: str | Path, tolerance: Rever
             "velocity_error": table[:, 2].tolist(),
         },
     }
-    return with_tapes(verdict, tapes)
+    return with_tapes(verdict, tapes, known)
 
 
 def _reversal_unfinished(reverse, second: Path, steps: np.ndarray) -> str | None:
@@ -250,13 +255,17 @@ def tapes_replayed(reverse, second: Path) -> list[Path]:
         restart = restart.parent / previous
 
 
-def with_tapes(verdict: dict, tapes: list[Path]) -> dict:
+def with_tapes(verdict: dict, tapes: list[Path], known: dict[Path, dict] | None = None) -> dict:
     """`verdict` with the summary of the information tapes a reversal replayed (`io.tape`):
     `information_tape`, all of them together, and with several `information_tapes`, each;
-    as it is where none is."""
+    as it is where none is. `known`: the summaries of tapes already read and checked, by
+    resolved path (a reversal's own, `Replayer.summary`, made from the read that checked
+    every block before its first step), taken as they are, where `summary` would read the
+    whole tape again."""
     from revdem_cli.io.tape import combined, summary
 
-    summaries = [summary(tape) for tape in tapes]
+    known = known or {}
+    summaries = [known.get(tape.resolve()) or summary(tape) for tape in tapes]
     if summaries:
         verdict["information_tape"] = combined(summaries)
     if len(summaries) > 1:

@@ -503,7 +503,8 @@ def _reverse(
     )
     if forward is not None:
         outputs.forward = forward
-        verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal)
+        read = {tape.path.resolve(): tape.summary for tape in tapes if tape is not None}
+        verdict = compare_trajectories(forward, paths["reverse"], scenario.reversal, read)
         write_text(paths["compare"], json.dumps(verdict, indent=2) + "\n")
         outputs.comparison, outputs.verdict = paths["compare"], verdict
         run.checkpoints.finish(

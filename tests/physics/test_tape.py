@@ -310,6 +310,27 @@ def test_a_damaged_tape_is_refused_by_info_and_the_reversal(tmp_path, dataset):
     assert_one_line_error(CliRunner().invoke(app, ["info", str(path)]), damaged)
 
 
+def test_a_reversal_reads_its_tape_to_check_it_and_to_replay_it_alone(tmp_path, monkeypatch):
+    """A reversal read its whole tape three times: to check every block before its first
+    step, to replay it, and again for the verdict's summary, which checked every block
+    again. The summary is that of the check's read now (the same as `summary` reads), and a
+    flipped byte is refused before the first step all the same
+    (`test_a_damaged_tape_is_refused_by_info_and_the_reversal`)."""
+    experiment = _fixed(_shear_collision(0.3), tape=True).changed({"stages.0.reverse": False})
+    restart = revdem.run(experiment, tmp_path / "run").outputs.restart
+    path = restart.with_name("collision_shear.tape.h5")
+    with h5py.File(path) as f:
+        sizes = {name: f[name].size for name in tape_file.BLOCK_DATASETS}
+    reads = _tape_reads(monkeypatch)
+    reversed_ = revdem.reverse(restart, tmp_path / "reversed")
+    assert reversed_.comparison["bitwise_identical"]
+    for name in ("entries/what", "entries/where", "entries/amount"):
+        assert reads[name] == 2 * sizes[name], name
+    for name in ("steps/count", "steps/contacts"):  # the replay's bits read apart, by row
+        assert reads[name] == sizes[name], name
+    assert reversed_.comparison["information_tape"] == summary(path)
+
+
 @pytest.mark.parametrize(
     ("changes", "why"),
     [
