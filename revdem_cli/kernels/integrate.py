@@ -199,7 +199,7 @@ def forward_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     kick_particles(p, fixed, law, h)
     kick_cell(cell, fixed, h)
     if dyn.drag != 1.0:
-        drag(p, fixed, dyn.drag, False)
+        drag(p, fixed, dyn.drag, np.False_)
         note_fixed_points(p.v, p.v_drift, step + 1, events)
     move_cell(cell, fixed, dt, elapsed)
     drift(p, cell, fixed, dt, events, step + 1)
@@ -234,7 +234,7 @@ def reverse_step(p, pairs, walls, cell, fixed, law, moduli, dyn, events, dt, ste
     place_walls(walls, elapsed)
     if dyn.drag != 1.0:
         note_fixed_points(p.v, p.v_drift, step - 1, events)
-        drag(p, fixed, dyn.drag, True)
+        drag(p, fixed, dyn.drag, np.True_)
     predict(p)  # the same predictor on the reversed run's own history: dt -> -dt
     compute_forces(p, pairs, walls, cell, fixed, law, moduli, dyn, np.int64(REVERSE), dt, h,
                    events, step - 1, keep)  # fmt: skip
