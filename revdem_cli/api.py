@@ -36,6 +36,7 @@ from revdem_cli.checkpoint import Interrupted
 from revdem_cli.config import Scenario
 from revdem_cli.engine import Outputs
 from revdem_cli.errors import InputError, path_problem, whole_number
+from revdem_cli.io.lock import sole_writer
 
 
 def _paths_checked(function):
@@ -455,16 +456,17 @@ def run(
         )
     out = _folder(out, "out")
     _use_threads(threads)
-    keep_checkpoint(out, experiment.name, force)
-    if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
-        check_time_step(experiment.scenario, experiment.origin)
-    written = output_paths_of(experiment.scenario, out, reverse)
-    earlier = [path for path in earlier_outputs(out, experiment.name) if path not in written]
-    keep_outputs([*written, *earlier], force)  # not left to pass for this run's
-    stale = stale_exports(written, out, experiment.name)
-    with _progress(progress) as shown:
-        outputs = run_scenario(experiment.scenario, experiment.text, experiment.suffix, out,
-                               reverse, shown, allow_unstable_dt)  # fmt: skip
+    with sole_writer(out):
+        keep_checkpoint(out, experiment.name, force)
+        if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
+            check_time_step(experiment.scenario, experiment.origin)
+        written = output_paths_of(experiment.scenario, out, reverse)
+        earlier = [path for path in earlier_outputs(out, experiment.name) if path not in written]
+        keep_outputs([*written, *earlier], force)  # not left to pass for this run's
+        stale = stale_exports(written, out, experiment.name)
+        with _progress(progress) as shown:
+            outputs = run_scenario(experiment.scenario, experiment.text, experiment.suffix, out,
+                                   reverse, shown, allow_unstable_dt)  # fmt: skip
     outputs.stale_exports = stale
     return Result(outputs)
 
@@ -495,13 +497,15 @@ def reverse(
     if forward_of(restart)[0] is not None:  # compared with, and drawn beside, the reversed
         written.append(paths["compare"])  # run: checked before the reversal, not after it
         figures = figure_paths(folder, spec)
-    keep_checkpoint(folder, spec.name, force)
-    # with no earlier reversal, the figures are the forward run's (`run --no-reverse`),
-    # drawn again with the reversed run beside it
-    keep_outputs(written, force, "reversal", figures)
-    stale = stale_exports(written, folder, spec.name)
-    with _progress(progress) as shown:
-        outputs = reverse_run(restart, out, steps, shown)
+    where = f"--out {folder}" if out is not None else f"{folder} (beside the restart)"
+    with sole_writer(folder, where):
+        keep_checkpoint(folder, spec.name, force)
+        # with no earlier reversal, the figures are the forward run's (`run --no-reverse`),
+        # drawn again with the reversed run beside it
+        keep_outputs(written, force, "reversal", figures)
+        stale = stale_exports(written, folder, spec.name)
+        with _progress(progress) as shown:
+            outputs = reverse_run(restart, out, steps, shown)
     outputs.stale_exports = stale
     if outputs.restart is None:  # what it ran from, as `read` of its folder gives it
         outputs.restart = restart
@@ -519,14 +523,17 @@ def resume(out: str | Path, progress: bool = False, threads: int | None = None) 
     _check_switches(progress=progress)
     _use_threads(threads)
     out = _folder(out, "out")
-    checkpoint = find_checkpoint(out)
-    name = checkpoint.name.removesuffix(SUFFIX)
-    # the trajectories it goes on writing: their exports were made before they ended
-    kinds = ("forward", "reverse") if checkpoint_phase(checkpoint) == "forward" else ("reverse",)
-    paths = output_paths(out, name)
-    stale = stale_exports([paths[kind] for kind in kinds], out, name)
-    with _progress(progress) as shown:
-        outputs = resume_run(out, shown)
+    find_checkpoint(out)  # a folder that is none, or holds none, is refused as it is
+    with sole_writer(out, f"--resume {out}"):
+        checkpoint = find_checkpoint(out)  # another run may have finished it meanwhile
+        name = checkpoint.name.removesuffix(SUFFIX)
+        # the trajectories it goes on writing: their exports were made before they ended
+        phase = checkpoint_phase(checkpoint)
+        kinds = ("forward", "reverse") if phase == "forward" else ("reverse",)
+        paths = output_paths(out, name)
+        stale = stale_exports([paths[kind] for kind in kinds], out, name)
+        with _progress(progress) as shown:
+            outputs = resume_run(out, shown)
     outputs.stale_exports = stale
     return Result(outputs)
 

@@ -164,7 +164,8 @@ def run(
     """Run a scenario forward; if a stage is marked reverse, run it backwards and compare.
 
     A file with kind = "critical_time_step" is a time-step study: its figures go to --out.
-    Outputs already in --out are kept: the run refuses to start unless --force. A run
+    Outputs already in --out are kept: the run refuses to start unless --force, and where
+    another revdem run writes into --out (it holds --out/.lock). A run
     stopped by Ctrl-C (exit 130) or SIGTERM (143) writes a checkpoint at the step it was
     at; it, or one that crashed, continues with --resume DIR from its newest checkpoint,
     into the same trajectory an uninterrupted run writes.
@@ -192,11 +193,14 @@ def run(
 
     study = read_study(scenario, overrides or [])
     if study is not None:
+        from revdem_cli.io.lock import sole_writer
+
         stems = [f"{study.name}.figure{number}" for number in study.figures]
         paths = [out / f"{stem}.{ext}" for stem in stems for ext in ("csv", "png")]
-        api.keep_outputs(paths, force)
-        for path in run_study(study, out):
-            typer.echo(f"wrote {path}")
+        with sole_writer(out):
+            api.keep_outputs(paths, force)
+            for path in run_study(study, out):
+                typer.echo(f"wrote {path}")
         return
 
     experiment = api.load(scenario, overrides=overrides or [])
@@ -242,7 +246,7 @@ def reverse(
     """Run the stage that ended at RESTART backwards and compare with its forward trajectory.
 
     Outputs already in the output directory are kept: the reversal refuses to start unless
-    --force.
+    --force, and where another revdem run writes into it (it holds its .lock).
 
     Example: revdem reverse out/collision.restart.h5
     """

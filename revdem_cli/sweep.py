@@ -36,6 +36,7 @@ import h5py
 import numpy as np
 
 from revdem_cli.errors import InputError, check_regular, not_a_folder
+from revdem_cli.io.lock import FolderHeld, sole_writer
 
 KIND = "sweep"
 RESULTS = (
@@ -59,8 +60,6 @@ KIND_OF_TABLE = "revdem sweep"
 """The `kind` attribute of a sweep's STEM.h5, which `revdem info` summarises."""
 STOP_FILE = ".stop"
 """In the sweep's folder while it stops: the variants' runs poll it (`checkpoint.polling`)."""
-LOCK_FILE = ".lock"
-"""In the sweep's folder while a sweep runs there, locked by it (`_sole_sweep`)."""
 
 
 @dataclass(frozen=True)
@@ -201,7 +200,9 @@ def run_variant(
     or on from the checkpoint there (`allow_unstable_dt`: at a time step above the critical
     estimate too); its results (a row of RESULTS). Runs on a worker; a failure is recorded,
     not raised. Once `stop_file` exists, the run stops at its next whole step with a
-    checkpoint, and a variant not yet begun is not begun."""
+    checkpoint, and a variant not yet begun is not begun. The variant holds `out_dir` while
+    it runs (`io.lock.sole_writer`): a `revdem run` into it meanwhile is refused, and it
+    fails where one holds it."""
     from revdem_cli.checkpoint import Interrupted, find_checkpoints, stop_asked
     from revdem_cli.config import Scenario
     from revdem_cli.engine import resume_run, run_scenario
@@ -213,13 +214,17 @@ def run_variant(
         return row
     out_dir = Path(out_dir)
     try:
-        if find_checkpoints(out_dir):
-            outputs = resume_run(out_dir, stop_file=stop_file)
-        else:
-            scenario = Scenario.model_validate_json(scenario_json)
-            outputs = run_scenario(
-                scenario, text, suffix, out_dir, True, None, allow_unstable_dt, stop_file
-            )
+        with sole_writer(out_dir, str(out_dir)):
+            if find_checkpoints(out_dir):
+                outputs = resume_run(out_dir, stop_file=stop_file)
+            else:
+                scenario = Scenario.model_validate_json(scenario_json)
+                outputs = run_scenario(
+                    scenario, text, suffix, out_dir, True, None, allow_unstable_dt, stop_file
+                )
+    except FolderHeld as exc:  # the files there are the other process's, not this variant's
+        row["status"], row["error"] = FAILED, f"{type(exc).__name__}: {exc}"
+        return row
     except Interrupted as exc:
         row["status"], row["error"] = STOPPED, f"stopped: {exc}"
         return row
@@ -407,7 +412,7 @@ def run_sweep(
     for folder in folders:  # as `revdem run` refuses its --out, before any variant runs
         if problem := not_a_folder(out_dir / folder):
             raise InputError(problem)
-    with _sole_sweep(out_dir):
+    with sole_writer(out_dir):  # another sweep's or run's writes: refused
         if resume:
             results = _earlier_results(out_dir, loaded, folders)
         else:
@@ -429,46 +434,6 @@ def run_sweep(
         )
         rows = [{"folder": folders[i], **variants[i], **results[i]} for i in range(len(variants))]
         return rows, write_table(rows, out_dir / "sweep"), stopped
-
-
-@contextmanager
-def _sole_sweep(out_dir: Path):
-    """While inside, this sweep is the only one in `out_dir` (made if need be): it holds an
-    exclusive lock of its LOCK_FILE, which it removes as it leaves; InputError, before
-    anything there is read or written, if another sweep holds it. Two sweeps into one
-    folder each replaced and removed the other's files (each variant of both failed); a
-    check of what is there, made before either wrote anything, let both through. The lock
-    is the system's (flock): a sweep killed, even with SIGKILL, holds it no more. A folder
-    made here and left empty (the sweep refused) is removed."""
-    import fcntl
-    import os
-
-    made = not out_dir.exists()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / LOCK_FILE
-    while True:
-        lock = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(lock)
-            raise InputError(
-                f"--out {out_dir}: another sweep is running there (it holds {path}); wait "
-                "for it to end, or give another --out"
-            ) from None
-        try:  # the file locked is still the one there: not one a sweep ending removed
-            if os.stat(path).st_ino == os.fstat(lock).st_ino:
-                break
-        except FileNotFoundError:
-            pass
-        os.close(lock)
-    try:
-        yield
-    finally:
-        path.unlink(missing_ok=True)  # before the lock is let go: no sweep locks it after
-        os.close(lock)
-        if made and not any(out_dir.iterdir()):
-            out_dir.rmdir()
 
 
 def _run_pending(

@@ -409,21 +409,47 @@ def test_a_sweep_into_the_folder_of_one_running_is_refused_before_it_writes(tmp_
     (as this test holds it), and one into it meanwhile is refused, from the command line as
     from Python, leaving what is there as it was; the folder is free again after."""
     from revdem_cli import api as revdem
-    from revdem_cli.sweep import _sole_sweep
+    from revdem_cli.io.lock import sole_writer
 
     scenario = str(CONFIGS / "smoke" / "collision.yaml")
     args = ["sweep", scenario, "--set", "stages.0.steps=10,20", "--out", str(tmp_path)]
     (tmp_path / "sweep.csv").write_text("the running sweep's")
-    with _sole_sweep(tmp_path):
+    with sole_writer(tmp_path):
         refused = runner.invoke(app, [*args, "--workers", "1", "-q", "--force"])
-        assert_one_line_error(refused, f"--out {tmp_path}: another sweep is running there")
-        with pytest.raises(InputError, match="another sweep is running there"):
+        assert_one_line_error(refused, f"--out {tmp_path}: another revdem run holds it")
+        with pytest.raises(InputError, match="another revdem run holds it"):
             revdem.sweep(scenario, {"stages.0.steps": [10]}, tmp_path, workers=1, force=True)
         assert sorted(p.name for p in tmp_path.iterdir()) == [".lock", "sweep.csv"]
         assert (tmp_path / "sweep.csv").read_text() == "the running sweep's"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.csv"]
-    with _sole_sweep(tmp_path):  # free again
+    with sole_writer(tmp_path):  # free again
         pass
+
+
+def test_a_variant_holds_its_folder_and_fails_where_a_run_holds_it(tmp_path):
+    """Each variant runs in a folder of its own under the sweep's, which holds its own
+    folder: the variants take their folders' locks, not the sweep's, and run. One whose
+    folder another revdem run holds (`revdem run --out` into it, say) fails, saying so, and
+    leaves that run's files as they are; the others run."""
+    from revdem_cli.io.lock import sole_writer
+
+    scenario = str(CONFIGS / "smoke" / "collision.yaml")
+    args = ["sweep", scenario, "--set", "stages.0.steps=10,20", "--out", str(tmp_path)]
+    held = tmp_path / "000_steps=10"
+    held.mkdir()
+    (held / "other.forward.h5").write_text("the other run's")
+    with sole_writer(held):
+        result = runner.invoke(app, [*args, "--workers", "1", "-q"])
+        assert result.exit_code == 1, result.output
+        assert f"failed: 000_steps=10: FolderHeld: {held}: another revdem run holds it" in (
+            " ".join(result.output.split())
+        )
+        assert (held / "other.forward.h5").read_text() == "the other run's"
+    rows = {row["folder"]: row for row in csv.DictReader(open(tmp_path / "sweep.csv"))}
+    assert rows["000_steps=10"]["status"] == "failed"
+    assert rows["000_steps=10"]["kinetic_energy"] == ""  # not the other run's
+    assert rows["001_steps=20"]["status"] == "done"
+    assert not (tmp_path / "001_steps=20" / ".lock").exists()
 
 
 def test_a_thread_count_a_run_refuses_is_refused_for_a_sweeps_variants(tmp_path):
