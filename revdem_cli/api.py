@@ -73,7 +73,7 @@ def _check_switches(**switches) -> None:
             raise InputError(f"{name}={value!r}: True or False, not {type(value).__name__}")
 
 
-def _use_threads(threads: int | None) -> None:
+def use_threads(threads: int | None) -> None:
     """Compute with at most `threads` threads from here on (None: the cores this process may
     use), as `--threads` sets them; the progress display's first line says how many.
     InputError for a count that is not a whole number from 1 to numba's pool
@@ -84,19 +84,24 @@ def _use_threads(threads: int | None) -> None:
     pool.use(threads)
 
 
-def check_threads(threads: int | None) -> None:
+def check_threads(threads: int | None, here: bool = True) -> None:
     """InputError for a `--threads` count that is not a whole number from 1 to numba's pool
-    (`threads.check`): of a run, or of each variant of a sweep on this machine."""
+    (`threads.check`), or, where the pool is not this machine's (`here` False: the workers
+    of a scheduler, each of which checks the count against its own, `sweep.run_variant`),
+    not a whole number 1 or more: the count of a run, or of each variant of a sweep."""
     from revdem_cli import threads as pool
 
     if threads is None:
         return
     if not whole_number(threads):
         raise InputError(f"--threads {threads!r}: must be a whole number, 1 or more")
-    try:
-        pool.check(threads)
-    except ValueError as exc:
-        raise InputError(f"--threads {threads}: {exc}") from None
+    if here:
+        try:
+            pool.check(threads)
+        except ValueError as exc:
+            raise InputError(f"--threads {threads}: {exc}") from None
+    elif threads < 1:
+        raise InputError(f"--threads {threads}: must be a whole number, 1 or more")
 
 
 def _folder(value, what: str) -> Path:
@@ -440,7 +445,7 @@ def run(
     """Run every stage forward, and the reversed stage backwards with the comparison unless
     `reverse` is False, into the folder `out`, as `revdem run` does: earlier outputs are
     kept unless `force`, and a time step above the critical estimate is refused unless
-    `allow_unstable_dt`; on at most `threads` threads (`_use_threads`). A scenario file's
+    `allow_unstable_dt`; on at most `threads` threads (`use_threads`). A scenario file's
     path is loaded as it is (`load`)."""
     from revdem_cli.engine import check_time_step, run_scenario
 
@@ -455,7 +460,7 @@ def run(
             f"Path), not {type(experiment).__name__}"
         )
     out = _folder(out, "out")
-    _use_threads(threads)
+    use_threads(threads)
     with sole_writer(out):
         keep_checkpoint(out, experiment.name, force)
         if not allow_unstable_dt:  # refused input keeps the earlier outputs, forced or not
@@ -481,13 +486,13 @@ def reverse(
     threads: int | None = None,
 ) -> Result:
     """Run the stage that ended at a restart backwards and compare it with its forward
-    trajectory, as `revdem reverse` does, on at most `threads` threads (`_use_threads`)."""
+    trajectory, as `revdem reverse` does, on at most `threads` threads (`use_threads`)."""
     from revdem_cli.compare import forward_of
     from revdem_cli.engine import output_paths, reverse_run
     from revdem_cli.io.restart import read_restart, restart_scenario
 
     _check_switches(force=force, progress=progress)
-    _use_threads(threads)
+    use_threads(threads)
     restart = _path(restart, "restart")
     spec = restart_scenario(restart)[0]
     read_restart(restart)  # every dataset checked before earlier outputs are replaced
@@ -515,13 +520,13 @@ def reverse(
 @_paths_checked
 def resume(out: str | Path, progress: bool = False, threads: int | None = None) -> Result:
     """Continue the run whose checkpoint is in `out` to its end, as `revdem run --resume`,
-    on at most `threads` threads (`_use_threads`)."""
+    on at most `threads` threads (`use_threads`)."""
     from revdem_cli.checkpoint import SUFFIX, find_checkpoint
     from revdem_cli.engine import output_paths, resume_run
     from revdem_cli.io.restart import checkpoint_phase
 
     _check_switches(progress=progress)
-    _use_threads(threads)
+    use_threads(threads)
     out = _folder(out, "out")
     find_checkpoint(out)  # a folder that is none, or holds none, is refused as it is
     with sole_writer(out, f"--resume {out}"):

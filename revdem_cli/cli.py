@@ -502,8 +502,9 @@ def sweep(
         typer.Option(
             "--threads",
             min=1,
-            help="Threads of each variant's parallel loops (default: the cores this process "
-            "may use over --workers, at least 1).",
+            help="Threads of each variant's parallel loops (default: on a local cluster the "
+            "cores this process may use over --workers, at least 1; on a scheduler's workers "
+            "the cores each may use). A scheduler's workers check it against their own pools.",
         ),
     ] = None,
     allow_unstable_dt: AllowUnstableDt = False,

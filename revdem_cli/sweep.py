@@ -195,14 +195,17 @@ def run_variant(
     out_dir: Path,
     allow_unstable_dt: bool = False,
     stop_file: Path | None = None,
+    threads: int | None = None,
 ) -> dict:
     """Run one variant (its validated scenario as JSON) forward and reversed into `out_dir`,
     or on from the checkpoint there (`allow_unstable_dt`: at a time step above the critical
-    estimate too); its results (a row of RESULTS). Runs on a worker; a failure is recorded,
-    not raised. Once `stop_file` exists, the run stops at its next whole step with a
-    checkpoint, and a variant not yet begun is not begun. The variant holds `out_dir` while
-    it runs (`io.lock.sole_writer`): a `revdem run` into it meanwhile is refused, and it
-    fails where one holds it."""
+    estimate too), on at most `threads` threads (`api.use_threads`: a count above the
+    worker's pool fails the variant, as it does a run); its results (a row of RESULTS).
+    Runs on a worker; a failure is recorded, not raised. Once `stop_file` exists, the run
+    stops at its next whole step with a checkpoint, and a variant not yet begun is not
+    begun. The variant holds `out_dir` while it runs (`io.lock.sole_writer`): a `revdem run`
+    into it meanwhile is refused, and it fails where one holds it."""
+    from revdem_cli.api import use_threads
     from revdem_cli.checkpoint import Interrupted, find_checkpoints, stop_asked
     from revdem_cli.config import Scenario
     from revdem_cli.engine import resume_run, run_scenario
@@ -214,6 +217,7 @@ def run_variant(
         return row
     out_dir = Path(out_dir)
     try:
+        use_threads(threads)
         with sole_writer(out_dir, str(out_dir)):
             if find_checkpoints(out_dir):
                 outputs = resume_run(out_dir, stop_file=stop_file)
@@ -396,8 +400,7 @@ def run_sweep(
         raise InputError(
             "--resume goes on with the sweep in --out, --force starts it over: give one"
         )
-    if scheduler is None:  # each variant's count, on this machine's workers
-        check_threads(threads)
+    check_threads(threads, here=scheduler is None)  # a local cluster's workers are here
     out_dir = Path(out_dir)
     if problem := not_a_folder(out_dir):  # before its stop file is named in an error
         raise InputError(f"--out {problem}")
@@ -460,6 +463,7 @@ def _run_pending(
         progress("variants", ended(), total)
     if not pending:
         return 0
+    threads = cluster[2]  # each variant's count, set on its worker (`run_variant`)
     stop_file.unlink(missing_ok=True)
     try:  # a signal while the cluster starts stops the sweep before any variant begins
         with (
@@ -475,6 +479,7 @@ def _run_pending(
                     folder,
                     allow_unstable_dt,
                     stop_file,
+                    threads,
                     key=f"variant-{folder.name}",
                 ): index
                 for (scenario, text), folder, index in pending

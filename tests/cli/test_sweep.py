@@ -518,3 +518,39 @@ def test_what_a_sweep_from_python_is_given_wrongly_is_said_in_its_terms(tmp_path
     args = ["sweep", str(scenario), "--set", "stages.0.steps=10", "--out", str(out)]
     assert_one_line_error(runner.invoke(app, [*args, "--force", "--resume"]), "give one")
     assert not out.exists()
+
+
+def test_the_variants_of_a_scheduler_take_threads_checked_as_a_local_sweeps(tmp_path):
+    """`revdem sweep --scheduler ADDRESS --threads N` took any N and dropped it: its variants
+    ran on their workers' default thread counts, where a local sweep's checks it and sets it.
+    The count is now checked in one place (`api.check_threads`): before the sweep starts as
+    a whole number 1 or more, then on each worker against its own pool, where it is set; a
+    variant given more threads than its worker has fails, naming --threads."""
+    import numba
+    from distributed import Client, LocalCluster
+
+    from revdem_cli import api as revdem
+    from revdem_cli.threads import most
+
+    scenario = str(CONFIGS / "smoke" / "collision.yaml")
+    for threads in (0, 2.5, "2"):  # refused before any scheduler is asked
+        with pytest.raises(InputError, match=rf"^--threads {threads!r}: must be a whole number"):
+            revdem.sweep(scenario, {"stages.0.steps": [10]}, tmp_path / "bad", threads=threads,
+                         scheduler="tcp://127.0.0.1:9")  # fmt: skip
+    assert not (tmp_path / "bad").exists()
+    with (
+        LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        args = ["sweep", scenario, "--set", "stages.0.steps=10", "--scheduler",
+                cluster.scheduler_address, "-q"]  # fmt: skip
+        many = str(most() + 1)
+        result = runner.invoke(app, [*args, "--out", str(tmp_path / "many"), "--threads", many])
+        assert result.exit_code == 1, result.output
+        said = " ".join(result.output.split())
+        assert f"failed: 000: InputError: --threads {many}: {many} threads: between 1 and" in said
+        result = runner.invoke(app, [*args, "--out", str(tmp_path / "one"), "--threads", "1"])
+        assert result.exit_code == 0, result.output
+        assert client.submit(numba.get_num_threads, pure=False).result() == 1  # its worker's
