@@ -189,16 +189,14 @@ def run(
     if scenario is None:
         raise InputError("give a scenario file, or --resume DIR")
 
-    from revdem_cli.timestep.study import read_study, run_study
+    from revdem_cli.timestep.study import read_study, run_study, study_outputs
 
     study = read_study(scenario, overrides or [])
     if study is not None:
         from revdem_cli.io.lock import sole_writer
 
-        stems = [f"{study.name}.figure{number}" for number in study.figures]
-        paths = [out / f"{stem}.{ext}" for stem in stems for ext in ("csv", "png")]
         with sole_writer(out):
-            api.keep_outputs(paths, force)
+            api.keep_outputs(study_outputs(study, out), force)
             for path in run_study(study, out):
                 typer.echo(f"wrote {path}")
         return

@@ -521,14 +521,17 @@ def dt(
         typer.Option(parser=named_file, help="CSV file of a sweep (default stdout)."),
     ] = None,
     force: Annotated[
-        bool, typer.Option("--force", help="Write over a file that --out names and exists.")
+        bool,
+        typer.Option(
+            "--force", help="Write over a file that --out names, or those --figures writes."
+        ),
     ] = False,
     figures: Annotated[
         Path | None,
         typer.Option(
             parser=named_folder,
             help="Write Peng 2020 Figures 3-6, A2 and A4 (PNG and CSV) and Figure 2's "
-            "mobilities (CSV) to this folder.",
+            "mobilities (CSV) to this folder; those already there are kept unless --force.",
         ),
     ] = None,
     restart: Annotated[
@@ -549,18 +552,24 @@ def dt(
     Example: revdem dt --shape ellipsoid --semi-axes 3 2 1 --density 1000 --kn 1e10
     """
     if figures is not None:
-        given = given_options(ctx, beside=("figures",))
+        given = given_options(ctx, beside=("figures", "force"))
         if given:
             raise InputError(
                 "--figures writes Peng 2020's figures, not a packing's nor particles of your "
-                f"own, and takes no other option; leave out {', '.join(given)}"
+                f"own, and takes no other option but --force; leave out {', '.join(given)}"
             )
         from itertools import chain
 
-        from revdem_cli.timestep.figures import PAPER_STEMS, write_appendix_figures, write_figures
+        from revdem_cli.api import keep_outputs
+        from revdem_cli.timestep import figures as paper
         from revdem_cli.timestep.study import PAPER
 
-        written = chain(write_figures(figures, PAPER, PAPER_STEMS), write_appendix_figures(figures))
+        files = paper.study_files(figures, PAPER, paper.PAPER_STEMS)
+        keep_outputs([*files, *paper.appendix_files(figures)], force, "dt --figures")
+        written = chain(
+            paper.write_figures(figures, PAPER, paper.PAPER_STEMS),
+            paper.write_appendix_figures(figures),
+        )
         for path in written:  # each as it is written: the figures take seconds each
             typer.echo(f"wrote {path}")
         return
@@ -603,7 +612,10 @@ def dt(
     if out is not None and sweep is None:
         raise InputError("--out names the CSV file of a --sweep; give --sweep too")
     if force and out is None:
-        raise InputError("--force writes over the file that --out names; give --out too")
+        raise InputError(
+            "--force writes over the file that --out names, or those --figures writes; give "
+            "--out or --figures too"
+        )
     if out is not None:
         from revdem_cli.io import refuse_overwriting
 

@@ -289,6 +289,23 @@ def _plot_appendix(columns, position: str, title: str, path: Path) -> None:
     plt.close(fig)
 
 
+def figure_files(directory: Path, stems) -> list[Path]:
+    """The CSV and the PNG, in that order, of each figure `stems` names in `directory`."""
+    return [Path(directory) / f"{stem}.{suffix}" for stem in stems for suffix in ("csv", "png")]
+
+
+def appendix_files(directory: Path) -> list[Path]:
+    """What `write_appendix_figures` writes into `directory`, in its order: Figure 2's
+    mobilities (CSV), then Figures A2 and A4 (CSV and PNG each)."""
+    mobility = Path(directory) / f"{APPENDIX_STEMS['figure2']}.csv"
+    return [mobility, *figure_files(directory, (APPENDIX_STEMS[key] for key in ("A2", "A4")))]
+
+
+def study_files(directory: Path, study: TimestepStudy, stems: dict[int, str]) -> list[Path]:
+    """What `write_figures` writes into `directory` of `study`, figure n as `stems[n]`.*."""
+    return figure_files(directory, (stems[number] for number in study.figures))
+
+
 def write_appendix_figures(directory: Path) -> Iterator[Path]:
     """Figure 2's mobilities (CSV) and Appendix A's Figures A2 and A4 (CSV and PNG) for the
     paper's ellipsoids at unit density, contact force (1, 1, 1) N; each path once written."""
@@ -300,18 +317,18 @@ def write_appendix_figures(directory: Path) -> Iterator[Path]:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     body = shapes.ellipsoid(3.0, 2.0, 1.0, 1.0)
-    yield _write_csv(directory / f"{APPENDIX_STEMS['figure2']}.csv", figure2_data(body))
+    yield _write_csv(appendix_files(directory)[0], figure2_data(body))  # a table alone
     figures = (
         ("A2", kinematics.scan_contact_points, "", "ellipsoid 2 moved to touch each point"),
         ("A4", kinematics.scan_orientations, "centre2_", "ellipsoid 2 turned about the tip"),
     )
     for key, scan, position, words in figures:
-        stem = directory / APPENDIX_STEMS[key]
+        table, image = figure_files(directory, [APPENDIX_STEMS[key]])
         columns = appendix_data(body, scan)
-        yield _write_csv(stem.with_suffix(".csv"), columns)
+        yield _write_csv(table, columns)
         title = f"Peng 2020 Figure {key}: |ẍ_c| for F = (1, 1, 1) N, unit density; {words}"
-        _plot_appendix(columns, position, title, stem.with_suffix(".png"))
-        yield stem.with_suffix(".png")
+        _plot_appendix(columns, position, title, image)
+        yield image
 
 
 def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) -> Iterator[Path]:
@@ -324,10 +341,10 @@ def write_figures(directory: Path, study: TimestepStudy, stems: dict[int, str]) 
     directory.mkdir(parents=True, exist_ok=True)
 
     def save(number, columns, plot, *args):
-        stem = stems[number]
-        yield _write_csv(directory / f"{stem}.csv", columns)
-        plot(columns, *args, directory / f"{stem}.png")
-        yield directory / f"{stem}.png"
+        table, image = figure_files(directory, [stems[number]])
+        yield _write_csv(table, columns)
+        plot(columns, *args, image)
+        yield image
 
     particle, kn = study.particle, study.contact.kn
     for number in study.figures:

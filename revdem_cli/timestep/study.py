@@ -262,10 +262,21 @@ def read_study(path: str | Path, overrides: list[str] = ()) -> TimestepStudy | N
     return _validated(data, str(path), overrides)
 
 
+def _stems(study: TimestepStudy) -> dict[int, str]:
+    """The file stem of each figure of the study: <name>.figure<n>."""
+    return {number: f"{study.name}.figure{number}" for number in study.figures}
+
+
+def study_outputs(study: TimestepStudy, out_dir: Path) -> list[Path]:
+    """Every file `run_study` writes into `out_dir`."""
+    from revdem_cli.timestep.figures import study_files
+
+    return study_files(Path(out_dir), study, _stems(study))
+
+
 def run_study(study: TimestepStudy, out_dir: Path) -> Iterator[Path]:
     """Write the study's figures into `out_dir` as <name>.figure<n>.png and .csv; each path
     once written."""
     from revdem_cli.timestep.figures import write_figures
 
-    stems = {number: f"{study.name}.figure{number}" for number in study.figures}
-    yield from write_figures(Path(out_dir), study, stems)
+    yield from write_figures(Path(out_dir), study, _stems(study))

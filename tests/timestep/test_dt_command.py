@@ -248,7 +248,7 @@ def test_shear_stiffness_sweep_starts_at_frictionless():
         ((*ELLIPSOID[:-2], "--sweep", "kn=1:2:2", "--sweep", "ks=1:2:2"), ["--sweep is given 2"]),
         ((*ELLIPSOID, "--kn", 2e10), ["--kn is given 2 times"]),
         ((*ELLIPSOID, "--semi-axes", 1, 1, 1), ["--semi-axes is given 2 times"]),
-        ((*ELLIPSOID, "--force"), ["--force", "give --out too"]),
+        ((*ELLIPSOID, "--force"), ["--force", "give --out or --figures too"]),
     ],
 )
 def test_bad_options_exit_2_naming_the_option(args, fragments):
@@ -446,3 +446,42 @@ def test_criteria_say_why_they_do_not_apply_and_which_equation_they_are():
         2.0 / math.sqrt(2e10 * stiff_shear["a_max"]), rel=1e-12
     )
     assert as_json(*ELLIPSOID)["criteria"]["amplification"]["source"] == "Peng 2020 Eq 48"
+
+
+def test_figures_keep_the_files_already_there_unless_forced(tmp_path, monkeypatch):
+    """`dt --figures DIR` wrote over the figures in DIR, where every other command that
+    writes files keeps them unless --force: it refuses, naming the first, before it writes
+    any, and --force removes them, as `revdem run` does, before they are drawn again. The
+    files it keeps are every one it writes: the committed copies, which it made."""
+    from revdem_cli.timestep import figures
+    from revdem_cli.timestep.study import PAPER
+    from tests.conftest import ROOT
+
+    committed = ROOT / "scenarios" / "peng2020"
+    files = [
+        *figures.study_files(committed, PAPER, figures.PAPER_STEMS),
+        *figures.appendix_files(committed),
+    ]
+    assert sorted(files) == sorted(p for p in committed.iterdir() if p.suffix != ".toml")
+    folder = tmp_path / "figures"
+    folder.mkdir()
+    earlier = folder / "figureA4_orientations.png"  # the last it writes
+    earlier.write_bytes(b"an earlier figure")
+    result = invoke("--figures", folder)
+    assert_one_line_error(result, f"{earlier}: exists; use --force to overwrite")
+    assert [p.name for p in folder.iterdir()] == [earlier.name]
+    assert earlier.read_bytes() == b"an earlier figure"
+    drawn = []  # the figures themselves take half a minute: their writers are not the point
+
+    def writer(name):
+        def write(*args):
+            drawn.append(name)
+            return iter(())
+
+        return write
+
+    monkeypatch.setattr(figures, "write_figures", writer("3-6"))
+    monkeypatch.setattr(figures, "write_appendix_figures", writer("A2, A4"))
+    result = invoke("--figures", folder, "--force")
+    assert result.exit_code == 0, result.output
+    assert drawn == ["3-6", "A2, A4"] and not earlier.exists()
