@@ -529,6 +529,7 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
     }
     if not laws.chosen(scenario.contact, "normal").FROM_MATERIALS:
         del estimates["rayleigh"]  # a given stiffness: no wave speed bounds it
+    unbounded = _why_unbounded(scenario, why)
     reference = limit.damped_dt
     report = {
         "restart": str(Path(path)),
@@ -539,7 +540,7 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
         "predictor_order": scenario.integrator.predictor_order,  # 0: velocity Verlet
         "assembly": limit.to_dict(state.ids),
         "estimates": {
-            key: {"label": label, "dt": _finite(dt), "ratio": _finite(dt / reference)}
+            key: _estimate(key, label, dt, reference, unbounded)
             for key, (label, dt) in estimates.items()
         },
     }
@@ -586,3 +587,36 @@ def assess_restart(path, verify: bool, status: Status = _quiet) -> dict:
 
 def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
+
+
+def _estimate(key: str, label: str, dt: float, reference: float, unbounded: dict) -> dict:
+    """The estimate `key` as `revdem dt --restart --json` gives it: its label, its Δt and its
+    ratio to the assembly's limit, both null where there is no limit (∞), and then `reason`,
+    why it has none (`unbounded[key]`, `_why_unbounded`)."""
+    found = {"label": label, "dt": _finite(dt), "ratio": _finite(dt / reference)}
+    if found["dt"] is None:
+        found["reason"] = f"no limit: {unbounded[key]}"
+    return found
+
+
+def _why_unbounded(scenario, guard_why: str) -> dict[str, str]:
+    """Why each estimate that can be ∞ is, where it is: a stiffest contact alone, where no
+    contact of the state has a stiffness in its direction (2/√(kA) with k = 0); the head-on
+    impact, where none of the scenario's kinds of contact stiffens at the overlap of a
+    head-on impact at its approach speed (a Hertz contact at rest has none); the start-up
+    check, for the reason it gives (`guard_why`)."""
+    from revdem_cli.timestep.guard import contact_kinds
+
+    speed = max((kind.speed for kind in contact_kinds(scenario)), default=0.0)
+    alone = "no contact of this state has a {} stiffness ({} = 0 in each)"
+    return {
+        "single_contact_normal": alone.format("normal", "k_n"),
+        "single_contact_shear": alone.format("shear", "k_s"),
+        "single_contact_rolling": alone.format("rolling", "k_r"),
+        "head_on": (
+            "no kind of contact the scenario forms has a stiffness at the overlap of a head-on "
+            f"impact at its approach speed (at most {speed:.3g} m/s; a Hertz contact at zero "
+            "overlap has none)"
+        ),
+        "guard": guard_why,
+    }

@@ -211,6 +211,32 @@ def test_dt_restart_reports_the_assembly_beside_the_single_contact_estimates(fcc
     assert f"largest shares: id {spheres[0]['id']} ({spheres[0]['share']:.2%}" in shown
 
 
+def test_each_estimate_without_a_limit_says_why(fcc_restart):
+    """An estimate with no limit (∞ in the table) had its dt and ratio null in the JSON, and
+    nothing said why: the reader could not tell it from one that failed. Each such estimate
+    now has `reason` beside its nulls, as the two-particle JSON has; an estimate with a
+    limit has none, and the fields read before are as they were."""
+    result = invoke("dt", "--restart", fcc_restart, "--json")
+    assert result.exit_code == 0, result.output
+    estimates = json.loads(result.stdout)["estimates"]
+    for estimate in estimates.values():
+        assert ("reason" in estimate) == (estimate["dt"] is None) == (estimate["ratio"] is None)
+        assert set(estimate) - {"reason"} == {"label", "dt", "ratio"}
+    alone = "no limit: no contact of this state has a {} stiffness ({} = 0 in each)"
+    reasons = {key: estimate.get("reason") for key, estimate in estimates.items()}
+    assert reasons == {  # a Hertz lattice at rest, frictionless, without rolling springs
+        "single_contact_normal": None,
+        "single_contact_shear": alone.format("shear", "k_s"),
+        "single_contact_rolling": alone.format("rolling", "k_r"),
+        "head_on": "no limit: no kind of contact the scenario forms has a stiffness at the "
+        "overlap of a head-on impact at its approach speed (at most 0 m/s; a Hertz contact at "
+        "zero overlap has none)",
+        "rayleigh": None,
+        "guard": None,
+        "in_use": None,
+    }
+
+
 def test_dt_restart_tells_what_it_is_doing_as_it_goes(fcc_restart):
     """Minutes on a large packing: the Lanczos products so far, then each trial of the
     engine's bracket, in order."""
