@@ -6,17 +6,20 @@ settle stage under local damping, and under viscous contact damping instead) run
 and reversed with integrator.scheme = 'verlet' and 'trvp' of orders 1 to 4, in floating
 point and in fixed-point arithmetic (the control: its kicks and drifts reverse exactly, so
 what error remains is the scheme's, the damping forces of the two directions that differ).
-Written to scenarios/kolafa2011/: `study.csv` (a row a run: the first divergence step and
-the reversed time it comes at, the largest errors, the energy dissipated forward and
-returned in reverse, seconds),
-`errors.csv` (the error of every compared frame against reversed time) and `study.png`.
-Then the forward accuracy, `restitution.csv` (a viscous contact's coefficient of restitution
-against exp(-pi beta / sqrt(1 - beta^2))) and `rebounds.csv` (the drop's apex heights), and
-`collision_dt.csv` (the collision's reversal error against dt) and `critical_dt.csv` (the
-critical time step with the predictor, formula and engine).
+The runs go into --out; the tables and the figure into --into (default: --out, beside the
+runs; `--into scenarios/kolafa2011` rewrites the results the README quotes, and only when
+named, as the critical state's figures.py writes into its --into): `study.csv` (a row a run:
+the first divergence step and the reversed time it comes at, the largest errors, the energy
+dissipated forward and returned in reverse, seconds), `errors.csv` (the error of every
+compared frame against reversed time) and `study.png`, the rows of cases not run kept from
+those files in --into. Then the forward accuracy, `restitution.csv` (a viscous contact's
+coefficient of restitution against exp(-pi beta / sqrt(1 - beta^2))) and `rebounds.csv`
+(the drop's apex heights, where the drop is among the cases), and `collision_dt.csv` (the
+collision's reversal error against dt) and `critical_dt.csv` (the critical time step with
+the predictor, formula and engine).
 
     NUMBA_NUM_THREADS=1 python -m benchmarks.trvp_study [--cases collision,drop,oedometer]
-                                                       [--accuracy]
+                                                       [--accuracy] [--out DIR] [--into DIR]
 """
 
 from __future__ import annotations
@@ -44,7 +47,6 @@ CASES = {
 """Each case: its scenario file and the fields changed in it."""
 SCHEMES = [("verlet", 0), ("trvp", 1), ("trvp", 2), ("trvp", 3), ("trvp", 4)]
 ARITHMETIC = ("float", "fixed")
-STUDY = ROOT / "scenarios/kolafa2011"
 COLUMNS = (
     "case", "scheme", "order", "arithmetic", "reversed_steps", "first_divergence_step",
     "divergence_reversed_time", "max_position_error_rel", "max_velocity_error",
@@ -91,8 +93,9 @@ def measured(result: revdem.Result) -> tuple[dict, np.ndarray]:
     return row, errors
 
 
-def run_study(cases: list[str], out: Path) -> None:
-    STUDY.mkdir(parents=True, exist_ok=True)
+def run_study(cases: list[str], out: Path, into: Path) -> None:
+    """Each case of `cases` run with every scheme and arithmetic into `out`, its rows written
+    into study.csv, errors.csv and study.png in `into`."""
     rows, curves = [], []
     for case in cases:
         for scheme, order in SCHEMES:
@@ -108,11 +111,11 @@ def run_study(cases: list[str], out: Path) -> None:
                 curves += [{**keys, "reversed_time": e[0], "velocity_error": e[1],
                             "position_error_rel": e[2]} for e in errors]  # fmt: skip
                 print(name, {k: rows[-1][k] for k in COLUMNS[5:]}, flush=True)
-    rows = _merged(STUDY / "study.csv", rows, cases)
-    curves = _merged(STUDY / "errors.csv", curves, cases)
-    _write(STUDY / "study.csv", COLUMNS, rows)
-    _write(STUDY / "errors.csv", tuple(curves[0]), curves)
-    figure(rows, curves, STUDY / "study.png")
+    rows = _merged(into / "study.csv", rows, cases)
+    curves = _merged(into / "errors.csv", curves, cases)
+    _write(into / "study.csv", COLUMNS, rows)
+    _write(into / "errors.csv", tuple(curves[0]), curves)
+    figure(rows, curves, into / "study.png")
 
 
 def _run(experiment: revdem.Experiment, out: Path) -> tuple[revdem.Result, float | str]:
@@ -202,7 +205,7 @@ def figure(rows: list[dict], curves: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def restitution(out: Path) -> list[dict]:
+def restitution(out: Path, into: Path) -> list[dict]:
     """Forward accuracy: the coefficient of restitution of the linear spring-dashpot of
     configs/trvp/collision_damped.toml, head on (A at 0.9 m/s, B at rest), against
     exp(-pi beta / sqrt(1 - beta^2)) (the damped oscillator's half period), for each scheme
@@ -236,11 +239,11 @@ def restitution(out: Path) -> list[dict]:
                     "restitution": e, "exact": exact, "relative_error": e / exact - 1.0,
                 })  # fmt: skip
                 print(rows[-1], flush=True)
-    _write(STUDY / "restitution.csv", tuple(rows[0]), rows)
+    _write(into / "restitution.csv", tuple(rows[0]), rows)
     return rows
 
 
-def collision_convergence(out: Path) -> list[dict]:
+def collision_convergence(out: Path, into: Path) -> list[dict]:
     """The damped collision's reversal error against dt (2, 1 and 0.5 us, the same 3 ms):
     first order in dt for velocity Verlet; for the predictor, the order of what its
     extrapolation across the kinks of a linear dashpot (contact onset, separation) leaves."""
@@ -264,18 +267,25 @@ def collision_convergence(out: Path) -> list[dict]:
                 "max_position_error_rel": verdict["max_position_error_rel"],
             })  # fmt: skip
             print(rows[-1], flush=True)
-    _write(STUDY / "collision_dt.csv", tuple(rows[0]), rows)
+    _write(into / "collision_dt.csv", tuple(rows[0]), rows)
     return rows
 
 
-def rebounds(out: Path) -> list[dict]:
+def drop_forward_runs(out: Path) -> list[Path]:
+    """The trajectories of the drop's forward runs in floating point that the study writes
+    into `out`, a scheme each, in the order of SCHEMES."""
+    return [
+        out / f"drop-{scheme}{order or ''}-float" / "drop_viscous.forward.h5"
+        for scheme, order in SCHEMES
+    ]
+
+
+def rebounds(out: Path, into: Path) -> list[dict]:
     """Forward accuracy: the apex heights of the drop's rebounds (the gap under the sphere
     at each maximum of its potential energy after the first impact) in the study's forward
     runs, floating point, for each scheme."""
     rows = []
-    for scheme, order in SCHEMES:
-        name = f"drop-{scheme}{order or ''}-float"
-        path = out / name / "drop_viscous.forward.h5"
+    for (scheme, order), path in zip(SCHEMES, drop_forward_runs(out), strict=True):
         result = revdem.Result(revdem.Outputs(forward=path))
         time, potential = result.observable("potential_energy")
         mass = 1000.0 * 4.0 / 3.0 * np.pi * 0.005**3
@@ -287,11 +297,11 @@ def rebounds(out: Path) -> list[dict]:
         for bounce, i in enumerate(peaks, start=1):
             rows.append({"scheme": scheme, "order": order, "bounce": bounce,
                          "time": float(time[i]), "height": float(gap[i])})  # fmt: skip
-    _write(STUDY / "rebounds.csv", tuple(rows[0]), rows)
+    _write(into / "rebounds.csv", tuple(rows[0]), rows)
     return rows
 
 
-def critical_time_steps() -> list[dict]:
+def critical_time_steps(into: Path) -> list[dict]:
     """The critical time step of a damped linear contact with the velocity predictor: the
     root of the scheme's characteristic polynomial (`criteria.dt_velocity_predictor`) and
     the engine's own limit on the resting sphere pair (`engine_pair.engine_limit`), two
@@ -314,15 +324,15 @@ def critical_time_steps() -> list[dict]:
                 "engine": engine / unit, "engine_over_formula": engine / formula,
             })  # fmt: skip
             print(rows[-1], flush=True)
-    _write(STUDY / "critical_dt.csv", tuple(rows[0]), rows)
+    _write(into / "critical_dt.csv", tuple(rows[0]), rows)
     return rows
 
 
-def markdown_table() -> str:
-    """study.csv as the README's table: a row a case and scheme, floating point beside fixed
-    point: the reversed step (and time) of the first divergence, the largest velocity error,
-    and the energy returned over the energy dissipated."""
-    with (STUDY / "study.csv").open() as f:
+def markdown_table(into: Path) -> str:
+    """study.csv in `into` as the README's table: a row a case and scheme, floating point
+    beside fixed point: the reversed step (and time) of the first divergence, the largest
+    velocity error, and the energy returned over the energy dissipated."""
+    with (into / "study.csv").open() as f:
         rows = list(csv.DictReader(f))
     runs = {(r["case"], r["scheme"], r["order"], r["arithmetic"]): r for r in rows}
     lines = [
@@ -356,23 +366,52 @@ def markdown_table() -> str:
     return "\n".join(lines)
 
 
-if __name__ == "__main__":
+def main() -> None:
+    """The study as its command line asks for it."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", default=",".join(CASES))
-    parser.add_argument("--out", type=Path, default=ROOT / "out/kolafa2011")
+    parser.add_argument(
+        "--out", type=Path, default=ROOT / "out/kolafa2011", help="the runs (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--into", type=Path,
+        help="the tables and the figure (default: --out; scenarios/kolafa2011 rewrites the "
+        "results the README quotes)",
+    )  # fmt: skip
     parser.add_argument(
         "--accuracy", action="store_true",
-        help="only the forward accuracy (restitution, the rebounds of the drop's runs) and the "
-        "critical time steps",
+        help="only the forward accuracy (restitution, the rebounds of the drop's runs already "
+        "in --out) and the critical time steps",
     )  # fmt: skip
-    parser.add_argument("--table", action="store_true", help="print study.csv as Markdown")
+    parser.add_argument("--table", action="store_true", help="print --into's study.csv as Markdown")
     arguments = parser.parse_args()
+    cases, out = arguments.cases.split(","), arguments.out
+    into = arguments.into or out
     if arguments.table:
-        print(markdown_table())
-        raise SystemExit(0)
+        print(markdown_table(into))
+        return
+    drop = "drop" in cases
+    if arguments.accuracy and drop and (missing := not_there(drop_forward_runs(out))):
+        parser.error(
+            f"--accuracy: {missing}: the drop's runs come from the study (run it without "
+            "--accuracy into the same --out), or leave drop out of --cases"
+        )
+    into.mkdir(parents=True, exist_ok=True)
     if not arguments.accuracy:
-        run_study(arguments.cases.split(","), arguments.out)
-    restitution(arguments.out)
-    rebounds(arguments.out)
-    collision_convergence(arguments.out)
-    critical_time_steps()
+        run_study(cases, out, into)
+    restitution(out, into)
+    if drop:
+        rebounds(out, into)
+    else:
+        print("rebounds.csv: not written, the drop is not among --cases", flush=True)
+    collision_convergence(out, into)
+    critical_time_steps(into)
+
+
+def not_there(paths: list[Path]) -> Path | None:
+    """The first of `paths` that is not a file, None if each is."""
+    return next((path for path in paths if not path.is_file()), None)
+
+
+if __name__ == "__main__":
+    main()
