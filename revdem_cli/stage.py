@@ -14,6 +14,7 @@ from functools import cached_property
 import numpy as np
 
 from revdem_cli.config import Scenario, Stage
+from revdem_cli.config.checks import tape_needs
 from revdem_cli.contacts import contact_list
 from revdem_cli.errors import RunFailed
 from revdem_cli.io.h5md import TrajectoryWriter
@@ -465,9 +466,11 @@ def _likely_cause(scenario: Scenario, dt: float, damping: str = "", servo: str =
     ratio = abs(dt) / limit
     of_dt = f"dt = {dt:.3g} s is {ratio:.2g} of the critical time step {limit:.3g} s ({reason})"
     if damping:
+        lacking = tape_needs(scenario.integrator)
+        tape = f"reversal.tape with {lacking}" if lacking else "reversal.tape"
         return (
             f"likely cause: the stage's {damping}, reversed, puts energy in at each step as it "
-            "took it out going forward (Hanley 2020 §5.2; an information tape, reversal.tape, "
+            f"took it out going forward (Hanley 2020 §5.2; an information tape, {tape}, "
             f"reverses it exactly); {of_dt}"
         )
     cell = f"the cell ({servo})"

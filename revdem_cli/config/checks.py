@@ -8,6 +8,10 @@ import math
 MAX_STEPS = 2**62
 """Most steps of a run: steps are 64-bit integers everywhere, and stay far from their end."""
 
+TAPE_NEEDS = {"arithmetic": "fixed", "scheme": "verlet"}
+"""What the information tape (reversal.tape) needs of [integrator]: integers to record, and
+velocity Verlet, the velocity predictor's history being what the tape does not record."""
+
 
 class FieldError(ValueError):
     """A consistency error located at a field path inside the scenario."""
@@ -211,17 +215,26 @@ def check_scheme(scenario) -> None:
             )
 
 
+def tape_needs(integrator=None) -> str:
+    """What the information tape needs (`TAPE_NEEDS`) that `integrator` (a scenario's
+    [integrator]; None: one that has none of it) lacks, in words, "integrator.arithmetic =
+    'fixed' and integrator.scheme = 'verlet'"; "" where it lacks nothing."""
+    return " and ".join(
+        f"integrator.{field} = '{value}'"
+        for field, value in TAPE_NEEDS.items()
+        if integrator is None or getattr(integrator, field) != value
+    )
+
+
 def check_tape(scenario) -> None:
     """The information tape records integers: it needs fixed-point arithmetic, and the
-    velocity predictor's history, which it does not record, left out."""
+    velocity predictor's history, which it does not record, left out (`TAPE_NEEDS`)."""
     if not scenario.reversal.tape:
         if scenario.reversal.all_stages:
             raise FieldError("reversal.all_stages", "needs reversal.tape = true")
         return
-    if scenario.integrator.arithmetic != "fixed":
-        raise FieldError("reversal.tape", "needs integrator.arithmetic = 'fixed'")
-    if scenario.integrator.scheme != "verlet":
-        raise FieldError("reversal.tape", "needs integrator.scheme = 'verlet'")
+    if lacking := tape_needs(scenario.integrator):
+        raise FieldError("reversal.tape", f"needs {lacking}")
 
 
 def check_automatic_dt(scenario) -> None:

@@ -28,6 +28,7 @@ from pydantic import (
 from pydantic.json_schema import GenerateJsonSchema
 
 from revdem_cli import laws, wall_shapes
+from revdem_cli.config.checks import tape_needs
 
 if TYPE_CHECKING:
     from revdem_cli.assembly.spheres import Spheres
@@ -762,7 +763,7 @@ class Reversal(_Model):
         "cannot recompute (the information tape, `<name>.tape.h5` beside the restart), so "
         "that the reversal returns the starting integers bit for bit whatever friction, "
         "damping, drag, contact loss or a servo destroyed, and the bits they destroyed are "
-        "measured; needs integrator.arithmetic = 'fixed' and scheme = 'verlet'",
+        f"measured; needs {tape_needs()}",
     )
     all_stages: bool = Field(
         strict=True,

@@ -554,6 +554,9 @@ def test_the_tape_needs_fixed_point_arithmetic_and_velocity_verlet():
         _fixed(_resting({"contact": {"normal_damping": 0.3}}), True).changed(
             {"integrator.scheme": "trvp"}
         )
+    both = "reversal.tape: needs integrator.arithmetic = 'fixed' and integrator.scheme = 'verlet'"
+    with pytest.raises(InputError, match=both):  # at once, not one refusal after the other
+        _shear_collision(0.3).changed({"reversal.tape": True, "integrator.scheme": "trvp"})
 
 
 @pytest.mark.parametrize("frames", [6, 40], ids=["forward", "reversed"])

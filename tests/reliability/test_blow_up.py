@@ -88,10 +88,31 @@ def test_a_damped_stage_blown_up_backwards_names_its_damping(tmp_path):
     line = _failed(CliRunner().invoke(app, ["run", str(scenario), "--out", str(tmp_path), "-q"]))
     assert "blown up at step" in line and "overlap by" in line
     assert "likely cause: the stage's local damping 0.7, reversed, puts energy in" in line
+    assert "reversal.tape with integrator.arithmetic = 'fixed', reverses it exactly" in line
     assert "unlikely cause" not in line
     # the reversal's frames go down from its restart: "up to step 134525" said the opposite
     steps, _ = _steps_written(tmp_path / "oedometer_settle.reverse.h5")
     assert line.endswith(f"holds the reversed frames from step {steps[0]} down to {steps[-1]}")
+
+
+@pytest.mark.parametrize("arithmetic", ["float", "fixed"])
+@pytest.mark.parametrize("scheme", ["verlet", "trvp"])
+def test_the_tape_a_damped_blow_up_points_to_is_one_the_run_can_take(arithmetic, scheme):
+    """The line of a damped stage blown up backwards pointed to reversal.tape alone, and a
+    run that took it was refused, for fixed-point arithmetic, then again for velocity Verlet.
+    It names what of those the run lacks, nothing where it has both; with them and the tape
+    the scenario is valid."""
+    from revdem_cli.stage import _likely_cause
+
+    integrator = {"dt": 1e-7, "arithmetic": arithmetic, "scheme": scheme}
+    cause = _likely_cause(two_spheres(integrator=integrator), 1e-7, "local damping 0.7")
+    named = cause.split("an information tape, reversal.tape")[1].split(", reverses it")[0]
+    lacking = [(arithmetic, "fixed"), (scheme, "verlet")]
+    assert bool(named) == any(have != needed for have, needed in lacking)
+    for need in named.removeprefix(" with ").split(" and ") if named else []:
+        field, value = need.removeprefix("integrator.").split(" = ")
+        integrator[field] = value.strip("'")
+    assert two_spheres(integrator=integrator, reversal={"tape": True}).reversal.tape
 
 
 def _examined(scenario: Scenario, change, limit: float = 0.5) -> tuple[int, np.ndarray]:
