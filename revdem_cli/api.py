@@ -729,7 +729,7 @@ def sweep(
     values: Mapping[str, Sequence],
     out: str | Path = "out/sweep",
     *,
-    workers: int = 2,
+    workers: int | None = None,
     threads: int | None = None,
     scheduler: str | None = None,
     force: bool = False,
@@ -739,11 +739,13 @@ def sweep(
 ) -> list[dict]:
     """Run every combination of `values` ({dotted path: [value, ...]}, Python values) of a
     scenario file (or every variant of a sweep file, with `values` added), each forward and
-    reversed, on a dask cluster, as `revdem sweep` does: its table (sweep.csv, sweep.h5)
-    in `out`, whose rows it returns (`sweep_table`). SIGINT or SIGTERM stops it as it stops
-    the command: the table is written (the variants not done say so in their status;
-    `resume=True` goes on), then `SweepInterrupted` is raised with its rows, as `run` raises
-    `Interrupted`, so that a script stops there rather than go on to its next sweep."""
+    reversed, on a dask cluster (a local one of `workers` processes, default 2, or the
+    scheduler at `scheduler` with its own workers: not both), as `revdem sweep` does: its
+    table (sweep.csv, sweep.h5) in `out`, whose rows it returns (`sweep_table`). SIGINT or
+    SIGTERM stops it as it stops the command: the table is written (the variants not done
+    say so in their status; `resume=True` goes on), then `SweepInterrupted` is raised with
+    its rows, as `run` raises `Interrupted`, so that a script stops there rather than go on
+    to its next sweep."""
     from revdem_cli.sweep import read_sweep, run_sweep
 
     _check_switches(force=force, resume=resume, allow_unstable_dt=allow_unstable_dt,
@@ -761,12 +763,13 @@ def sweep(
         if len(listed) == 0:
             raise InputError(f"values[{key!r}]: no values; give a list of one or more")
         sets.append(f"{key}=" + ",".join(_set_text(value) for value in listed))
-    if not whole_number(workers) or workers < 1:
+    if workers is not None and (not whole_number(workers) or workers < 1):
         raise InputError(f"workers={workers!r}: a whole number, 1 or more")
     out = _folder(out, "out")
     plan = read_sweep(_path(scenario, "scenario"), sets)
     with _progress(progress, "variants", scheduler is None) as shown:
-        _, tables, signum = run_sweep(plan, out, scheduler, int(workers), shown, threads,
+        count = None if workers is None else int(workers)  # a numpy integer a plain one
+        _, tables, signum = run_sweep(plan, out, scheduler, count, shown, threads,
                                       allow_unstable_dt, force, resume)  # fmt: skip
     rows = sweep_table(out)
     if signum:

@@ -489,11 +489,21 @@ def sweep(
     ] = Path("out/sweep"),
     scheduler: Annotated[
         str | None,
-        typer.Option("--scheduler", help="Address of a dask scheduler (default: a local cluster)."),
+        typer.Option(
+            "--scheduler",
+            help="Address of a dask scheduler, whose own workers run the variants (default: "
+            "a local cluster).",
+        ),
     ] = None,
     workers: Annotated[
-        int, typer.Option("--workers", min=1, help="Worker processes of the local cluster.")
-    ] = 2,
+        int | None,
+        typer.Option(
+            "--workers",
+            min=1,
+            help="Worker processes of the local cluster (default 2); refused with "
+            "--scheduler, whose workers are those started for it.",
+        ),
+    ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
     threads: Annotated[
         int | None,

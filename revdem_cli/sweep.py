@@ -39,6 +39,8 @@ from revdem_cli.errors import InputError, check_regular, not_a_folder
 from revdem_cli.io.lock import FolderHeld, sole_writer
 
 KIND = "sweep"
+LOCAL_WORKERS = 2
+"""Worker processes of the local cluster a sweep starts where it is given no --workers."""
 RESULTS = (
     "status",
     "reversible",
@@ -376,7 +378,7 @@ def run_sweep(
     sweep: Sweep,
     out_dir: Path,
     scheduler: str | None = None,
-    workers: int = 2,
+    workers: int | None = None,
     progress: Callable[[str, int, int], None] | None = None,
     threads: int | None = None,
     allow_unstable_dt: bool = False,
@@ -384,12 +386,13 @@ def run_sweep(
     resume: bool = False,
 ) -> tuple[list[dict], list[Path], int]:
     """Run every variant (`allow_unstable_dt`: those whose time step is above the critical
-    estimate too); returns the table's rows, the table files written and the signal that
-    stopped the sweep (0 if none). An earlier sweep's tables or a variant's earlier outputs
-    in `out_dir` are refused unless `force`, as `revdem run` refuses a run's
-    (`api.keep_outputs`), or `resume`, which goes on with the earlier sweep: a variant done
-    there is kept as its table has it, a stopped one goes on from its checkpoint, any other
-    runs.
+    estimate too) on the scheduler at `scheduler` or on a local cluster of `workers`
+    processes (default `LOCAL_WORKERS`); returns the table's rows, the table files written
+    and the signal that stopped the sweep (0 if none). An earlier sweep's tables or a
+    variant's earlier outputs in `out_dir` are refused unless `force`, as `revdem run`
+    refuses a run's (`api.keep_outputs`), or `resume`, which goes on with the earlier sweep:
+    a variant done there is kept as its table has it, a stopped one goes on from its
+    checkpoint, any other runs.
 
     SIGINT or SIGTERM stops the sweep: each running variant at its next whole step with a
     checkpoint, none begins after, and the table says which are done, stopped or not
@@ -400,6 +403,7 @@ def run_sweep(
         raise InputError(
             "--resume goes on with the sweep in --out, --force starts it over: give one"
         )
+    _check_cluster(scheduler, workers)
     check_threads(threads, here=scheduler is None)  # a local cluster's workers are here
     out_dir = Path(out_dir)
     if problem := not_a_folder(out_dir):  # before its stop file is named in an error
@@ -430,13 +434,24 @@ def run_sweep(
             results,
             len(variants),
             out_dir / STOP_FILE,
-            (scheduler, workers, threads),
+            (scheduler, LOCAL_WORKERS if workers is None else workers, threads),
             sweep.scenario.suffix.lower(),
             allow_unstable_dt,
             progress,
         )
         rows = [{"folder": folders[i], **variants[i], **results[i]} for i in range(len(variants))]
         return rows, write_table(rows, out_dir / "sweep"), stopped
+
+
+def _check_cluster(scheduler: str | None, workers: int | None) -> None:
+    """A worker count is a local cluster's: a scheduler's workers are those started for it,
+    as a dask Client of an address starts none, so the two together are refused."""
+    if scheduler is not None and workers is not None:
+        raise InputError(
+            f"--workers {workers} sizes a local cluster; the variants run on the workers of "
+            f"--scheduler {scheduler}, as many as were started for it (e.g. `dask worker "
+            f"{scheduler} --nworkers {workers}`): leave out --workers"
+        )
 
 
 def _run_pending(

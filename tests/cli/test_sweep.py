@@ -554,3 +554,29 @@ def test_the_variants_of_a_scheduler_take_threads_checked_as_a_local_sweeps(tmp_
         result = runner.invoke(app, [*args, "--out", str(tmp_path / "one"), "--threads", "1"])
         assert result.exit_code == 0, result.output
         assert client.submit(numba.get_num_threads, pure=False).result() == 1  # its worker's
+
+
+def test_workers_with_a_scheduler_are_refused_before_the_sweep_starts(tmp_path):
+    """`--scheduler ADDRESS --workers 3` ran on the scheduler's workers, however many it had,
+    and dropped the 3 without a word: a worker count sizes a local cluster, and a dask
+    Client of an address starts none. The two together are refused, from the command line
+    and from Python, before any scheduler is asked; each alone is taken."""
+    from revdem_cli import api as revdem
+
+    scenario = str(CONFIGS / "smoke" / "collision.yaml")
+    address = "tcp://127.0.0.1:9"  # nothing answers there: asked, it would fail otherwise
+    out = tmp_path / "out"
+    args = ["sweep", scenario, "--set", "stages.0.steps=10", "--out", str(out)]
+    result = runner.invoke(app, [*args, "--scheduler", address, "--workers", "3"])
+    assert_one_line_error(
+        result,
+        f"error: --workers 3 sizes a local cluster; the variants run on the workers of "
+        f"--scheduler {address}, as many as were started for it (e.g. `dask worker {address} "
+        "--nworkers 3`): leave out --workers",
+    )
+    with pytest.raises(InputError, match=r"^--workers 1 sizes a local cluster; .*--scheduler"):
+        revdem.sweep(scenario, {"stages.0.steps": [10]}, out, workers=1, scheduler=address)
+    assert not out.exists()
+    shown = runner.invoke(app, ["sweep", "--help"]).output.replace("│", " ")
+    help_text = " ".join(shown.split())  # the option's help as one line, out of its box
+    assert "(default 2); refused with --scheduler, whose workers are those started" in help_text
