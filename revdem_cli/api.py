@@ -253,7 +253,11 @@ class Result:
         return path
 
     def observable(self, name: str, run: str = "forward") -> tuple[np.ndarray, np.ndarray]:
-        """(time in s, values) of an observable of the forward or the reversed run."""
+        """(time in s, values) of an observable of the forward or the reversed run, a row a
+        step, but two at a step where a stage began with its own row beside the end of the
+        stage before (its law cut contact histories or changed the forces there,
+        `stage.StageStart`): the forward run's earlier stage's first, the reversed run's
+        later."""
         from revdem_cli.io.h5md import observable_names, open_trajectory, read_observable
 
         with open_trajectory(self.trajectory(run)) as f:
@@ -588,7 +592,7 @@ def read(out: str | Path, name: str | None = None) -> Result:
     if paths["restart"] is not None:  # what the run said of its stages, which it keeps
         said = carried_summary(paths["restart"].parent, restart_summary(paths["restart"]))
         outputs.chosen_dt, outputs.stopped, outputs.unmet, outputs.unheld = said[:4]
-        outputs.stage_files, outputs.servo = tuple(said[4]), said[5]
+        outputs.stage_files, outputs.servo, outputs.capped = tuple(said[4]), said[5], said[6]
     return Result(outputs)
 
 

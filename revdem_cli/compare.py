@@ -204,24 +204,45 @@ def refuse_nothing_to_compare(forward: Path, start: int, stop: int) -> None:
 
 def _energy_back(forward, reverse) -> dict | None:
     """The total energy (J) the reversed run ends with, at the step it returns to, beside the
-    forward run's there: equal for a reversal that retraces its run, and where it parts,
-    whether it took energy out or put it in (a damped run reversed gains it, Hanley 2020
-    §5.2). None where the forward run has no observables row at that step."""
+    forward run's row of that state (`paired_rows`: where a stage began with its own row, the
+    stage's start, not the end of the stage before): equal for a reversal that retraces its
+    run, and where it parts, whether it took energy out or put it in (a damped run reversed
+    gains it, Hanley 2020 §5.2). None where the forward run has no observables row at that
+    step."""
     names = "observables/total_energy/step", "observables/total_energy/value"
     if not all(name in run for run in (forward, reverse) for name in names):
         return None
     back = reverse[names[0]][:]
-    if not len(back):
-        return None
-    end = int(np.argmin(back))
-    there = np.nonzero(forward[names[0]][:] == back[end])[0]
-    if not len(there):
+    end = len(back) - 1  # the reversed run's last row: where it returned to
+    pairs = paired_rows(forward[names[0]][:], back)
+    there = {reversed_row: row for row, reversed_row in pairs}.get(end)
+    if there is None:
         return None
     return {
         "step": int(back[end]),
-        "forward": float(forward[names[1]][there[0]]),
+        "forward": float(forward[names[1]][there]),
         "reversed": float(reverse[names[1]][end]),
     }
+
+
+def paired_rows(forward: np.ndarray, reverse: np.ndarray) -> list[tuple[int, int]]:
+    """The observables rows of a forward run and of its reversal that hold one state, as
+    (forward row, reversed row), from the steps of their rows (`observable_steps`): at each
+    step both have, their rows in the forward run's order (`rows_by_step`), the reversal's
+    last with the forward run's last, and so on back; at the step the reversal began from,
+    the end of its stage, first with first. Where a stage began with its own row beside the
+    end of the stage before (`stage.StageStart`), a reversal that stops at that stage's
+    start holds its start alone, the forward run's second row there."""
+    from revdem_cli.io.h5md import rows_by_step
+
+    rows, back = rows_by_step(forward), rows_by_step(reverse, reverse=True)
+    began = int(reverse[0]) if len(reverse) else None
+    paired = []
+    for step, there in back.items():
+        here = rows.get(step, [])
+        ends = (here, there) if step == began else (here[::-1], there[::-1])
+        paired += zip(*ends, strict=False)  # the forward run may hold one more
+    return paired
 
 
 def restart_places(reverse, second: Path) -> list[Path]:

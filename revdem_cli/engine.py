@@ -7,7 +7,7 @@ which files, with which checkpoints and resumption; a stage itself runs in `stag
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +26,7 @@ from revdem_cli.stage import (
     Model,
     Progress,
     StageClock,
+    StageStart,
     reversal_history,
     run_stage,
     stage_time_step,
@@ -59,6 +60,9 @@ class Outputs:
     stale_exports: tuple[Path, ...] = ()
     # a reversal with no forward trajectory to compare with: where it looked for one
     forward_sought: tuple[Path, ...] = ()
+    # stages whose law cut contact histories at their start, where the stage before ended
+    # (`stage.StageStart`, its fields)
+    capped: dict[str, dict] = field(default_factory=dict)
 
 
 def output_paths(out_dir: Path, name: str) -> dict[str, Path]:
@@ -184,7 +188,9 @@ class Run:
         """A restart of the state at the end of (or, with `resumption`, part-way through) the
         stage of `clock`; `files`: the names of the stage's information tape and of the
         restart of the stage before it, which a reversal of every stage goes on from;
-        `summary`: what the run says of its stages, where the restart ends it."""
+        `summary`: what the run says of its stages, where the restart ends it; with what the
+        stage's law did at its start (`StageClock.start`), which its reversal writes its
+        rows by."""
         tape, previous = files
         return Restart(
             state,
@@ -200,6 +206,7 @@ class Run:
             tape,
             previous,
             summary,
+            "{}" if clock.start is None else clock.start.to_json(),
         )
 
 
@@ -242,7 +249,7 @@ def _forward(
     first = 0 if resume is None else resume.resumption.stage_index
     time = 0.0
     so_far = "{}" if resume is None else resume.resumption.so_far
-    chosen, stopped, unmet, unheld, stage_files, _ = carried_summary(run.out_dir, so_far)
+    chosen, stopped, unmet, unheld, stage_files, _, capped = carried_summary(run.out_dir, so_far)
     servo = scenario.servo  # the run's own: a checkpoint written before may not say it
     with writer:
         for index in range(first, len(scenario.stages)):  # a stage starts where the last ended
@@ -250,7 +257,7 @@ def _forward(
             events = None
             if resume is not None and index == first:  # carry on part-way through it
                 start = resume.stage_first_step, resume.stage_first_time, resume.stage_dt
-                clock = StageClock(stage, *start)
+                clock = StageClock(stage, *start, start=StageStart.from_json(resume.stage_start))
                 events = resume.resumption.events
             else:
                 clock = StageClock(
@@ -272,16 +279,19 @@ def _forward(
             place = dict(
                 phase="forward", stage_index=index, reverse=reverse, source_restart="",
                 stop_step=-1, end_step=-1,
-                so_far=summary_so_far(chosen, stopped, unmet, unheld, stage_files, servo),
+                so_far=summary_so_far(chosen, stopped, unmet, unheld, stage_files, servo, capped),
             )  # fmt: skip
 
             def checkpoint(state, clock, events, place=place, tape=tape, files=files):
                 run.checkpoint(state, clock, events, writer, paths["forward"], place, tape, files)
 
-            run_stage(
+            before = run.model.stage_law(scenario.stages[index - 1]) if index else None
+            clock = run_stage(
                 state, run.model, clock, +1, writer, progress, None, checkpoint, events,
-                run.checkpoints.stepper, tape,
+                run.checkpoints.stepper, tape, before,
             )  # fmt: skip
+            if clock.start is not None and clock.start.capped:
+                capped[stage.name] = asdict(clock.start)
             if state.step != clock.last_step:  # its stop condition ended it
                 ran = state.step - clock.first_step
                 stopped[stage.name] = (ran, stage.steps, stage.observable_interval)
@@ -299,11 +309,11 @@ def _forward(
         writer.end()
     reversal_history(state, run.model, clock)  # a velocity predictor's, for the reversal
     last = _stage_files(run, len(scenario.stages) - 1)
-    said = summary_so_far(chosen, stopped, unmet, unheld, stage_files, servo)
+    said = summary_so_far(chosen, stopped, unmet, unheld, stage_files, servo, capped)
     write_restart(
         paths["restart"], run.restart(state, clock, paths["forward"], files=last, summary=said)
     )
-    told = (chosen, stopped, unmet, unheld, stage_files, servo)
+    told = (chosen, stopped, unmet, unheld, stage_files, servo, capped)
     if reverse:
         restart = read_restart(paths["restart"])
         source = str(paths["restart"].resolve())
@@ -319,11 +329,12 @@ def _forward(
 
 
 def _stages_said(
-    outputs: Outputs, chosen, stopped, unmet, unheld, stage_files, servo: str | None
+    outputs: Outputs, chosen, stopped, unmet, unheld, stage_files, servo: str | None, capped
 ) -> Outputs:
     """`outputs` told what the run says of its stages (`summary_so_far`'s, in its order)."""
     outputs.chosen_dt, outputs.stopped, outputs.unmet = chosen, stopped, unmet
     outputs.unheld, outputs.stage_files, outputs.servo = unheld, tuple(stage_files), servo
+    outputs.capped = capped
     return outputs
 
 
@@ -369,20 +380,23 @@ def _stress_not_held(state: State, model, stage) -> dict[str, tuple[float, float
 
 
 def summary_so_far(
-    chosen: dict, stopped: dict, unmet: dict, unheld: dict, stage_files: list, servo: str | None
-) -> str:
+    chosen: dict, stopped: dict, unmet: dict, unheld: dict, stage_files: list,
+    servo: str | None, capped: dict,
+) -> str:  # fmt: skip
     """What a run's summary says of the stages run so far (`Outputs`' chosen_dt, stopped,
-    unmet, unheld, stage_files, the files by name, and servo), as JSON, which a checkpoint
-    keeps so that the run resumed says it too."""
+    unmet, unheld, stage_files, the files by name, servo and capped), as JSON, which a
+    checkpoint keeps so that the run resumed says it too."""
     files = [[label, Path(path).name] for label, path in stage_files]
     said = {"chosen_dt": chosen, "stopped": stopped, "unmet": unmet, "unheld": unheld}
-    return json.dumps(said | {"stage_files": files, "servo": servo})
+    return json.dumps(said | {"stage_files": files, "servo": servo, "capped": capped})
 
 
-def carried_summary(out_dir: Path, so_far: str) -> tuple[dict, dict, dict, dict, list, str | None]:
-    """`summary_so_far` read back: (chosen_dt, stopped, unmet, unheld, stage_files, servo),
-    the files in the run's folder `out_dir` as it is named now; servo None where the run
-    did not keep it (a checkpoint or restart written before runs did)."""
+def carried_summary(
+    out_dir: Path, so_far: str
+) -> tuple[dict, dict, dict, dict, list, str | None, dict]:
+    """`summary_so_far` read back: (chosen_dt, stopped, unmet, unheld, stage_files, servo,
+    capped), the files in the run's folder `out_dir` as it is named now; servo None where
+    the run did not keep it (a checkpoint or restart written before runs did)."""
     said = json.loads(so_far)
     stopped = {name: tuple(counts) for name, counts in said.get("stopped", {}).items()}
     unheld = {
@@ -391,7 +405,7 @@ def carried_summary(out_dir: Path, so_far: str) -> tuple[dict, dict, dict, dict,
     }
     files = [(label, out_dir / name) for label, name in said.get("stage_files", [])]
     chosen, unmet = dict(said.get("chosen_dt", {})), dict(said.get("unmet", {}))
-    return chosen, stopped, unmet, unheld, files, said.get("servo")
+    return chosen, stopped, unmet, unheld, files, said.get("servo"), dict(said.get("capped", {}))
 
 
 def _stage_files(run: Run, index: int) -> tuple[str, str]:
@@ -438,7 +452,12 @@ def _reverse_clock(scenario: Scenario, restart: Restart, end_step: int) -> Stage
     """The clock of the stage a restart ended, which ended at `end_step`."""
     stage = next(s for s in scenario.stages if s.name == restart.stage)
     return StageClock(
-        stage, restart.stage_first_step, restart.stage_first_time, restart.stage_dt, end_step
+        stage,
+        restart.stage_first_step,
+        restart.stage_first_time,
+        restart.stage_dt,
+        end_step,
+        StageStart.from_json(restart.stage_start),
     )
 
 
@@ -485,13 +504,15 @@ def _reverse(
         )
     with writer:
         for stage, tape in enumerate(tapes):
+            apart = False  # the stage reversed before this one began with its own row
             if stage:
+                apart = clock.start is not None
                 start, source = _stage_before(start, source)
                 clock = _reverse_clock(scenario, start, start.state.step)
                 stop, events = clock.first_step, None
             _reverse_stage(
                 run, start, source, clock, stop, events, writer, tape, progress, so_far,
-                forward or Path(start.trajectory),
+                forward or Path(start.trajectory), apart,
             )  # fmt: skip
         writer.end()
     # resumed, the restart the reversal began from (`resume_run` reports it)
@@ -532,21 +553,24 @@ def _replayers(
     stage's start, on through the stages before, each found from the restart at the end of
     the one before (`previous`). Every tape is checked here (`Replayer`), and the restarts
     before read, so that a missing or damaged one is refused before the first step, not
-    once the stages after it have been reversed. A stage's bits at its first step are those
-    the forward run wrote there, at the end of the stage before: that stage's tape's."""
+    once the stages after it have been reversed. A stage's bits at its first step, where
+    the forward run's row there is the end of the stage before (`_replayer`), are that
+    stage's tape's."""
     tapes = [_replayer(scenario, start, source, clock)]
     while start.previous:  # every stage reversed: the stage before has a tape
         if stop != clock.first_step:  # the reversal stops within this stage
-            index = _stage_index(scenario, clock) - 1
-            earlier = stage_paths(Path(source).parent, scenario.name, index, scenario)["tape"]
-            tapes[-1].before = recorded(earlier)
+            if tapes[-1].before is not None:
+                index = _stage_index(scenario, clock) - 1
+                earlier = stage_paths(Path(source).parent, scenario.name, index, scenario)
+                tapes[-1].before = recorded(earlier["tape"])
             break
         source = str(Path(source).parent / start.previous)
         start = read_restart(source)
         clock = _reverse_clock(scenario, start, start.state.step)
         stop = clock.first_step
         tapes.append(_replayer(scenario, start, source, clock))
-        tapes[-2].before = tapes[-1].recorded
+        if tapes[-2].before is not None:
+            tapes[-2].before = tapes[-1].recorded
     return tapes
 
 
@@ -554,11 +578,14 @@ def _replayer(
     scenario: Scenario, start: Restart, source: str, clock: StageClock
 ) -> Replayer | None:
     """The information tape a restart names, to replay, or None. Its bits at the stage's
-    first step are NaN after a stage (those of the stage before where its tape is read,
-    `_replayers`)."""
+    first step are NaN after a stage whose row there is the forward run's only one (those of
+    the stage before where its tape is read, `_replayers`); the tape's own, zero, at the
+    first stage's and where the stage wrote its own row beside the stage before's
+    (`StageClock.start`)."""
     if not start.tape:
         return None
-    before = np.full(len(MECHANISMS), np.nan) if _stage_index(scenario, clock) > 0 else None
+    after = _stage_index(scenario, clock) > 0 and clock.start is None
+    before = np.full(len(MECHANISMS), np.nan) if after else None
     path = Path(source).parent / start.tape
     particles = len(start.state.particles.x)
     end = start.state.fixed if start.resumption is None else None  # a checkpoint: part-way
@@ -572,11 +599,13 @@ def _stage_index(scenario: Scenario, clock: StageClock) -> int:
 
 
 def _reverse_stage(
-    run, start, source, clock, stop, events, writer, tape, progress, so_far, forward: Path
-) -> None:
+    run, start, source, clock, stop, events, writer, tape, progress, so_far, forward: Path,
+    end_row_apart: bool = False,
+) -> None:  # fmt: skip
     """One stage of a reversal, from the state of `start` back to `stop`, into `writer`;
     its checkpoints name `forward`, the forward trajectory found when the reversal began
-    (beside the restart, where the one the restart names is not there)."""
+    (beside the restart, where the one the restart names is not there). `end_row_apart`:
+    the stage after it began with its own row where this one ended (`run_stage`)."""
     place = dict(
         phase="reverse", stage_index=-1, reverse=False, source_restart=source, stop_step=stop,
         end_step=clock.last_step, so_far=so_far,
@@ -588,7 +617,7 @@ def _reverse_stage(
 
     run_stage(
         start.state, run.model, clock, -1, writer, progress, stop, checkpoint, events,
-        run.checkpoints.stepper, tape,
+        run.checkpoints.stepper, tape, end_row_apart=end_row_apart,
     )  # fmt: skip
 
 
@@ -628,8 +657,8 @@ def resume_run(
             )
             return _forward(run, resume.state, writer, place.reverse, progress, resume)
         outputs = _reverse(run, resume, place.source_restart, None, progress, place.so_far)
-    carried = carried_summary(run.out_dir, place.so_far)[:5]
-    _stages_said(outputs, *carried, run.scenario.servo)
+    *carried, _, capped = carried_summary(run.out_dir, place.so_far)
+    _stages_said(outputs, *carried, run.scenario.servo, capped)
     for kind in ("forward", "restart"):  # named as the run's folder is named now
         path = getattr(outputs, kind)
         if path is not None and path.resolve() == run.paths[kind].resolve():

@@ -6,9 +6,10 @@ and writes the frames, at the same step numbers in both directions."""
 from __future__ import annotations
 
 import copy
+import json
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -200,6 +201,38 @@ def _deviatoric_invariant(tensor: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class StageStart:
+    """What a stage's own contact law did at its start to the contacts the stage before left
+    under another (`stages[].contact`), where the forces under the new law are not those
+    (`run_stage`: STATIC caps each shear history at the new mu |f_n| and each rolling one
+    at its limit, and the viscous damping is the new stage's): the stage then writes its
+    own observables row beside the one the stage before ended with at that step, the state
+    its reversal returns to. `slid` and `rolled` count the contacts (sphere and wall) whose
+    shear and rolling histories the new limits cut, `energy_gone` the elastic energy that
+    took, J (`report.info.capped_words` says it in one line)."""
+
+    step: int
+    friction: float  # the stage's mu
+    slid: int
+    rolled: int
+    energy_gone: float
+
+    @property
+    def capped(self) -> bool:
+        """Whether the new law cut any history (else only its damping changed the forces)."""
+        return self.slid + self.rolled > 0
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self))
+
+    @classmethod
+    def from_json(cls, text: str) -> StageStart | None:
+        """A start as `to_json` wrote it; None for '{}', a stage without one."""
+        fields = json.loads(text)
+        return cls(**fields) if fields else None
+
+
+@dataclass(frozen=True)
 class StageClock:
     """Step and time bounds of a stage; time = first_time + (step - first_step) dt."""
 
@@ -208,6 +241,7 @@ class StageClock:
     first_time: float
     dt: float
     end_step: int | None = None  # where the stage ended, if a stop condition ended it early
+    start: StageStart | None = None  # where the stage wrote its own row at its first step
 
     @property
     def last_step(self) -> int:
@@ -250,14 +284,21 @@ def run_stage(
     events: np.ndarray | None = None,
     stepper: Stepper | None = None,
     tape: Recorder | Replayer | None = None,
-) -> None:
+    law_before: ContactLaw | None = None,
+    end_row_apart: bool = False,
+) -> StageClock:
     """Advance `state` through one stage (direction +1) or back through it (direction -1).
 
     With `events`, the stage's log so far, the state is part-way through the stage at the
     step of a checkpoint, and the stage carries on from there. `stepper` calls the compiled
     loop, and its flag stops it (default: called here, never stopped). `tape`: the
     information tape the stage records going forward, or replays going backward
-    (`io.tape`); `checkpoint` writes out what it holds before the state."""
+    (`io.tape`); `checkpoint` writes out what it holds before the state. Returns the clock
+    of the stage as it ran: going forward, with what its law did at its start
+    (`StageStart`) to the contacts the stage before left under `law_before`, its law, which
+    its restart keeps. `end_row_apart`, reversed: the stage after this one began with its
+    own row (its `StageStart`) at the step this one ended at, where the row of this stage's
+    end is written beside it, as the forward run wrote it."""
     frames = clock.frame_steps()
     if direction < 0:
         frames = frames[::-1]
@@ -276,15 +317,7 @@ def run_stage(
     set_cell_motion(state.cell, state.fixed, clock.stage, forward=direction > 0 and not resuming)
     if direction > 0 and not resuming:
         state.walls.origin[:] = state.walls.point  # walls move from where the stage finds them
-        compute_forces(  # under the stage's settings
-            *stepping_bundles(state, model, dyn, law),
-            STATIC,
-            clock.dt,
-            0.0,
-            empty_events(),
-            state.step,
-            True,  # the pair arrays: read by the stage's first row
-        )
+        clock = _forces_at_start(state, model, clock, dyn, law, law_before)
     every = clock.stage.observable_interval
     buffer, buffer_steps = model.buffers(clock.stage.output_every // every + 2)
     stepper = stepper or Stepper()
@@ -292,7 +325,8 @@ def run_stage(
     stepping = model.stepping(clock.dt, clock.first_step, clock.last_step, every, stepper.halt)
     if events is None:
         events = empty_events()
-        _record_now(state, model, dyn, clock, writer, events, tape)
+        apart = clock.start is not None if direction > 0 else end_row_apart
+        _record_now(state, model, dyn, clock, writer, events, tape, apart)
     label = f"{clock.stage.name} ({'forward' if direction > 0 else 'reversed'})"
     total = abs(frames[-1] - frames[0])
     if progress is not None:  # shown from the stage's start, the time elapsed counting
@@ -365,6 +399,67 @@ def run_stage(
             checkpoint(state, clock, events)
     if isinstance(tape, Recorder):
         tape.finish(state)
+    return clock
+
+
+def _forces_at_start(
+    state: State, model: Model, clock: StageClock, dyn: Dynamics, law: ContactLaw,
+    law_before: ContactLaw | None,
+) -> StageClock:  # fmt: skip
+    """The forces of a stage's start under its own law (STATIC: each history capped at its
+    new limit), the pair arrays filled for the stage's first row; `clock` with what that did
+    (`StageStart`) where the stage that ended at this step, and wrote its row there, ran
+    under another law (`law_before`: its friction or viscous damping) and the contact forces
+    or histories are not those it left, else `clock` as it is. Under the same law the row
+    of the stage before stands for the start (in fixed point a history at its limit may be
+    capped again a grid step lower: a change of the order of round-off)."""
+    changing = law_before is not None and law_before != law
+    left = _contact_arrays(state) if changing else ()
+    elastic = model.layout.column("elastic_energy")
+    energy = model.observe(state, dyn)[elastic] if changing else 0.0
+    compute_forces(
+        *stepping_bundles(state, model, dyn, law),
+        STATIC,
+        clock.dt,
+        0.0,
+        empty_events(),
+        state.step,
+        True,  # the pair arrays: read by the stage's first row
+    )
+    if not changing:
+        return clock
+    now = _contact_arrays(state)
+    if not any(_changed_contacts(left[kind], now[kind]) for kind in now):
+        return clock
+    start = StageStart(
+        state.step,
+        float(law.mu),
+        _changed_contacts(left["shear"], now["shear"]),
+        _changed_contacts(left["rolling"], now["rolling"]),
+        float(energy - model.observe(state, dyn)[elastic]),
+    )
+    return replace(clock, start=start)
+
+
+def _contact_arrays(state: State) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Copies of what a stage's law sets at its start, each of the listed pairs and of the
+    wall contacts: 'force', 'shear' (the shear histories) and 'rolling' (the rolling ones;
+    empty where the law has none)."""
+    pairs, walls, n = state.pairs, state.walls, int(state.pairs.count[0])
+    return {
+        kind: (getattr(pairs, name)[:n].copy(), getattr(walls, name).copy())
+        for kind, name in (("force", "force"), ("shear", "history"), ("rolling", "rolling"))
+    }
+
+
+def _changed_contacts(before: tuple[np.ndarray, ...], after: tuple[np.ndarray, ...]) -> int:
+    """Contacts (rows of a pair array, a sphere's slots on each wall) whose vector differs
+    between two copies of their arrays."""
+    return sum(
+        int((a != b).reshape(-1, a.shape[-1]).any(axis=1).sum())
+        for a, b in zip(before, after, strict=True)
+        if a.size
+    )
 
 
 def reversal_history(state: State, model: Model, clock: StageClock) -> None:
@@ -570,10 +665,14 @@ def _write_frame(writer, state: State, model: Model, clock: StageClock, events) 
     writer.frame(state.step, time, state.particles, events, box, stress, state.fixed, contacts)
 
 
-def _record_now(state, model, dyn, clock, writer, events, tape) -> None:
-    """Write the frame and observables of the state as it is (the start of a stage)."""
+def _record_now(state, model, dyn, clock, writer, events, tape, apart: bool) -> None:
+    """Write the frame and observables of the state as it is (the start of a stage), the
+    row unless the run wrote one at this step already (the stage before ended here), which
+    stands for this state too, or `apart`, it does not: this stage's law changed the
+    contacts at its start (`StageStart`), or reversed, the stage after this one did, whose
+    start the row there is. The frame at a step already written is not written again."""
     _write_frame(writer, state, model, clock, events)
-    if writer.last_observable_step() != state.step:
+    if apart or writer.last_observable_step() != state.step:
         rows = model.observe(state, dyn)[None, :]
         _write_observables(writer, model, clock, np.array([state.step]), rows, tape)
 

@@ -513,6 +513,30 @@ def observable_steps(f: h5py.File, name: str) -> np.ndarray:
     return _read(f, f"observables/{name}/step")
 
 
+def rows_by_step(steps: np.ndarray, reverse: bool = False) -> dict[int, list[int]]:
+    """The observables rows of each step of a trajectory (`observable_steps`), in the order
+    the forward run wrote them: one a step, but two where a stage began at the step the
+    stage before ended at and its law changed the contacts there (`stage.StageStart`): that
+    stage's end, then the later stage's own start. A reversed run (`reverse`) wrote them in
+    the other order, which is turned."""
+    rows: dict[int, list[int]] = {}
+    for row, step in enumerate(steps.tolist()):
+        rows.setdefault(step, []).append(row)
+    if reverse:
+        rows = {step: there[::-1] for step, there in rows.items()}
+    return rows
+
+
+def from_stage_start(steps: np.ndarray, first: int, reverse: bool = False) -> np.ndarray:
+    """Which observables rows of a trajectory (`observable_steps`) are of the stage that began
+    at step `first` or after it: those of later steps and, at `first`, the stage's own start
+    (the last in the forward run's order, `rows_by_step`), not the end of the stage before
+    written beside it."""
+    within = steps >= first
+    within[rows_by_step(steps, reverse).get(first, [])[:-1]] = False
+    return within
+
+
 def read_contacts(f: h5py.File, index: int) -> dict[str, np.ndarray] | None:
     """The contacts of frame `index` by name (value: sphere and partner, point, ...), or
     None if the trajectory has none."""

@@ -86,6 +86,10 @@ class Restart:
     # their condition, which did not meet it or hold their stress, the dt each 'auto' one
     # took; `engine.summary_so_far`), JSON; {} in any other, and in one written before it
     summary: str = "{}"
+    # what that stage's law did at its start where it wrote its own observables row there
+    # beside the end of the stage before (`stage.StageStart`), JSON; {} where it did not,
+    # and in one written before restarts said
+    stage_start: str = "{}"
 
 
 def write_restart(path: Path, restart: Restart) -> None:
@@ -119,6 +123,7 @@ def _write_state(f: h5py.File, restart: Restart) -> None:
     meta.attrs["tape"] = restart.tape
     meta.attrs["previous"] = restart.previous
     meta.attrs["summary"] = restart.summary
+    meta.attrs["stage_start"] = restart.stage_start
     for name in Particles._fields:
         _put(f, f"particles/{name}", getattr(s.particles, name))
     _put(f, "particles/id", s.ids)
@@ -293,6 +298,7 @@ def _read(f: h5py.File, meta: h5py.Group, path: Path) -> Restart:
         tape=str(meta.attrs.get("tape", "")),
         previous=str(meta.attrs.get("previous", "")),
         summary=str(meta.attrs.get("summary", "{}")),
+        stage_start=str(meta.attrs.get("stage_start", "{}")),
     )
 
 

@@ -232,8 +232,7 @@ def wall_forces_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
 
     def series(path):
         with open_trajectory(path) as f:
-            steps = f["observables/kinetic_energy/step"][:]
-            keep = slice(None) if window is None else (steps >= window[0]) & (steps <= window[1])
+            keep = _within(f, f["observables/kinetic_energy/step"][:], window)
             if by_fraction:
                 x = f["observables/solid_fraction/value"][:][keep]
             else:
@@ -259,6 +258,19 @@ def _reversed_window(reverse: Path | None) -> tuple[int, int] | None:
         return int(steps.min()), int(steps.max())
 
 
+def _within(f, steps: np.ndarray, window: tuple[int, int] | None) -> np.ndarray | slice:
+    """Which rows of the observables of the open trajectory `f` (their `steps`) lie in the
+    reversed run's `window` (`_reversed_window`; every row without one): at its first step
+    only the row of the stage that began there, not the end of the stage before written
+    beside it (`io.h5md.from_stage_start`)."""
+    from revdem_cli.io.h5md import from_stage_start
+
+    if window is None:
+        return slice(None)
+    reverse = f["parameters/revdem"].attrs.get("direction") == "reverse"
+    return from_stage_start(steps, window[0], reverse) & (steps <= window[1])
+
+
 def stress_ratios_figure(forward: Path, reverse: Path | None, png: Path) -> Path:
     """Principal stress ratios sigma_1 / sigma_3 and sigma_2 / sigma_3, and the coordination
     number, against the compression of the cell along its strain-rate axis (mm), over the
@@ -282,8 +294,7 @@ def stress_ratios_figure(forward: Path, reverse: Path | None, png: Path) -> Path
 
     def read(path, name):
         with open_trajectory(path) as f:
-            steps = f["observables/cell_length/step"][:]
-            keep = slice(None) if window is None else (steps >= window[0]) & (steps <= window[1])
+            keep = _within(f, f["observables/cell_length/step"][:], window)
             compression = (start - f["observables/cell_length/value"][:, axis][keep]) * 1e3
             return compression, f[f"observables/{name}/value"][:][keep]
 

@@ -208,15 +208,15 @@ def _restart(path: Path) -> dict:
 
 def _stages_ran(summary: str) -> dict:
     """What the run a restart ends said of its stages (`Restart.summary`), where it said
-    anything: `stages_ran`, {stopped, unmet, unheld, chosen_dt} of those it has, and with
-    unheld the kind of the cell's servo (None where the run did not keep it)."""
+    anything: `stages_ran`, {stopped, unmet, unheld, chosen_dt, capped} of those it has, and
+    with unheld the kind of the cell's servo (None where the run did not keep it)."""
     import json
 
     summary = json.loads(summary)
     said = {
         key: value
         for key, value in summary.items()
-        if key in ("stopped", "unmet", "unheld", "chosen_dt") and value
+        if key in ("stopped", "unmet", "unheld", "chosen_dt", "capped") and value
     }
     if "unheld" in said:
         said["servo"] = summary.get("servo")
@@ -244,8 +244,9 @@ def servo_overshoot(servo: str | None) -> str:
 def stage_lines(said: dict) -> list[tuple[str, str]]:
     """(label, text) of each thing a run said of its stages (`_stages_ran`'s keys, each
     where there is any: `engine.Outputs` chosen_dt, stopped, unmet and unheld, with servo,
-    the kind of the servo that did not hold), as the run's summary prints them and `info` of
-    its restart gives them back."""
+    the kind of the servo that did not hold, and capped, the stages whose law cut contact
+    histories at their start, `stage.StageStart`), as the run's summary prints them and
+    `info` of its restart gives them back."""
     lines = [
         ("time step", f"{dt:.6g} s in stage {stage} (dt = 'auto')")
         for stage, dt in said.get("chosen_dt", {}).items()
@@ -275,7 +276,22 @@ def stage_lines(said: dict) -> list[tuple[str, str]]:
             )
             for stage, axes in unheld.items()
         ]
+    lines += [
+        ("capped", capped_words(stage, start)) for stage, start in said.get("capped", {}).items()
+    ]
     return lines
+
+
+def capped_words(stage: str, start: dict) -> str:
+    """What a stage's law cut at its start (`stage.StageStart`'s fields) in one line: 'stage
+    shear began at step 22250 under friction 0.5: 201 contacts slid to the new limit,
+    0.000641 J of elastic energy gone'."""
+    rolled = f" and {start['rolled']} rolled to theirs" if start["rolled"] else ""
+    return (
+        f"stage {stage} began at step {start['step']} under friction {start['friction']:g}: "
+        f"{start['slid']} contacts slid to the new limit{rolled}, {start['energy_gone']:.3g} J "
+        "of elastic energy gone"
+    )
 
 
 def _tape_of(path: Path, name: str) -> dict:

@@ -28,10 +28,12 @@ from revdem_cli.compare import read_verdict
 from revdem_cli.errors import InputError
 from revdem_cli.io.h5md import (
     frame_steps,
+    from_stage_start,
     observable_steps,
     open_trajectory,
     read_frame,
     read_observable,
+    rows_by_step,
 )
 
 HANLEY_2020 = Path(__file__).parents[2] / "scenarios" / "hanley2020" / "paper_numbers.toml"
@@ -125,15 +127,16 @@ def _observable_at(run, moment: str, name: str) -> np.ndarray:
     stage began), 'end' (forward run, where the stage ended: the restart's step, not the
     last row of a trajectory cut short) or 'reversed' (the reversed run at the stage's
     start: its last row, or where every stage is reversed, its row there); NotInRun where
-    the file has no such row."""
+    the file has no such row. At the stage's start, its own row where it wrote one beside
+    the end of the stage before (`io.h5md.rows_by_step`)."""
     path = run.reverse if moment == "reversed" else run.forward
     first, last = run.stage
     step = last if moment == "end" else first
     steps, _, values = _series(path, name)
-    there = np.nonzero(steps == step)[0]
-    if not len(there):
+    there = rows_by_step(steps, reverse=moment == "reversed").get(step)
+    if not there:
         raise NotInRun(f"{name} at step {step}", path)
-    return values[there[0]]
+    return values[there[0] if moment == "end" else there[-1]]
 
 
 def _stress_ratio(principal: np.ndarray) -> np.ndarray:
@@ -144,10 +147,11 @@ def _stress_ratio(principal: np.ndarray) -> np.ndarray:
 def _peak_stress_ratio(run) -> float:
     """Largest sigma_1 / sigma_3 of the forward run over the reversed stage (Hanley 2020
     Figure 4, the peak of Thornton's Eq 24); NotInRun where the run has no principal
-    stresses (no periodic cell) or none from the stage's start on."""
+    stresses (no periodic cell) or none from the stage's start on (`from_stage_start`: not
+    the end of the stage before)."""
     first, _ = run.stage
     steps, _, principal = _series(run.forward, "principal_stress")
-    during = principal[steps >= first]
+    during = principal[from_stage_start(steps, first)]
     if not len(during):
         raise NotInRun(f"principal_stress from step {first} on", run.forward)
     return float(_stress_ratio(during).max())

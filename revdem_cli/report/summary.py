@@ -107,6 +107,7 @@ def print_summary(outputs, console: Console | None = None) -> None:
         "unmet": outputs.unmet,
         "unheld": outputs.unheld,
         "servo": outputs.servo,
+        "capped": outputs.capped,
     }
     for label, text in stage_lines(said):
         console.print(f"  {label:<20} {text}", soft_wrap=True)

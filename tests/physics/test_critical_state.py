@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -219,6 +220,126 @@ def test_a_run_stopped_inside_a_stage_of_its_own_friction_resumes_to_the_same_bi
     ratio = shear[touching] / normal[touching]
     assert ratio.max() == pytest.approx(0.3, rel=1e-9)
     assert not whole.comparison["reversible"]  # the cap destroyed information
+
+
+SHORT = {
+    "stages.1.steps": 1000,
+    "stages.2.steps": 300,
+    "stages.2.output_every": 100,
+    "reversal.tape": True,
+    "output.figures": [],
+}
+"""The smoke sample's stages cut short (1 000 steps of isotropic compression, its stop
+condition unmet; 300 of shearing), reversed with an information tape: bit for bit."""
+
+CAPPED = re.compile(
+    r"capped +stage shear began at step (\d+) under friction 0\.5: (\d+) contacts slid to "
+    r"the new limit, (\S+) J of elastic energy gone"
+)
+"""The summary's line on what the shear stage's law cut at its start."""
+
+
+def _run_smoke(out: Path, changes: dict) -> str:
+    """`revdem run` of the smoke sample cut short (SHORT) with `changes`, as the command line
+    takes them, into `out`: its output."""
+    from typer.testing import CliRunner
+
+    from revdem_cli.cli import app
+
+    settings = [f"{key}={json.dumps(value)}" for key, value in (SHORT | changes).items()]
+    args = ["run", str(SMOKE), "--out", str(out), "--threads", "1"]
+    result = CliRunner().invoke(app, args + [item for s in settings for item in ("--set", s)])
+    assert result.exit_code == 0, result.output
+    return result.output
+
+
+def _rows(path: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The steps and values of an observable's rows in a trajectory."""
+    from revdem_cli.io.h5md import observable_steps, open_trajectory, read_observable
+
+    with open_trajectory(path) as f:
+        return observable_steps(f, name), read_observable(f, name)[1]
+
+
+@pytest.mark.parametrize("all_stages", [False, True])
+def test_a_loose_sample_reversed_returns_to_the_start_its_shear_stage_cut(tmp_path, all_stages):
+    """The loose smoke sample (mu = 1 in its preparation) sheared with mu = 0.5: the shear
+    stage's law cuts every shear force above 0.5 |f_n| at its start (Hanley 2020 §5.1), and
+    the run writes the row of that start beside the preparation's end, at the same step.
+    The reversal returns to it bit for bit: the total energy back is the forward run's
+    there, and every reversed row of energy and stress is the forward row of its state, to
+    the last digit (with every stage reversed, through the preparation's end too, written
+    back in the other order). The summary says what the cut took: the contacts and the
+    elastic energy between the two rows, which `read` gives back from the restart."""
+    out = tmp_path / "loose"
+    said = _run_smoke(out, LOOSE | {"reversal.all_stages": all_stages})
+    step, slid, gone = CAPPED.search(said).groups()
+    result = revdem.read(out)
+    verdict = result.comparison
+    assert verdict["bitwise_identical"], verdict
+    back = verdict["total_energy_back"]
+    assert back["forward"] == back["reversed"]
+    assert back["step"] == (0 if all_stages else int(step))
+    steps, elastic = _rows(result.trajectory(), "elastic_energy")
+    before, start = elastic[steps == int(step)]  # the preparation's end, the stage's start
+    assert int(slid) > 0 and float(gone) > 0.0
+    assert float(gone) == pytest.approx(before - start, rel=1e-2)  # as printed, 3 digits
+    assert result.outputs.capped["shear"]["slid"] == int(slid)
+    from revdem_cli.compare import paired_rows
+
+    for name in ("elastic_energy", "total_energy", "stress", "bits_destroyed"):
+        (steps, forward), (back_steps, reverse) = (
+            _rows(result.trajectory(run), name) for run in ("forward", "reverse")
+        )
+        pairs = paired_rows(steps, back_steps)
+        assert len(pairs) == len(back_steps)
+        for row, reversed_row in pairs:
+            assert np.array_equal(forward[row], reverse[reversed_row], equal_nan=True), name
+    assert (back_steps == int(step)).sum() == (2 if all_stages else 1)
+    from revdem_cli.report.paper import MEASURES, _Run
+
+    run = _Run(out, "critical_state_smoke", {})  # `revdem report`'s measures of the stage
+    measured = {key: MEASURES[f"stress_ratio_{key}"][1](run) for key in ("start", "reversed")}
+    assert measured["start"] == measured["reversed"]
+
+
+def test_a_loose_sample_stopped_while_shearing_resumes_to_the_same_files(tmp_path):
+    """Stopped after the shear stage's second frame, the loose sample resumes from the
+    checkpoint of its first, which keeps what the stage's law cut at its start: the files
+    are those of the run left alone, and the reversal returns to the stage's own start."""
+    from tests.conftest import crashed_after
+    from tests.reliability.test_checkpoints import assert_same_files
+
+    experiment = revdem.load(SMOKE, LOOSE | SHORT | {"output.checkpoint_interval": 0.0})
+    whole = revdem.run(experiment, tmp_path / "whole", threads=1)
+    assert crashed_after(experiment, tmp_path / "cut", 7)[-1] == "shear (forward)"
+    resumed = revdem.resume(tmp_path / "cut", threads=1)
+    assert_same_files(tmp_path / "whole", tmp_path / "cut")
+    assert resumed.outputs.capped == whole.outputs.capped != {}
+    back = resumed.comparison["total_energy_back"]
+    assert back["forward"] == back["reversed"]
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [{}, LOOSE | {"stages.2.contact.friction": 1.0}],
+    ids=["dense, nothing to cut", "one friction throughout"],
+)
+def test_a_stage_start_that_cuts_nothing_adds_no_row(tmp_path, changes):
+    """The dense smoke sample, prepared without friction (nothing for the shear stage's mu
+    = 0.5 to cut), and the loose one sheared under its preparation's mu = 1: no stage
+    writes a row of its own beside the end of the one before, and the summary names no cut;
+    the rows are one a step, as the forward run's steps of observation give them."""
+    said = _run_smoke(tmp_path, changes)
+    assert "capped" not in said
+    result = revdem.read(tmp_path)
+    assert result.outputs.capped == {}
+    assert result.comparison["bitwise_identical"]
+    back = result.comparison["total_energy_back"]
+    assert back["forward"] == back["reversed"]
+    for run in ("forward", "reverse"):
+        steps, _ = _rows(result.trajectory(run), "total_energy")
+        assert len(np.unique(steps)) == len(steps), run
 
 
 def _overlap(a: dict, b: dict) -> bool:

@@ -125,28 +125,32 @@ def test_the_tape_reverses_a_run_that_destroys_information_to_its_own_integers(t
     _assert_reversed_rows_are_the_forward_ones(tmp_path / "taped", make().name)
 
 
-def _bits_rows(trajectory) -> dict[int, np.ndarray]:
-    """The bits_destroyed row of each step of a trajectory's observables."""
+def _bits_rows(trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """The steps of a trajectory's observables rows and their bits_destroyed."""
     from revdem_cli.io.h5md import open_trajectory
 
     with open_trajectory(trajectory) as f:
         steps = f["observables/bits_destroyed/step"][:]
-        values = f["observables/bits_destroyed/value"][: len(steps)]
-    return dict(zip(steps.tolist(), values, strict=True))
+        return steps, f["observables/bits_destroyed/value"][: len(steps)]
 
 
 def _assert_reversed_rows_are_the_forward_ones(out, name: str) -> dict[int, np.ndarray]:
-    """Every reversed row of bits_destroyed in the folder `out` is the forward row of its
-    step, to the last digit (NaN where the forward row is, before the stage with the tape);
-    the reversed rows."""
+    """Every reversed row of bits_destroyed in the folder `out` is the forward row of the
+    state it holds (`compare.paired_rows`: at a stage's start, the stage's own row where it
+    wrote one beside the end of the stage before), to the last digit (NaN where the forward
+    row is, before the stage with the tape); the reversed rows by step (of two at a step,
+    the end of the stage before)."""
+    from revdem_cli.compare import paired_rows
     from revdem_cli.engine import output_paths
 
     paths = output_paths(out, name)
-    forward, reverse = _bits_rows(paths["forward"]), _bits_rows(paths["reverse"])
-    assert reverse and set(reverse) <= set(forward)
-    for step, row in reverse.items():
-        assert np.array_equal(row.view(np.int64), forward[step].view(np.int64)), step
-    return reverse
+    (forward, bits), (back, reverse) = _bits_rows(paths["forward"]), _bits_rows(paths["reverse"])
+    pairs = paired_rows(forward, back)
+    assert len(back) and sorted(row for _, row in pairs) == list(range(len(back)))
+    for row, reversed_row in pairs:
+        same = np.array_equal(reverse[reversed_row].view(np.int64), bits[row].view(np.int64))
+        assert same, back[reversed_row]
+    return dict(zip(back.tolist(), reverse, strict=True))
 
 
 def test_a_reversed_run_gives_back_the_bits_the_forward_run_recorded(tmp_path):
@@ -156,7 +160,7 @@ def test_a_reversed_run_gives_back_the_bits_the_forward_run_recorded(tmp_path):
     taped = revdem.run(_fixed(_resting({"contact": {"normal_damping": 0.3}}), True), tmp_path)
     assert taped.comparison["bitwise_identical"]
     reverse = _assert_reversed_rows_are_the_forward_ones(tmp_path, "resting")
-    assert len(reverse) == len(_bits_rows(taped.trajectory()))  # the whole stage back
+    assert len(reverse) == len(_bits_rows(taped.trajectory())[0])  # the whole stage back
     rows = np.array([reverse[step] for step in sorted(reverse)])
     assert np.isfinite(rows).all()
     assert rows[:, MECHANISMS.index("damping")].any()

@@ -77,3 +77,34 @@ def test_a_drop_held_at_its_terminal_velocity_is_blamed_on_the_drag_maps_fixed_p
     assert cause["mechanism"] == "velocity_fixed_point_under_drag"
     # v = gamma (v + g dt) at the fixed point (Eq 25): gamma g dt / (1 - gamma)
     assert cause["amount"] == pytest.approx(0.999 * 9.81 * 1e-8 / 1e-3, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("reverse", "pairs"),
+    [
+        ([400, 300, 200], [(4, 0), (3, 1), (2, 2)]),  # back to the shear stage's own start
+        ([400, 300, 200, 200, 100], [(4, 0), (3, 1), (2, 2), (1, 3), (0, 4)]),  # every stage
+        ([200, 100], [(1, 0), (0, 1)]),  # from the preparation's restart: its end
+    ],
+    ids=["to the stage's start", "every stage", "from the stage before"],
+)
+def test_a_reversed_row_pairs_with_the_forward_row_of_its_state(reverse, pairs):
+    """A forward run whose shear stage began at step 200 with its own row beside the
+    preparation's end (rows 1 and 2): a reversal that stops at the stage's start pairs its
+    last row with the stage's own; one of every stage writes both, in the other order; one
+    from the preparation's restart starts from its end."""
+    from revdem_cli.compare import paired_rows
+
+    forward = np.array([100, 200, 200, 300, 400])
+    assert sorted(paired_rows(forward, np.array(reverse))) == sorted(pairs)
+
+
+def test_the_rows_of_a_stage_leave_out_the_end_of_the_stage_before():
+    """From a stage's first step on, its own row there and not the end of the stage before
+    written beside it: the second of the two going forward, the first going back."""
+    from revdem_cli.io.h5md import from_stage_start
+
+    forward, back = np.array([100, 200, 200, 300]), np.array([300, 200, 200, 100])
+    assert from_stage_start(forward, 200).tolist() == [False, False, True, True]
+    assert from_stage_start(back, 200, reverse=True).tolist() == [True, True, False, False]
+    assert from_stage_start(forward, 300).tolist() == [False, False, False, True]
