@@ -25,7 +25,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import NullFormatter, ScalarFormatter  # noqa: E402
 
-from revdem_cli.io.h5md import open_trajectory, read_observable  # noqa: E402
+from revdem_cli.io.h5md import (  # noqa: E402
+    from_stage_start,
+    open_trajectory,
+    read_observable,
+)
 from revdem_cli.io.restart import read_restart  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -47,13 +51,15 @@ LAST = 0.05
 
 def shearing(folder: Path, sample: str, run: str = "forward") -> dict[str, np.ndarray]:
     """The observables of the shear stage of a run against its axial strain, 1 - L_z / L_z0
-    (compression positive), L_z0 the z edge where shearing began."""
+    (compression positive), L_z0 the z edge where shearing began: from the stage's own row
+    at its start, where its friction cut the preparation's shear forces and it wrote one
+    beside the preparation's end (`from_stage_start`)."""
     name = f"critical_state_{sample}"
     first = read_restart(folder / f"{name}.restart.h5").stage_first_step
     with open_trajectory(folder / f"{name}.{run}.h5") as f:
         steps = f["observables/void_ratio/step"][:]
         data = {key: read_observable(f, key)[1] for key in SERIES}
-    keep = steps >= first
+    keep = from_stage_start(steps, first, reverse=run == "reverse")
     data = {key: value[keep] for key, value in data.items()}
     data["step"] = steps[keep]
     order = np.argsort(data["step"])  # a reversed run is stored from the end back
