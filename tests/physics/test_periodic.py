@@ -272,7 +272,7 @@ def test_a_stage_that_ends_with_its_servo_off_its_target_says_so(tmp_path):
     )
     assert "off: a servo_mass too small overshoots" in said  # an inertial servo's
     assert "servo_gain" not in said
-    kept = summary_so_far({}, {}, {}, short.unheld, [], "inertial")  # a checkpoint's, read back
+    kept = summary_so_far({}, {}, {}, short.unheld, [], "inertial", {})  # a checkpoint's, read back
     assert carried_summary(tmp_path, kept)[3::2] == (short.unheld, "inertial")
     enough = revdem.run(experiment.changed({"stages.0.steps": 200}), tmp_path / "enough",
                         reverse=False, threads=1).outputs  # fmt: skip
