@@ -442,6 +442,9 @@ def _print_packing(report: dict) -> None:
     )
     if engine is not None and not engine["measured"]:
         console.print(f"• {engine['reason']}", highlight=False)
+    for key, estimate in report["estimates"].items():  # each ∞ above, and why
+        if "reason" in estimate:
+            console.print(f"• {key}: {estimate['reason']}", highlight=False)
 
 
 def dt(

@@ -237,6 +237,20 @@ def test_each_estimate_without_a_limit_says_why(fcc_restart):
     }
 
 
+def test_the_table_says_why_an_estimate_has_no_limit(fcc_restart):
+    """The table showed ∞ for an estimate without a limit and nothing more; a line under it
+    now gives each such estimate's reason, as the JSON does, and none for one with a
+    limit."""
+    result = invoke("dt", "--restart", fcc_restart)
+    assert result.exit_code == 0, result.output
+    said = " ".join(result.stdout.split())
+    alone = "no limit: no contact of this state has a {} stiffness ({} = 0 in each)"
+    assert f"• single_contact_shear: {alone.format('shear', 'k_s')}" in said
+    assert f"• single_contact_rolling: {alone.format('rolling', 'k_r')}" in said
+    assert "• head_on: no limit: no kind of contact the scenario forms" in said
+    assert "• single_contact_normal:" not in said
+
+
 def test_dt_restart_tells_what_it_is_doing_as_it_goes(fcc_restart):
     """Minutes on a large packing: the Lanczos products so far, then each trial of the
     engine's bracket, in order."""
