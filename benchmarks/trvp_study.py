@@ -386,6 +386,10 @@ def main() -> None:
     parser.add_argument("--table", action="store_true", help="print --into's study.csv as Markdown")
     arguments = parser.parse_args()
     cases, out = arguments.cases.split(","), arguments.out
+    if unknown := [case for case in cases if case not in CASES]:
+        parser.error(
+            f"--cases {arguments.cases}: no case {', '.join(unknown)}; of {', '.join(CASES)}"
+        )
     into = arguments.into or out
     if arguments.table:
         print(markdown_table(into))

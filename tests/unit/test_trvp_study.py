@@ -49,3 +49,13 @@ def test_accuracy_without_the_drops_runs_is_refused_before_writing(tmp_path):
     error = done.stderr.splitlines()[-1]
     assert "drop-verlet-float/drop_viscous.forward.h5: the drop's runs come from the study" in error
     assert not into.exists()
+
+
+def test_an_unknown_case_is_refused_naming_it_before_any_run(tmp_path):
+    """A misspelt case ran the cases before it, then ended in a KeyError traceback."""
+    done = _study("--cases", "collision,drip", "--out", str(tmp_path / "runs"))
+    assert done.returncode == 2
+    error = done.stderr.splitlines()[-1]
+    assert error.endswith("--cases collision,drip: no case drip; of collision, drop, "
+                          "oedometer, oedometer_viscous")  # fmt: skip
+    assert not (tmp_path / "runs").exists()
